@@ -1,0 +1,195 @@
+//! The continuous-time equations of motion, derived from the same `ℓ`, `A` and forcing,
+//! and explicit Runge–Kutta methods on them (derivation: `docs/integrator.md`).
+//!
+//! With `ξ = −A(s) v`, `P = ∂ℓ/∂v`, `μ = ∂ℓ/∂ξ`, the reduced Lagrange–d'Alembert equations
+//! (horizontal variations `g⁻¹δg = −A δs`, `δξ = η̇ + ad_ξ η`) are
+//! ```text
+//! d/dt P − Aᵀ d/dt μ + Aᵀ ad_ξᵀ μ − ∂ℓ/∂s = F,      ġ = g ξ,   ṡ = v.
+//! ```
+//! They are affine in the acceleration `a = v̇`: `r(a) = 𝕄 a + r₀ = 0` with
+//! `𝕄 = ∂(P − Aᵀμ)/∂v` (at fixed `A`) and `r₀ = r(0)`, whose time derivatives are taken
+//! by a dual number in time along `(ṡ, v̇) = (v, 0)`.
+
+use crate::linalg::solve;
+use crate::partials::{dl_ds, dl_dv, dl_dxi, value_and_jacobian};
+use crate::system::PrincipalKinematicSystem;
+use crate::variational::StepError;
+use dmech_lie::{LieGroup, Real};
+use nalgebra::SVector;
+use num_dual::{Dual, DualVec};
+
+type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
+
+/// The shape acceleration `v̇ = a(s, v, u)`; `None` if the mass matrix is singular.
+pub fn acceleration<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    sys: &S,
+    s: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+    u: &SVector<T, NU>,
+) -> Option<SVector<T, NS>>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    T: Real,
+{
+    let a = sys.connection(s);
+    let at = a.transpose();
+    let xi = -(a * v);
+
+    // 𝕄 = ∂/∂v [P(s, v, −A v) − Aᵀ μ(s, v, −A v)] at fixed s.
+    let sd = s.map(Dv::<T, NS>::from_re);
+    let ad_ = a.map(Dv::<T, NS>::from_re);
+    let atd = at.map(Dv::<T, NS>::from_re);
+    let (_, m) = value_and_jacobian(
+        |vd: &SVector<Dv<T, NS>, NS>| {
+            let xid = -(ad_ * vd);
+            dl_dv::<S, _, DOF, DIM, NS, NU>(sys, &sd, vd, &xid)
+                - atd * dl_dxi::<S, _, DOF, DIM, NS, NU>(sys, &sd, vd, &xid)
+        },
+        v,
+    );
+
+    // Time derivatives of P and μ along (ṡ, v̇) = (v, 0), by a dual number in time.
+    let st = SVector::<Dual<T>, NS>::from_fn(|i, _| Dual::new(s[i], v[i]));
+    let vt = v.map(Dual::from_re);
+    let xit = -(sys.connection(&st) * vt);
+    let p_dot = dl_dv::<S, _, DOF, DIM, NS, NU>(sys, &st, &vt, &xit).map(|z| z.eps);
+    let mu_t = dl_dxi::<S, _, DOF, DIM, NS, NU>(sys, &st, &vt, &xit);
+    let mu_dot = mu_t.map(|z| z.eps);
+    let mu = mu_t.map(|z| z.re);
+
+    let ls = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
+    let ad = <S::Group<T> as LieGroup<DOF, DIM>>::ad(&xi);
+    let f = sys.forcing(s, v, u);
+    let r0 = p_dot - at * mu_dot + at * (ad.transpose() * mu) - ls - f;
+    solve(&m, &(-r0))
+}
+
+/// The rate of the group coordinates (`LieGroup::coordinates`) for body velocity `ξ`:
+/// `d/dt coords(g exp(t ξ))` at `t = 0`, by a dual number.
+pub fn coordinate_rate<G, T, const DOF: usize, const DIM: usize>(
+    g: &G,
+    xi: &SVector<T, DOF>,
+) -> Vec<T>
+where
+    G: LieGroup<DOF, DIM, Scalar = T>,
+    T: Real,
+{
+    let c: Vec<Dual<T>> = g.coordinates().into_iter().map(Dual::from_re).collect();
+    let gd = <G::With<Dual<T>> as LieGroup<DOF, DIM>>::from_coordinates(&c)
+        .expect("coordinates round-trip");
+    let xid = xi.map(|x| Dual::new(T::zero(), x));
+    gd.rplus(&xid)
+        .coordinates()
+        .into_iter()
+        .map(|z| z.eps)
+        .collect()
+}
+
+/// Explicit Runge–Kutta methods on the continuous model, in the coordinates
+/// `(coords(g), s, v)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RungeKutta {
+    /// Explicit Euler.
+    Rk1,
+    /// Explicit midpoint.
+    Rk2,
+    /// The classical fourth-order method.
+    Rk4,
+}
+
+/// A state of the continuous model: group element, shape, shape velocity.
+#[derive(Clone, Debug)]
+pub struct ContinuousState<G, const NS: usize> {
+    pub g: G,
+    pub s: SVector<f64, NS>,
+    pub v: SVector<f64, NS>,
+}
+
+/// The continuous model of a system, with its Runge–Kutta steps.
+pub struct ContinuousModel;
+
+type Deriv<const NS: usize> = (Vec<f64>, SVector<f64, NS>, SVector<f64, NS>);
+
+impl ContinuousModel {
+    /// `(d coords(g)/dt, ṡ, v̇)` at a state.
+    pub fn derivative<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+        sys: &S,
+        x: &ContinuousState<S::Group<f64>, NS>,
+        u: &SVector<f64, NU>,
+    ) -> Result<Deriv<NS>, StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let xi = -(sys.connection(&x.s) * x.v);
+        let gdot = coordinate_rate::<_, f64, DOF, DIM>(&x.g, &xi);
+        let a = acceleration::<S, f64, DOF, DIM, NS, NU>(sys, &x.s, &x.v, u)
+            .ok_or(StepError::Singular)?;
+        if !a.iter().all(|z| z.is_finite()) {
+            return Err(StepError::NonFinite);
+        }
+        Ok((gdot, x.v, a))
+    }
+
+    fn advance<G, const DOF: usize, const DIM: usize, const NS: usize>(
+        x: &ContinuousState<G, NS>,
+        k: &Deriv<NS>,
+        dt: f64,
+    ) -> ContinuousState<G, NS>
+    where
+        G: LieGroup<DOF, DIM, Scalar = f64>,
+    {
+        let c: Vec<f64> =
+            x.g.coordinates()
+                .iter()
+                .zip(&k.0)
+                .map(|(a, b)| a + dt * b)
+                .collect();
+        ContinuousState {
+            g: G::from_coordinates(&c).expect("same length"),
+            s: x.s + k.1 * dt,
+            v: x.v + k.2 * dt,
+        }
+    }
+
+    /// One explicit Runge–Kutta step of size `h` with the input held constant.
+    pub fn step<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+        sys: &S,
+        method: RungeKutta,
+        h: f64,
+        x: &ContinuousState<S::Group<f64>, NS>,
+        u: &SVector<f64, NU>,
+    ) -> Result<ContinuousState<S::Group<f64>, NS>, StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let f = |y: &ContinuousState<S::Group<f64>, NS>| {
+            Self::derivative::<S, DOF, DIM, NS, NU>(sys, y, u)
+        };
+        let adv = Self::advance::<S::Group<f64>, DOF, DIM, NS>;
+        let out = match method {
+            RungeKutta::Rk1 => adv(x, &f(x)?, h),
+            RungeKutta::Rk2 => {
+                let k1 = f(x)?;
+                let k2 = f(&adv(x, &k1, 0.5 * h))?;
+                adv(x, &k2, h)
+            }
+            RungeKutta::Rk4 => {
+                let k1 = f(x)?;
+                let k2 = f(&adv(x, &k1, 0.5 * h))?;
+                let k3 = f(&adv(x, &k2, 0.5 * h))?;
+                let k4 = f(&adv(x, &k3, h))?;
+                let comb = |i: usize| k1.0[i] + 2.0 * k2.0[i] + 2.0 * k3.0[i] + k4.0[i];
+                let k: Deriv<NS> = (
+                    (0..k1.0.len()).map(|i| comb(i) / 6.0).collect(),
+                    (k1.1 + k2.1 * 2.0 + k3.1 * 2.0 + k4.1) / 6.0,
+                    (k1.2 + k2.2 * 2.0 + k3.2 * 2.0 + k4.2) / 6.0,
+                );
+                adv(x, &k, h)
+            }
+        };
+        if !out.s.iter().chain(out.v.iter()).all(|z| z.is_finite()) {
+            return Err(StepError::NonFinite);
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,15 @@
+//! The wheeled inverted pendulum with motor-charge coordinates (`../shared/spec/model.md`).
+//!
+//! Configuration `q = (x, y, θ, α, φR, φL, qR, qL)`, group `g = (x, y, θ) ∈ SE(2)`, shape
+//! `s = (α, φR, φL, qR, qL)`, shape velocity `v_s = (v_α, v_φR, v_φL, iR, iL)`. The wheel
+//! angles are absolute (measured from the inertial frame).
+
+pub mod closed_form;
+pub mod model;
+pub mod params;
+pub mod simulate;
+pub mod state;
+
+pub use model::Wip;
+pub use params::WipParams;
+pub use state::{ReducedState, NS, NU};

@@ -1,0 +1,167 @@
+//! The WIP's continuous model: the generic path (dmech, from ℓ, A and forcing) against
+//! the hand-derived closed form and the independent reference vectors.
+
+use dmech::continuous::{acceleration, coordinate_rate};
+use dmech::PrincipalKinematicSystem;
+use nalgebra::SVector;
+use robots::wip::closed_form;
+use robots::wip::state::{from_reduced, reduced_acceleration};
+use robots::wip::{Wip, WipParams};
+
+/// `Ẋ` by the generic path.
+pub fn generic_xdot(w: &Wip, x: &SVector<f64, 9>, u: &SVector<f64, 2>) -> SVector<f64, 9> {
+    let (g, s, v) = from_reduced(&w.params, x, [0.3, -0.2, 0.1, 0.05]);
+    let xi = -(w.connection(&s) * v);
+    let gd = coordinate_rate::<_, f64, 3, 2>(&g, &xi);
+    let a = acceleration::<Wip, f64, 3, 2, 5, 2>(w, &s, &v, u).unwrap();
+    let ar = reduced_acceleration(&w.params, &a);
+    SVector::<f64, 9>::from_column_slice(&[
+        gd[0], gd[1], gd[2], v[0], ar[0], ar[1], ar[2], ar[3], ar[4],
+    ])
+}
+
+fn rel_err(a: &SVector<f64, 9>, b: &SVector<f64, 9>) -> f64 {
+    let scale = b.amax().max(1e-300);
+    (a - b).amax() / scale
+}
+
+#[test]
+fn reference_vectors() {
+    let text = include_str!("../../../shared/spec/reference-vectors.json");
+    let json: serde_json::Value = serde_json::from_str(text).unwrap();
+    let w = Wip::default();
+    let mut worst: f64 = 0.0;
+    for vec in json["vectors"].as_array().unwrap() {
+        let get = |k: &str| -> Vec<f64> {
+            vec[k]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|z| z.as_f64().unwrap())
+                .collect()
+        };
+        let x = SVector::<f64, 9>::from_column_slice(&get("X"));
+        let u = SVector::<f64, 2>::from_column_slice(&get("u"));
+        let want = SVector::<f64, 9>::from_column_slice(&get("Xdot"));
+        let gen = generic_xdot(&w, &x, &u);
+        let cf = closed_form::state_derivative(&w.params, &x, &u);
+        println!(
+            "generic {:.3e} closed {:.3e}",
+            rel_err(&gen, &want),
+            rel_err(&cf, &want)
+        );
+        worst = worst.max(rel_err(&gen, &want)).max(rel_err(&cf, &want));
+    }
+    assert!(worst < 1e-10, "worst relative error {worst:e}");
+    let _ = WipParams::default();
+}
+
+/// A deterministic pseudo-random generator for test states (no dependency needed).
+pub struct Lcg(pub u64);
+impl Lcg {
+    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        lo + (hi - lo) * ((self.0 >> 11) as f64 / (1u64 << 53) as f64)
+    }
+}
+
+/// The generic model equals the hand-derived closed form at 1,000 random states and inputs,
+/// to 1e-10 relative (both are ~60 flops deep in f64 from the same parameters; the mass
+/// matrix has condition ≈ 1e4, so ε·κ ≈ 2e-12 bounds the difference).
+#[test]
+fn generic_equals_closed_form_at_random_states() {
+    let w = Wip::default();
+    let mut rng = Lcg(7);
+    let mut worst: f64 = 0.0;
+    for _ in 0..1000 {
+        let x = SVector::<f64, 9>::from_fn(|i, _| match i {
+            0 | 1 => rng.uniform(-3.0, 3.0),
+            2 => rng.uniform(-6.0, 6.0),
+            3 => rng.uniform(-1.2, 1.2),
+            4 => rng.uniform(-4.0, 4.0),
+            5 => rng.uniform(-1.0, 1.0),
+            6 => rng.uniform(-3.0, 3.0),
+            _ => rng.uniform(-3.0, 3.0),
+        });
+        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let a = generic_xdot(&w, &x, &u);
+        let b = closed_form::state_derivative(&w.params, &x, &u);
+        worst = worst.max(rel_err(&a, &b));
+    }
+    println!("worst relative difference over 1000 states: {worst:.3e}");
+    assert!(worst < 1e-10);
+}
+
+/// The Euler–Lagrange equation of qR, from the generic path, is the motor circuit
+/// L_m i̇R + k_e n_wm (φ̇R − α̇) = uR − R_m iR (and the same for qL).
+#[test]
+fn motor_circuit_from_generic_path() {
+    let w = Wip::default();
+    let p = w.params;
+    let mut rng = Lcg(11);
+    for _ in 0..200 {
+        let s = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-1.0, 1.0));
+        let v = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
+        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let a = acceleration::<Wip, f64, 3, 2, 5, 2>(&w, &s, &v, &u).unwrap();
+        for (side, (iv, phiv)) in [(3usize, 1usize), (4, 2)].into_iter().enumerate() {
+            let lhs = p.L_m * a[iv] + p.k_e * p.n_wm * (v[phiv] - v[0]);
+            let rhs = u[side] - p.R_m * v[iv];
+            // terms are O(10) V; ε-level relative agreement after a 5×5 solve (κ ≈ 1e4).
+            assert!(
+                (lhs - rhs).abs() < 1e-10 * (1.0 + rhs.abs()),
+                "{lhs} vs {rhs}"
+            );
+        }
+    }
+}
+
+/// Upright rest with zero input is an equilibrium, and its linearisation has exactly one
+/// eigenvalue with positive real part, and it is real.
+#[test]
+fn upright_equilibrium_has_one_unstable_real_eigenvalue() {
+    let w = Wip::default();
+    let zero = SVector::<f64, 9>::zeros();
+    let u0 = SVector::<f64, 2>::zeros();
+    let f0 = generic_xdot(&w, &zero, &u0);
+    assert!(f0.amax() == 0.0, "rest is an equilibrium: {f0}");
+    // Linearise the 6 non-cyclic states (α, v_α, v_d, v_θ, iR, iL) by dual numbers.
+    use num_dual::DualSVec64;
+    type D = DualSVec64<6>;
+    let (_, jac) = dmech::partials::value_and_jacobian(
+        |z: &SVector<D, 6>| {
+            let p = w.params;
+            let vr = (z[2] + z[3] * p.d) / p.r;
+            let vl = (z[2] - z[3] * p.d) / p.r;
+            let s =
+                SVector::<D, 5>::new(z[0], D::from(0.0), D::from(0.0), D::from(0.0), D::from(0.0));
+            let v = SVector::<D, 5>::new(z[1], vr, vl, z[4], z[5]);
+            let a = acceleration::<Wip, D, 3, 2, 5, 2>(&w, &s, &v, &SVector::zeros()).unwrap();
+            SVector::<D, 6>::new(
+                z[1],
+                a[0],
+                (a[1] + a[2]) * (p.r / 2.0),
+                (a[1] - a[2]) * (p.r / (2.0 * p.d)),
+                a[3],
+                a[4],
+            )
+        },
+        &SVector::<f64, 6>::zeros(),
+    );
+    let eig = jac.complex_eigenvalues();
+    let mut ev: Vec<_> = eig.iter().collect();
+    ev.sort_by(|a, b| b.re.total_cmp(&a.re));
+    println!("eigenvalues of the upright linearisation (α, v_α, v_d, v_θ, iR, iL):");
+    for e in &ev {
+        println!("  {:+.6e} {:+.6e}i", e.re, e.im);
+    }
+    let unstable: Vec<_> = ev.iter().filter(|e| e.re > 0.0).collect();
+    assert_eq!(unstable.len(), 1, "exactly one unstable eigenvalue");
+    assert!(
+        unstable[0].im.abs() < 1e-9 * unstable[0].re,
+        "and it is real"
+    );
+}
