@@ -16,7 +16,7 @@ use crate::linalg::solve;
 use crate::partials::{dl_ds, dl_dv, dl_dxi, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::{LieGroup, Real};
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 use num_dual::{DualSVec64, DualVec};
 use std::fmt;
 
@@ -51,8 +51,101 @@ impl std::str::FromStr for ForcingQuadrature {
     }
 }
 
+/// The terms of the momentum-matching equation at node `k` that belong to the interval
+/// *before* it: `∂ℓ_{k−1}/∂v − A(s_k)ᵀ dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}` (the discrete momentum
+/// arriving at node `k`). `a_k = A(s_k)`.
+pub fn incoming_momentum<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_prev: &SVector<T, NS>,
+    v_prev: &SVector<T, NS>,
+    a_k: &SMatrix<T, DOF, NS>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+    Dv<T, DOF>: Lift<S::Param>,
+{
+    let xi_prev = -(sys.connection(s_prev) * v_prev);
+    let p_prev = dl_dv::<S, T, DOF, DIM, NS, NU>(sys, s_prev, v_prev, &xi_prev);
+    let mu_prev = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s_prev, v_prev, &xi_prev);
+    let dinv_prev = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * T::from(-h)));
+    p_prev - a_k.transpose() * (dinv_prev.transpose() * mu_prev)
+}
+
+/// The terms of the momentum-matching equation at node `k` that belong to the interval
+/// *after* it: `∂ℓ_k/∂v − h ∂ℓ_k/∂s − A(s_k)ᵀ dexp⁻¹(hξ_k)ᵀ μ_k` (the discrete momentum
+/// leaving node `k`).
+pub fn outgoing_momentum<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_k: &SVector<T, NS>,
+    v_k: &SVector<T, NS>,
+    a_k: &SMatrix<T, DOF, NS>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+    Dv<T, DOF>: Lift<S::Param>,
+{
+    let ht = T::from(h);
+    let xi_k = -(a_k * v_k);
+    let p_k = dl_dv::<S, T, DOF, DIM, NS, NU>(sys, s_k, v_k, &xi_k);
+    let ls_k = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s_k, v_k, &xi_k);
+    let mu_k = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s_k, v_k, &xi_k);
+    let dinv_k = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * ht));
+    p_k - ls_k * ht - a_k.transpose() * (dinv_k.transpose() * mu_k)
+}
+
+/// The discrete force at node `k` for the chosen quadrature.
+#[allow(clippy::too_many_arguments)]
+pub fn discrete_force<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    sys: &S,
+    quadrature: ForcingQuadrature,
+    s_prev: &SVector<T, NS>,
+    v_prev: &SVector<T, NS>,
+    u_prev: &SVector<T, NU>,
+    s_k: &SVector<T, NS>,
+    v_k: &SVector<T, NS>,
+    u_k: &SVector<T, NU>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+{
+    match quadrature {
+        ForcingQuadrature::Left => sys.forcing(s_prev, v_prev, u_prev),
+        ForcingQuadrature::Right => sys.forcing(s_k, v_k, u_k),
+        ForcingQuadrature::Midpoint => {
+            let half = T::from(0.5);
+            sys.forcing(
+                &((s_prev + s_k) * half),
+                &((v_prev + v_k) * half),
+                &((u_prev + u_k) * half),
+            )
+        }
+    }
+}
+
 /// The momentum-matching residual at node `k`, divided by `h` (force units: the
-/// scaling that keeps these rows comparable to the others in an optimisation).
+/// scaling that keeps these rows comparable to the others in an optimisation):
+/// `(outgoing_k − incoming_k)/h − F̄_k`.
 ///
 /// `prev = (s_{k−1}, v_{k−1}, u_{k−1})`, `cur = (s_k, v_k, u_k)`; `s_k` is passed separately
 /// (not recomputed as `s_{k−1} + h v_{k−1}`) so that a transcription can keep it as its
@@ -82,38 +175,13 @@ where
     Dv<T, NS>: Lift<S::Param>,
     Dv<T, DOF>: Lift<S::Param>,
 {
-    let ht = T::from(h);
-    let a_prev = sys.connection(s_prev);
     let a_k = sys.connection(s_k);
-    let xi_prev = -(a_prev * v_prev);
-    let xi_k = -(a_k * v_k);
-
-    let p_k = dl_dv::<S, T, DOF, DIM, NS, NU>(sys, s_k, v_k, &xi_k);
-    let ls_k = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s_k, v_k, &xi_k);
-    let mu_k = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s_k, v_k, &xi_k);
-    let p_prev = dl_dv::<S, T, DOF, DIM, NS, NU>(sys, s_prev, v_prev, &xi_prev);
-    let mu_prev = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s_prev, v_prev, &xi_prev);
-
-    let dinv_k = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * ht));
-    let dinv_prev = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * (-ht)));
-    let at = a_k.transpose();
-
-    let force = match quadrature {
-        ForcingQuadrature::Left => sys.forcing(s_prev, v_prev, u_prev),
-        ForcingQuadrature::Right => sys.forcing(s_k, v_k, u_k),
-        ForcingQuadrature::Midpoint => {
-            let half = T::from(0.5);
-            sys.forcing(
-                &((s_prev + s_k) * half),
-                &((v_prev + v_k) * half),
-                &((u_prev + u_k) * half),
-            )
-        }
-    };
-
-    let lhs = p_k - ls_k * ht - at * (dinv_k.transpose() * mu_k);
-    let rhs = p_prev - at * (dinv_prev.transpose() * mu_prev);
-    (lhs - rhs) / ht - force
+    let inc = incoming_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, &a_k);
+    let out = outgoing_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_k, v_k, &a_k);
+    let f = discrete_force::<S, T, DOF, DIM, NS, NU>(
+        sys, quadrature, s_prev, v_prev, u_prev, s_k, v_k, u_k,
+    );
+    (out - inc) / T::from(h) - f
 }
 
 /// State of the discrete path at node `k`: `g_k`, `s_k`, and the velocity `v_k` on the
@@ -195,32 +263,53 @@ impl VariationalIntegrator {
             x.g.compose(&<S::Group<f64> as LieGroup<DOF, DIM>>::exp(&(xi * h)));
         let s_next = x.s + x.v * h;
 
+        // Everything that does not depend on the unknown v_{k+1} is evaluated once, in f64.
+        let a_next = sys.connection(&s_next);
+        let incoming = incoming_momentum::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v, &a_next);
+        let f_prev = match self.quadrature {
+            ForcingQuadrature::Right => SVector::zeros(),
+            _ => sys.forcing(&x.s, &x.v, u_k),
+        };
+
         type D<const N: usize> = DualSVec64<N>;
         let lift = |y: &SVector<f64, NS>| y.map(D::<NS>::from);
-        let liftu = |y: &SVector<f64, NU>| y.map(D::<NS>::from);
-        let (sp, vp, up, sk, uk) = (
+        let (sk, uk, ak) = (
+            lift(&s_next),
+            u_next.map(D::<NS>::from),
+            a_next.map(D::<NS>::from),
+        );
+        let (inc_d, sp, vp, up) = (
+            lift(&incoming),
             lift(&x.s),
             lift(&x.v),
-            liftu(u_k),
-            lift(&s_next),
-            liftu(u_next),
+            u_k.map(D::<NS>::from),
         );
+        let f_prev_d = lift(&f_prev);
+        let inv_h = 1.0 / h;
 
+        // Initial guess: the previous velocity (a linear extrapolation would need v_{k−1}).
         let mut v = x.v;
         for it in 1..=self.max_newton_iterations {
             let (r, j) = value_and_jacobian(
                 |vd: &SVector<D<NS>, NS>| {
-                    momentum_matching_residual::<S, D<NS>, DOF, DIM, NS, NU>(
-                        sys,
-                        h,
-                        self.quadrature,
-                        &sp,
-                        &vp,
-                        &up,
-                        &sk,
-                        vd,
-                        &uk,
-                    )
+                    let out = outgoing_momentum::<S, D<NS>, DOF, DIM, NS, NU>(sys, h, &sk, vd, &ak);
+                    let f = match self.quadrature {
+                        ForcingQuadrature::Right => sys.forcing(&sk, vd, &uk),
+                        ForcingQuadrature::Left => f_prev_d,
+                        ForcingQuadrature::Midpoint => {
+                            discrete_force::<S, D<NS>, DOF, DIM, NS, NU>(
+                                sys,
+                                self.quadrature,
+                                &sp,
+                                &vp,
+                                &up,
+                                &sk,
+                                vd,
+                                &uk,
+                            )
+                        }
+                    };
+                    (out - inc_d) * D::<NS>::from(inv_h) - f
                 },
                 &v,
             );
