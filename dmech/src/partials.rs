@@ -88,3 +88,109 @@ where
     let (sd, vd) = (lift_vec::<T, DOF, NS>(s), lift_vec::<T, DOF, NS>(v));
     grad_part(&sys.reduced_lagrangian(&sd, &vd, &seeded(xi)))
 }
+
+/// The momenta at `(s, v, ξ = −A v)` and their Jacobians with respect to `v` (through both
+/// the `v` and the `ξ` slot), in `f64`.
+#[derive(Clone, Copy, Debug)]
+pub struct MomentaJacobian<const DOF: usize, const NS: usize> {
+    /// `∂ℓ/∂v`, `∂ℓ/∂s`, `μ = ∂ℓ/∂ξ`.
+    pub p: SVector<f64, NS>,
+    pub ls: SVector<f64, NS>,
+    pub mu: SVector<f64, DOF>,
+    /// `d(∂ℓ/∂v)/dv`, `d(∂ℓ/∂s)/dv`, `dμ/dv`.
+    pub dp: nalgebra::SMatrix<f64, NS, NS>,
+    pub dls: nalgebra::SMatrix<f64, NS, NS>,
+    pub dmu: nalgebra::SMatrix<f64, DOF, NS>,
+}
+
+type Hd<const M: usize, const N: usize> = num_dual::HyperDualSVec64<M, N>;
+
+/// `x` with first-direction seeds `e_i` (and optionally the same second-direction seeds).
+fn seed_hd<const M: usize, const N: usize>(
+    x: &SVector<f64, M>,
+    first: bool,
+    second: bool,
+) -> SVector<Hd<M, N>, M> {
+    SVector::from_fn(|i, _| {
+        let mut h = Hd::<M, N>::from_re(x[i]);
+        if first {
+            let mut e = SVector::<f64, M>::zeros();
+            e[i] = 1.0;
+            h.eps1 = Derivative::some(e);
+        }
+        if second {
+            let mut e = nalgebra::SMatrix::<f64, 1, N>::zeros();
+            e[i] = 1.0;
+            h.eps2 = Derivative::some(e);
+        }
+        h
+    })
+}
+
+fn add_second_seeds<const M: usize, const N: usize>(x: &mut SVector<Hd<M, N>, N>) {
+    for i in 0..N {
+        let mut e = nalgebra::SMatrix::<f64, 1, N>::zeros();
+        e[i] = 1.0;
+        x[i].eps2 = Derivative::some(e);
+    }
+}
+
+fn split_hd<const M: usize, const N: usize>(
+    f: &Hd<M, N>,
+) -> (SVector<f64, N>, nalgebra::SMatrix<f64, N, M>) {
+    let g = f
+        .eps2
+        .0
+        .map(|e| e.transpose())
+        .unwrap_or_else(SVector::zeros);
+    let j = f
+        .eps1eps2
+        .0
+        .map(|m| m.transpose())
+        .unwrap_or_else(nalgebra::SMatrix::zeros);
+    (g, j)
+}
+
+/// Three hyper-dual evaluations of `ℓ` (one per partial), each carrying the first partials
+/// and their `v`-Jacobian in flat arrays: much cheaper than nesting vector duals.
+pub fn momenta_and_jacobians<
+    S,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    s: &SVector<f64, NS>,
+    v: &SVector<f64, NS>,
+    a: &nalgebra::SMatrix<f64, DOF, NS>,
+) -> MomentaJacobian<DOF, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+{
+    // ∂/∂v of ∂ℓ/∂v: v carries both seeds, ξ = −A v only the first.
+    let v1 = seed_hd::<NS, NS>(v, true, false);
+    let v12 = seed_hd::<NS, NS>(v, true, true);
+    let ah = a.map(Hd::<NS, NS>::from_re);
+    let xi1 = -(ah * v1);
+    let s0 = s.map(Hd::<NS, NS>::from_re);
+    let (p, dp) = split_hd(&sys.reduced_lagrangian(&s0, &v12, &xi1));
+    // ∂/∂v of ∂ℓ/∂s: s carries the second seeds.
+    let s2 = seed_hd::<NS, NS>(s, false, true);
+    let (ls, dls) = split_hd(&sys.reduced_lagrangian(&s2, &v1, &xi1));
+    // ∂/∂v of ∂ℓ/∂ξ: ξ = −A v (first) plus its own second seeds.
+    let v1m = seed_hd::<NS, DOF>(v, true, false);
+    let am = a.map(Hd::<NS, DOF>::from_re);
+    let mut xim = -(am * v1m);
+    add_second_seeds(&mut xim);
+    let sm = s.map(Hd::<NS, DOF>::from_re);
+    let (mu, dmu) = split_hd(&sys.reduced_lagrangian(&sm, &v1m, &xim));
+    MomentaJacobian {
+        p,
+        ls,
+        mu,
+        dp,
+        dls,
+        dmu,
+    }
+}

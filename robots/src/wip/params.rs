@@ -2,13 +2,11 @@
 
 use dmech::Lift;
 use dmech_lie::Real;
-use serde::Deserialize;
 use std::path::Path;
 
 /// Physical parameters, SI units. Generic over the scalar so that parameters can be dual
 /// numbers (derivatives with respect to them). Field names are the keys of parameter files.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[allow(non_snake_case)]
 pub struct WipParams<P = f64> {
     pub g: P,
@@ -102,11 +100,67 @@ impl<P: Copy> WipParams<P> {
 }
 
 impl WipParams<f64> {
-    /// Parse a JSON parameter file's text: any subset of the keys; an unknown key, a
-    /// non-number, or a non-finite value is an error naming it.
+    /// The parameters with their file keys.
+    pub fn named_mut(&mut self) -> [(&'static str, &mut f64); 22] {
+        [
+            ("g", &mut self.g),
+            ("m_b", &mut self.m_b),
+            ("I_bxx", &mut self.I_bxx),
+            ("I_byy", &mut self.I_byy),
+            ("I_bzz", &mut self.I_bzz),
+            ("m_w", &mut self.m_w),
+            ("I_wxx", &mut self.I_wxx),
+            ("I_wyy", &mut self.I_wyy),
+            ("I_wzz", &mut self.I_wzz),
+            ("l", &mut self.l),
+            ("r", &mut self.r),
+            ("d", &mut self.d),
+            ("d_v", &mut self.d_v),
+            ("d_c", &mut self.d_c),
+            ("d_0", &mut self.d_0),
+            ("I_m", &mut self.I_m),
+            ("I_g", &mut self.I_g),
+            ("n_wm", &mut self.n_wm),
+            ("n_wg", &mut self.n_wg),
+            ("k_e", &mut self.k_e),
+            ("L_m", &mut self.L_m),
+            ("R_m", &mut self.R_m),
+        ]
+    }
+
+    /// Parse a JSON parameter file's text: an object with any subset of the keys; a key not
+    /// given keeps its default. An unknown key, a value that is not a finite number, or a
+    /// non-positive mass, radius, half-track or inductance is an error naming the key.
     pub fn from_json_str(text: &str) -> Result<Self, String> {
-        let p: WipParams<f64> = serde_json::from_str(text).map_err(|e| e.to_string())?;
-        p.validate()?;
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| format!("not valid JSON: {e}"))?;
+        let obj = value
+            .as_object()
+            .ok_or("expected a JSON object of parameter names and numbers")?;
+        let mut p = WipParams::default();
+        for (key, v) in obj {
+            let mut named = p.named_mut();
+            let slot = named
+                .iter_mut()
+                .find(|(k, _)| k == key)
+                .ok_or_else(|| format!("unknown parameter '{key}'"))?;
+            let x = v
+                .as_f64()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| format!("parameter '{key}' must be a finite number, got {v}"))?;
+            *slot.1 = x;
+        }
+        for (k, v) in [
+            ("m_b", p.m_b),
+            ("m_w", p.m_w),
+            ("r", p.r),
+            ("d", p.d),
+            ("L_m", p.L_m),
+        ] {
+            if v <= 0.0 {
+                return Err(format!("parameter '{k}' must be positive, got {v}"));
+            }
+        }
         Ok(p)
     }
 
@@ -115,49 +169,5 @@ impl WipParams<f64> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| format!("cannot read parameter file {}: {e}", path.display()))?;
         Self::from_json_str(&text).map_err(|e| format!("parameter file {}: {e}", path.display()))
-    }
-
-    fn validate(&self) -> Result<(), String> {
-        let named = [
-            ("g", self.g),
-            ("m_b", self.m_b),
-            ("I_bxx", self.I_bxx),
-            ("I_byy", self.I_byy),
-            ("I_bzz", self.I_bzz),
-            ("m_w", self.m_w),
-            ("I_wxx", self.I_wxx),
-            ("I_wyy", self.I_wyy),
-            ("I_wzz", self.I_wzz),
-            ("l", self.l),
-            ("r", self.r),
-            ("d", self.d),
-            ("d_v", self.d_v),
-            ("d_c", self.d_c),
-            ("d_0", self.d_0),
-            ("I_m", self.I_m),
-            ("I_g", self.I_g),
-            ("n_wm", self.n_wm),
-            ("n_wg", self.n_wg),
-            ("k_e", self.k_e),
-            ("L_m", self.L_m),
-            ("R_m", self.R_m),
-        ];
-        for (k, v) in named {
-            if !v.is_finite() {
-                return Err(format!("parameter '{k}' is not finite"));
-            }
-        }
-        for (k, v) in [
-            ("m_b", self.m_b),
-            ("m_w", self.m_w),
-            ("r", self.r),
-            ("d", self.d),
-            ("L_m", self.L_m),
-        ] {
-            if v <= 0.0 {
-                return Err(format!("parameter '{k}' must be positive, got {v}"));
-            }
-        }
-        Ok(())
     }
 }

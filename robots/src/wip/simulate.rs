@@ -87,6 +87,7 @@ pub fn simulate(
     match integrator {
         Integrator::VarInt(q) => {
             let vi = VariationalIntegrator::new(h).with_quadrature(q);
+            let mut v_prev = v0;
             let mut x = ViState {
                 g: g0,
                 s: s0,
@@ -101,8 +102,11 @@ pub fn simulate(
                     break;
                 }
                 let (_, unext) = uvec(k + 1);
+                // Newton starts from the linear extrapolation 2 v_k − v_{k−1}.
+                let guess = x.v * 2.0 - v_prev;
+                v_prev = x.v;
                 x = vi
-                    .step(w, &x, &uk, &unext)
+                    .step_from(w, &x, &uk, &unext, &guess)
                     .map_err(|e| format!("step {k} (t = {:.4} s) failed: {e}", k as f64 * h))?
                     .0;
             }
