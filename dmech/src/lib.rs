@@ -10,7 +10,47 @@
 //! - [`continuous`]: the continuous-time equations of motion and RK1/RK2/RK4 on them;
 //! - [`energy`]: the energy function `E = v·∂ℓ/∂v + ξ·∂ℓ/∂ξ − ℓ`.
 //!
-//! The derivations are in `docs/integrator.md`.
+//! The derivations are in `docs/integrator.md`; how to add a robot: `docs/add-a-robot.md`.
+//!
+//! # Example: a differential-drive robot
+//!
+//! ```
+//! use dmech::{energy, Lift, PrincipalKinematicSystem, VariationalIntegrator, ViState};
+//! use dmech_lie::{Real, Se2};
+//! use nalgebra::{SMatrix, SVector};
+//!
+//! /// Shape (φR, φL); wheel radius r, half-track d; wheel friction c; motor torques u.
+//! struct Drive { m: f64, j: f64, i: f64, r: f64, d: f64, c: f64 }
+//!
+//! impl PrincipalKinematicSystem<3, 2, 2, 2> for Drive {
+//!     type Param = f64;
+//!     type Group<T: Real> = Se2<T>;
+//!     fn reduced_lagrangian<T: Lift<f64>>(&self, _s: &SVector<T, 2>, v: &SVector<T, 2>,
+//!                                         xi: &SVector<T, 3>) -> T {
+//!         (xi[0] * xi[0] + xi[1] * xi[1]) * (0.5 * self.m) + xi[2] * xi[2] * (0.5 * self.j)
+//!             + (v[0] * v[0] + v[1] * v[1]) * (0.5 * self.i)
+//!     }
+//!     fn connection<T: Lift<f64>>(&self, _s: &SVector<T, 2>) -> SMatrix<T, 3, 2> {
+//!         let (a, b, z) = (T::from(self.r / 2.0), T::from(self.r / (2.0 * self.d)), T::zero());
+//!         SMatrix::<T, 3, 2>::new(-a, -a, z, z, -b, b)
+//!     }
+//!     fn forcing<T: Lift<f64>>(&self, _s: &SVector<T, 2>, v: &SVector<T, 2>,
+//!                              u: &SVector<T, 2>) -> SVector<T, 2> {
+//!         u - v * T::from(self.c)
+//!     }
+//! }
+//!
+//! let robot = Drive { m: 2.0, j: 0.05, i: 0.002, r: 0.05, d: 0.15, c: 0.01 };
+//! let vi = VariationalIntegrator::new(0.01);
+//! let mut x = ViState { g: Se2::new(0.0, 0.0, 0.0), s: SVector::zeros(), v: SVector::zeros() };
+//! let u = SVector::<f64, 2>::new(0.02, 0.01); // more torque on the right wheel: turn left
+//! for _ in 0..500 {
+//!     x = vi.step(&robot, &x, &u, &u).expect("Newton converges").0;
+//! }
+//! assert!(x.g.theta > 0.0 && x.g.x > 0.0);
+//! let e = energy::<_, f64, 3, 2, 2, 2>(&robot, &x.s, &x.v);
+//! assert!(e > 0.0);
+//! ```
 
 pub mod continuous;
 pub mod energy;
