@@ -61,5 +61,7 @@ pub mod variational;
 
 pub use continuous::{ContinuousModel, RungeKutta};
 pub use energy::energy;
-pub use system::{Lift, PrincipalKinematicSystem};
-pub use variational::{ForcingQuadrature, StepError, VariationalIntegrator, ViState};
+pub use system::{Lift, Param, PrincipalKinematicSystem};
+pub use variational::{
+    ForcingQuadrature, JacobianPolicy, NewtonCache, StepError, VariationalIntegrator, ViState,
+};

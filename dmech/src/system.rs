@@ -11,12 +11,81 @@ use num_dual::{DualSVec64, DualVec};
 /// data), the computation runs in that dual type, or in a vector dual over it.
 pub trait Lift<P>: Real {
     fn lift(p: P) -> Self;
+    /// `self · p`. For `f64` parameters this is a scalar product, several times cheaper in
+    /// dual arithmetic than multiplying by the lifted parameter.
+    #[inline(always)]
+    fn mul_param(self, p: P) -> Self {
+        self * Self::lift(p)
+    }
 }
 
 impl<T: Real> Lift<f64> for T {
     #[inline(always)]
     fn lift(p: f64) -> T {
         T::from(p)
+    }
+    #[inline(always)]
+    fn mul_param(self, p: f64) -> T {
+        self * p
+    }
+}
+
+/// A model parameter of scalar `P`, to write models as `p.m * x` with `x` in any scalar
+/// `T: Lift<P>` (products of parameters stay parameters, so `p.m * p.g * x` lifts once).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Param<P>(pub P);
+
+impl<P: Real> Param<P> {
+    /// The parameter as a value of scalar `T`.
+    #[inline(always)]
+    pub fn lift<T: Lift<P>>(self) -> T {
+        T::lift(self.0)
+    }
+}
+
+impl<P: Real, T: Lift<P>> std::ops::Mul<T> for Param<P> {
+    type Output = T;
+    #[inline(always)]
+    fn mul(self, x: T) -> T {
+        x.mul_param(self.0)
+    }
+}
+
+macro_rules! param_param_op {
+    ($tr:ident, $f:ident, $op:tt) => {
+        impl<P: Real> std::ops::$tr<Param<P>> for Param<P> {
+            type Output = Param<P>;
+            #[inline(always)]
+            fn $f(self, o: Param<P>) -> Param<P> {
+                Param(self.0 $op o.0)
+            }
+        }
+        impl<P: Real> std::ops::$tr<f64> for Param<P> {
+            type Output = Param<P>;
+            #[inline(always)]
+            fn $f(self, o: f64) -> Param<P> {
+                Param(self.0 $op o)
+            }
+        }
+    };
+}
+param_param_op!(Add, add, +);
+param_param_op!(Sub, sub, -);
+param_param_op!(Div, div, /);
+
+impl<P: Real> std::ops::Mul<Param<P>> for Param<P> {
+    type Output = Param<P>;
+    #[inline(always)]
+    fn mul(self, o: Param<P>) -> Param<P> {
+        Param(self.0 * o.0)
+    }
+}
+
+impl<P: Real> std::ops::Mul<Param<P>> for f64 {
+    type Output = Param<P>;
+    #[inline(always)]
+    fn mul(self, o: Param<P>) -> Param<P> {
+        Param(o.0 * self)
     }
 }
 

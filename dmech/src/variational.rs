@@ -12,7 +12,7 @@
 //! with `ℓ_k = ℓ(s_k, v_k, ξ_k)`, `μ = ∂ℓ/∂ξ`, `dexp⁻¹` the right-trivialised one of
 //! `dmech-lie`, and `F̄_k` the discrete force of the chosen [`ForcingQuadrature`].
 
-use crate::linalg::solve;
+use crate::linalg::Lu;
 use crate::partials::{dl_ds, dl_dv, dl_dxi, momenta_and_jacobians, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::{LieGroup, Real};
@@ -226,12 +226,39 @@ impl std::error::Error for StepError {}
 /// a chord step that does not contract 10× goes back to full Newton.
 const CHORD_SWITCH: f64 = 3e-7;
 
+/// When Newton's method evaluates the exact Jacobian.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum JacobianPolicy {
+    /// At every iterate until the update is below ≈ √tol, then chord polishing (default).
+    #[default]
+    Exact,
+    /// Keep the last exact Jacobian across steps and refresh it (exactly, at the current
+    /// iterate) whenever a chord step fails to contract 10×: "modified Newton", as stiff
+    /// ODE solvers do. The converged solution satisfies the same tolerance.
+    ReuseAcrossSteps,
+}
+
+/// Carries Newton's last exact Jacobian from one step to the next.
+#[derive(Clone, Copy, Debug)]
+pub struct NewtonCache<const NS: usize> {
+    /// The factorised Jacobian.
+    pub jacobian: Option<Lu<f64, NS>>,
+}
+
+impl<const NS: usize> Default for NewtonCache<NS> {
+    fn default() -> Self {
+        NewtonCache { jacobian: None }
+    }
+}
+
 /// The variational integrator: step size, forcing quadrature, Newton settings.
 #[derive(Clone, Copy, Debug)]
 pub struct VariationalIntegrator {
     pub h: f64,
     pub quadrature: ForcingQuadrature,
-    /// Newton stops when `‖Δv‖∞ ≤ tol · (1 + ‖v‖∞)`.
+    pub jacobian: JacobianPolicy,
+    /// Newton stops when `‖Δv‖∞ ≤ tol · (1 + ‖v‖∞)`, or when the updates stall within 100×
+    /// of that (round-off).
     pub newton_tol: f64,
     pub max_newton_iterations: usize,
 }
@@ -241,12 +268,17 @@ impl VariationalIntegrator {
         VariationalIntegrator {
             h,
             quadrature: ForcingQuadrature::default(),
+            jacobian: JacobianPolicy::default(),
             newton_tol: 1e-13,
             max_newton_iterations: 30,
         }
     }
     pub fn with_quadrature(mut self, q: ForcingQuadrature) -> Self {
         self.quadrature = q;
+        self
+    }
+    pub fn with_jacobian(mut self, j: JacobianPolicy) -> Self {
+        self.jacobian = j;
         self
     }
 
@@ -281,6 +313,23 @@ impl VariationalIntegrator {
         u_k: &SVector<f64, NU>,
         u_next: &SVector<f64, NU>,
         guess: &SVector<f64, NS>,
+    ) -> Result<(ViState<S::Group<f64>, NS>, usize), StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        self.step_cached(sys, x, u_k, u_next, guess, &mut NewtonCache::default())
+    }
+
+    /// [`VariationalIntegrator::step_from`] with a cache that carries the last exact
+    /// Jacobian from step to step (used with [`JacobianPolicy::ReuseAcrossSteps`]).
+    pub fn step_cached<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+        &self,
+        sys: &S,
+        x: &ViState<S::Group<f64>, NS>,
+        u_k: &SVector<f64, NU>,
+        u_next: &SVector<f64, NU>,
+        guess: &SVector<f64, NS>,
+        cache: &mut NewtonCache<NS>,
     ) -> Result<(ViState<S::Group<f64>, NS>, usize), StepError>
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
@@ -348,25 +397,38 @@ impl VariationalIntegrator {
             (out - incoming) / h - f
         };
 
+        let reuse = self.jacobian == JacobianPolicy::ReuseAcrossSteps;
         let mut v = *guess;
-        let mut jac: Option<SMatrix<f64, NS, NS>> = None;
+        let mut jac: Option<Lu<f64, NS>> = if reuse { cache.jacobian } else { None };
         let mut last_step = f64::INFINITY;
         for it in 1..=self.max_newton_iterations {
-            let (r, j) = match jac {
-                Some(j) => (residual(&v), j),
-                None => full(&v),
+            let (r, j, exact_here) = match jac {
+                Some(j) => (residual(&v), j, false),
+                None => {
+                    let (r, j) = full(&v);
+                    if !j.iter().all(|z| z.is_finite()) {
+                        return Err(StepError::NonFinite);
+                    }
+                    (r, Lu::new(&j).ok_or(StepError::Singular)?, true)
+                }
             };
-            if !r.iter().chain(j.iter()).all(|z| z.is_finite()) {
+            if !r.iter().all(|z| z.is_finite()) {
                 return Err(StepError::NonFinite);
             }
-            let dv = solve(&j, &(-r)).ok_or(StepError::Singular)?;
+            let dv = j.solve(&(-r));
             v += dv;
             if !v.iter().all(|z| z.is_finite()) {
                 return Err(StepError::NonFinite);
             }
             let step = dv.amax();
             let scale = 1.0 + v.amax();
-            if step <= self.newton_tol * scale {
+            // Converged: below the tolerance, or stalled within 100× of it (the round-off
+            // floor of the residual, ≈ ε‖P‖/h, can sit just above a tight tolerance).
+            let stalled = step <= 100.0 * self.newton_tol * scale && step > 0.5 * last_step;
+            if step <= self.newton_tol * scale || stalled {
+                if reuse {
+                    cache.jacobian = Some(j);
+                }
                 return Ok((
                     ViState {
                         g: g_next,
@@ -376,9 +438,11 @@ impl VariationalIntegrator {
                     it,
                 ));
             }
-            // Chord steps once close; back to full Newton if one fails to contract.
-            let chord_ok = jac.is_none() || step < 0.1 * last_step;
-            jac = (step <= CHORD_SWITCH * scale && chord_ok).then_some(j);
+            // Keep the Jacobian for chord steps while they contract 10× per step; a fresh
+            // exact one otherwise. Without reuse, chord steps start only below ≈ √tol.
+            let contracting = exact_here || step < 0.1 * last_step;
+            let close = reuse || step <= CHORD_SWITCH * scale;
+            jac = (contracting && close).then_some(j);
             last_step = step;
             if it == self.max_newton_iterations {
                 return Err(StepError::NoConvergence {

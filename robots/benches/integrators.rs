@@ -4,7 +4,7 @@
 //! so every step does real Newton work.
 use criterion::{criterion_group, criterion_main, Criterion};
 use dmech::continuous::RungeKutta;
-use dmech::{ForcingQuadrature, VariationalIntegrator, ViState};
+use dmech::{ForcingQuadrature, JacobianPolicy, VariationalIntegrator, ViState};
 use nalgebra::SVector;
 use robots::wip::simulate::{simulate, InputSchedule, Integrator};
 use robots::wip::state::from_reduced;
@@ -42,8 +42,17 @@ fn bench(c: &mut Criterion) {
     grp.sample_size(10);
     for (name, integ, h, n) in [
         (
-            "varint h=5ms",
-            Integrator::VarInt(ForcingQuadrature::Right),
+            "varint h=5ms, exact Jacobian at every Newton iterate",
+            Integrator::VarInt {
+                quadrature: ForcingQuadrature::Right,
+                jacobian: JacobianPolicy::Exact,
+            },
+            0.005,
+            4000,
+        ),
+        (
+            "varint h=5ms, exact Jacobian reused across steps (default)",
+            Integrator::varint(),
             0.005,
             4000,
         ),

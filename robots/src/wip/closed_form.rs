@@ -5,6 +5,7 @@
 
 use super::model::friction;
 use super::params::WipParams;
+use dmech::Param;
 use nalgebra::{SMatrix, SVector};
 
 type M8 = SMatrix<f64, 8, 8>;
@@ -95,8 +96,9 @@ pub fn state_derivative(
     pv[7] = ken * (phld - ald);
 
     // 𝓕: friction and the motor circuits.
-    let fr = friction(p.d_v, p.d_c, p.d_0, phrd - ald);
-    let fl = friction(p.d_v, p.d_c, p.d_0, phld - ald);
+    let q = p.map(Param);
+    let fr = friction(q.d_v, q.d_c, q.d_0, phrd - ald);
+    let fl = friction(q.d_v, q.d_c, q.d_0, phld - ald);
     let mut f = V8::zeros();
     f[3] = fr + fl;
     f[4] = -fr;

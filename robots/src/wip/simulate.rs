@@ -3,14 +3,17 @@
 use super::state::{from_reduced, to_reduced, ReducedState};
 use super::Wip;
 use dmech::continuous::{ContinuousModel, ContinuousState, RungeKutta};
-use dmech::{ForcingQuadrature, VariationalIntegrator, ViState};
+use dmech::{ForcingQuadrature, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
 use nalgebra::SVector;
 
 /// The time-stepping schemes `wip` offers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Integrator {
-    /// The variational integrator (with a forcing quadrature).
-    VarInt(ForcingQuadrature),
+    /// The variational integrator, with its forcing quadrature and Newton Jacobian policy.
+    VarInt {
+        quadrature: ForcingQuadrature,
+        jacobian: JacobianPolicy,
+    },
     Rk(RungeKutta),
 }
 
@@ -18,7 +21,7 @@ impl std::str::FromStr for Integrator {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
-            "varint" => Ok(Integrator::VarInt(ForcingQuadrature::default())),
+            "varint" => Ok(Integrator::varint()),
             "rk1" => Ok(Integrator::Rk(RungeKutta::Rk1)),
             "rk2" => Ok(Integrator::Rk(RungeKutta::Rk2)),
             "rk4" => Ok(Integrator::Rk(RungeKutta::Rk4)),
@@ -30,9 +33,17 @@ impl std::str::FromStr for Integrator {
 }
 
 impl Integrator {
+    /// The default variational integrator: right-point forcing, and the exact Newton
+    /// Jacobian carried across steps (refreshed whenever a chord step stalls).
+    pub fn varint() -> Self {
+        Integrator::VarInt {
+            quadrature: ForcingQuadrature::Right,
+            jacobian: JacobianPolicy::ReuseAcrossSteps,
+        }
+    }
     pub fn name(&self) -> &'static str {
         match self {
-            Integrator::VarInt(_) => "varint",
+            Integrator::VarInt { .. } => "varint",
             Integrator::Rk(RungeKutta::Rk1) => "rk1",
             Integrator::Rk(RungeKutta::Rk2) => "rk2",
             Integrator::Rk(RungeKutta::Rk4) => "rk4",
@@ -85,8 +96,14 @@ pub fn simulate(
     };
     let mut traj = Trajectory::default();
     match integrator {
-        Integrator::VarInt(q) => {
-            let vi = VariationalIntegrator::new(h).with_quadrature(q);
+        Integrator::VarInt {
+            quadrature,
+            jacobian,
+        } => {
+            let vi = VariationalIntegrator::new(h)
+                .with_quadrature(quadrature)
+                .with_jacobian(jacobian);
+            let mut cache = NewtonCache::default();
             let mut v_prev = v0;
             let mut x = ViState {
                 g: g0,
@@ -106,7 +123,7 @@ pub fn simulate(
                 let guess = x.v * 2.0 - v_prev;
                 v_prev = x.v;
                 x = vi
-                    .step_from(w, &x, &uk, &unext, &guess)
+                    .step_cached(w, &x, &uk, &unext, &guess, &mut cache)
                     .map_err(|e| format!("step {k} (t = {:.4} s) failed: {e}", k as f64 * h))?
                     .0;
             }
