@@ -46,7 +46,7 @@ impl Sampled<4, 4> for Rn<f64, 4> {
     const ROT: &'static [usize] = &[];
 }
 
-/// A tangent from a raw direction and a "kind": 0 zero, 1 1e-8, 2 1e-4, 3 ordinary (≤ 2),
+/// A tangent from a raw direction and a "kind": 0 zero, 1 1e-8, 2 1e-4, 3 ordinary,
 /// 4 rotation part of norm π − 1e-6 (translation ordinary).
 fn tangent<G: Sampled<DOF, DIM>, const DOF: usize, const DIM: usize>(
     dir: &[f64],
@@ -57,7 +57,18 @@ fn tangent<G: Sampled<DOF, DIM>, const DOF: usize, const DIM: usize>(
         0 => SVector::zeros(),
         1 => v * 1e-8,
         2 => v * 1e-4,
-        3 => v * 2.0,
+        3 => {
+            // Ordinary: up to 2 per component, rotation norm capped at 3 (< π, inside the
+            // injectivity radius where log ∘ exp is the identity).
+            let mut v = v * 2.0;
+            let n: f64 = G::ROT.iter().map(|&i| v[i] * v[i]).sum::<f64>().sqrt();
+            if n > 3.0 {
+                for &i in G::ROT {
+                    v[i] *= 3.0 / n;
+                }
+            }
+            v
+        }
         _ => {
             let mut v = v;
             let n: f64 = G::ROT.iter().map(|&i| v[i] * v[i]).sum::<f64>().sqrt();
