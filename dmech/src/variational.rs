@@ -232,17 +232,18 @@ pub enum JacobianPolicy {
     /// At every iterate until the update is below ≈ √tol, then chord polishing (default).
     #[default]
     Exact,
-    /// Keep the last exact Jacobian across steps and refresh it (exactly, at the current
-    /// iterate) whenever a chord step fails to contract 10×: "modified Newton", as stiff
-    /// ODE solvers do. The converged solution satisfies the same tolerance.
+    /// Carry the Jacobian across steps: evaluated exactly (by autodiff) at the first step
+    /// and again, at the current iterate, whenever a step contracts less than 10×; between
+    /// refreshes it is kept current by Broyden's secant updates. Modified Newton, as stiff
+    /// ODE codes do; the converged state satisfies the same tolerance.
     ReuseAcrossSteps,
 }
 
 /// Carries Newton's last exact Jacobian from one step to the next.
 #[derive(Clone, Copy, Debug)]
 pub struct NewtonCache<const NS: usize> {
-    /// The factorised Jacobian.
-    pub jacobian: Option<Lu<f64, NS>>,
+    /// The Jacobian and its factorisation.
+    pub jacobian: Option<(SMatrix<f64, NS, NS>, Lu<f64, NS>)>,
 }
 
 impl<const NS: usize> Default for NewtonCache<NS> {
@@ -399,23 +400,39 @@ impl VariationalIntegrator {
 
         let reuse = self.jacobian == JacobianPolicy::ReuseAcrossSteps;
         let mut v = *guess;
-        let mut jac: Option<Lu<f64, NS>> = if reuse { cache.jacobian } else { None };
+        let mut jac: Option<(SMatrix<f64, NS, NS>, Lu<f64, NS>)> =
+            if reuse { cache.jacobian } else { None };
+        let mut last: Option<(SVector<f64, NS>, SVector<f64, NS>)> = None;
         let mut last_step = f64::INFINITY;
         for it in 1..=self.max_newton_iterations {
-            let (r, j, exact_here) = match jac {
-                Some(j) => (residual(&v), j, false),
+            let scale = 1.0 + v.amax();
+            let (r, jm, lu, exact_here) = match jac {
+                Some((mut jm, mut lu)) => {
+                    let r = residual(&v);
+                    // Broyden's secant update of the carried Jacobian with the last step,
+                    // while that step is well above the residual's round-off.
+                    if let Some((r_prev, dv_prev)) = last {
+                        if dv_prev.amax() > 1e4 * self.newton_tol * scale {
+                            let y = r - r_prev;
+                            let corr = (y - jm * dv_prev) / dv_prev.dot(&dv_prev);
+                            jm += corr * dv_prev.transpose();
+                            lu = Lu::new(&jm).ok_or(StepError::Singular)?;
+                        }
+                    }
+                    (r, jm, lu, false)
+                }
                 None => {
                     let (r, j) = full(&v);
                     if !j.iter().all(|z| z.is_finite()) {
                         return Err(StepError::NonFinite);
                     }
-                    (r, Lu::new(&j).ok_or(StepError::Singular)?, true)
+                    (r, j, Lu::new(&j).ok_or(StepError::Singular)?, true)
                 }
             };
             if !r.iter().all(|z| z.is_finite()) {
                 return Err(StepError::NonFinite);
             }
-            let dv = j.solve(&(-r));
+            let dv = lu.solve(&(-r));
             v += dv;
             if !v.iter().all(|z| z.is_finite()) {
                 return Err(StepError::NonFinite);
@@ -427,7 +444,7 @@ impl VariationalIntegrator {
             let stalled = step <= 100.0 * self.newton_tol * scale && step > 0.5 * last_step;
             if step <= self.newton_tol * scale || stalled {
                 if reuse {
-                    cache.jacobian = Some(j);
+                    cache.jacobian = Some((jm, lu));
                 }
                 return Ok((
                     ViState {
@@ -442,7 +459,8 @@ impl VariationalIntegrator {
             // exact one otherwise. Without reuse, chord steps start only below ≈ √tol.
             let contracting = exact_here || step < 0.1 * last_step;
             let close = reuse || step <= CHORD_SWITCH * scale;
-            jac = (contracting && close).then_some(j);
+            jac = (contracting && close).then_some((jm, lu));
+            last = Some((r, dv));
             last_step = step;
             if it == self.max_newton_iterations {
                 return Err(StepError::NoConvergence {
