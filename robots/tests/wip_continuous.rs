@@ -167,3 +167,55 @@ fn upright_equilibrium_has_one_unstable_real_eigenvalue() {
         "and it is real"
     );
 }
+
+/// Parameters can be dual numbers: the derivative of the momentum-matching residual with
+/// respect to the body mass, by a dual-number parameter, equals central differences
+/// (step 1e-6 relative: truncation ~1e-12, round-off ~1e-10 of the residual's scale).
+#[test]
+fn derivatives_with_respect_to_parameters() {
+    use dmech::variational::momentum_matching_residual;
+    use dmech::ForcingQuadrature;
+    use num_dual::DualSVec64;
+    type P = DualSVec64<1>;
+    let base = WipParams::default();
+    let mut pd = base.map(P::from);
+    pd.m_b = P::from(base.m_b).derivative(0);
+    let wd = Wip { params: pd };
+    let s0 = SVector::<f64, 5>::new(0.1, 0.3, -0.2, 0.01, 0.02);
+    let v0 = SVector::<f64, 5>::new(0.4, 5.0, 3.0, 0.2, -0.1);
+    let s1 = s0 + v0 * 0.005;
+    let v1 = SVector::<f64, 5>::new(0.5, 5.2, 2.9, 0.25, -0.05);
+    let u = SVector::<f64, 2>::new(1.0, -0.5);
+    let l = |x: &SVector<f64, 5>| x.map(P::from);
+    let r = momentum_matching_residual::<Wip<P>, P, 3, 2, 5, 2>(
+        &wd,
+        0.005,
+        ForcingQuadrature::Right,
+        &l(&s0),
+        &l(&v0),
+        &u.map(P::from),
+        &l(&s1),
+        &l(&v1),
+        &u.map(P::from),
+    );
+    let fd = |m_b: f64| {
+        let w = Wip::new(WipParams { m_b, ..base });
+        momentum_matching_residual::<Wip, f64, 3, 2, 5, 2>(
+            &w,
+            0.005,
+            ForcingQuadrature::Right,
+            &s0,
+            &v0,
+            &u,
+            &s1,
+            &v1,
+            &u,
+        )
+    };
+    let dm = 1e-6 * base.m_b;
+    let want = (fd(base.m_b + dm) - fd(base.m_b - dm)) / (2.0 * dm);
+    let got = r.map(|z| z.eps.0.map(|e| e[0]).unwrap_or(0.0));
+    let scale = want.amax();
+    println!("d residual / d m_b: dual {got:?} vs central differences {want:?}");
+    assert!((got - want).amax() < 1e-6 * scale, "{got} vs {want}");
+}

@@ -5,6 +5,7 @@
 //! angles are absolute (measured from the inertial frame).
 
 pub mod closed_form;
+pub mod invariants;
 pub mod model;
 pub mod params;
 pub mod simulate;
