@@ -1,0 +1,306 @@
+//! The planning problems of `../shared/spec/benchmarks.md` (`eight`, `zigzag`) and waypoint
+//! files: the polyline, the boundary poses and the waypoint stages from the trapezoidal
+//! speed profile.
+
+use std::path::Path;
+
+/// A planning problem: waypoints (positions) at stages, full poses at both ends.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanProblem {
+    pub name: String,
+    pub h: f64,
+    /// Number of steps: stages `0..=n`.
+    pub n: usize,
+    /// Polyline points `(x, y)`, first = start, last = end.
+    pub points: Vec<[f64; 2]>,
+    /// The stage at which each point is reached.
+    pub stages: Vec<usize>,
+    pub start_heading: f64,
+    pub end_heading: f64,
+}
+
+/// Cumulative arc length of a polyline.
+pub fn arc_lengths(points: &[[f64; 2]]) -> Vec<f64> {
+    let mut s = vec![0.0];
+    for w in points.windows(2) {
+        let d = ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt();
+        s.push(s.last().unwrap() + d);
+    }
+    s
+}
+
+/// Times at which a trapezoidal speed profile (accelerate from rest at `a`, cruise at
+/// `v_c`, brake at `a` to rest at `T`) passes the arc lengths `s_j`. `v_c` is the smaller
+/// root of `T = S/v_c + v_c/a`; `None` if there is none (`T² < 4S/a`: too short a time).
+pub fn trapezoid_times(s: &[f64], total_time: f64, a: f64) -> Option<Vec<f64>> {
+    let total = *s.last()?;
+    let disc = total_time * total_time - 4.0 * total / a;
+    if disc < 0.0 || a <= 0.0 || total_time <= 0.0 {
+        return None;
+    }
+    let vc = 0.5 * a * (total_time - disc.sqrt());
+    let t1 = vc / a;
+    let s1 = 0.5 * a * t1 * t1;
+    let t2 = total_time - t1;
+    let s2 = total - s1;
+    Some(
+        s.iter()
+            .map(|&sj| {
+                if sj <= s1 {
+                    (2.0 * sj / a).sqrt()
+                } else if sj <= s2 {
+                    t1 + (sj - s1) / vc
+                } else {
+                    // Braking: s(t) = S − ½ a (T − t)².
+                    total_time - (2.0 * (total - sj).max(0.0) / a).sqrt()
+                }
+            })
+            .collect(),
+    )
+}
+
+fn from_timing(
+    name: &str,
+    points: Vec<[f64; 2]>,
+    total_time: f64,
+    a: f64,
+    h: f64,
+    start_heading: f64,
+    end_heading: f64,
+) -> Result<PlanProblem, String> {
+    let s = arc_lengths(&points);
+    let times = trapezoid_times(&s, total_time, a).ok_or_else(|| {
+        format!(
+            "{name}: no trapezoidal profile covers {:.3} m in {total_time} s at {a} m/s² (needs T² ≥ 4S/a)",
+            s.last().unwrap_or(&0.0)
+        )
+    })?;
+    let n = (total_time / h).round() as usize;
+    let stages: Vec<usize> = times.iter().map(|t| (t / h).round() as usize).collect();
+    Ok(PlanProblem {
+        name: name.to_string(),
+        h,
+        n,
+        points,
+        stages,
+        start_heading,
+        end_heading,
+    })
+}
+
+/// The figure eight: eight segments of √2 m, T = 21.175 s, a = 0.2 m/s².
+pub fn eight(h: f64) -> PlanProblem {
+    let points = vec![
+        [1.0, 0.5],
+        [2.0, 1.5],
+        [3.0, 2.5],
+        [4.0, 1.5],
+        [3.0, 0.5],
+        [2.0, 1.5],
+        [1.0, 2.5],
+        [0.0, 1.5],
+        [1.0, 0.5],
+    ];
+    let q = std::f64::consts::FRAC_PI_4;
+    from_timing("eight", points, 21.175, 0.2, h, q, -q).expect("the benchmark is feasible")
+}
+
+/// The zig-zag: 18 segments of 0.35 m with 0.1 m lateral steps, T = 19.36 s, a = 0.1 m/s².
+pub fn zigzag(h: f64) -> PlanProblem {
+    let points = (0..19)
+        .map(|j| [4.0 - 0.33541 * j as f64, 1.5 + 0.1 * (j % 2) as f64])
+        .collect();
+    let pi = std::f64::consts::PI;
+    from_timing("zigzag", points, 19.36, 0.1, h, pi, pi).expect("the benchmark is feasible")
+}
+
+/// Read a waypoint file (JSON, documented in `docs/ocp.md`):
+/// ```json
+/// { "name": "square", "points": [[0,0],[1,0],[1,1]], "duration": 12.0, "accel": 0.2,
+///   "start_heading": 0.0, "end_heading": 1.5708 }
+/// ```
+/// `name` and `accel` (default 0.2 m/s²) are optional. Every problem is named in the error.
+pub fn from_json_str(text: &str, h: f64) -> Result<PlanProblem, String> {
+    let v: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| format!("not valid JSON: {e}"))?;
+    let obj = v.as_object().ok_or("expected a JSON object")?;
+    for k in obj.keys() {
+        if ![
+            "name",
+            "points",
+            "duration",
+            "accel",
+            "start_heading",
+            "end_heading",
+        ]
+        .contains(&k.as_str())
+        {
+            return Err(format!("unknown key '{k}'"));
+        }
+    }
+    let num = |k: &str| -> Result<f64, String> {
+        let x = obj.get(k).ok_or_else(|| format!("missing key '{k}'"))?;
+        x.as_f64()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{k}' must be a finite number, got {x}"))
+    };
+    let name = match obj.get("name") {
+        None => "waypoints".to_string(),
+        Some(n) => n.as_str().ok_or("'name' must be a string")?.to_string(),
+    };
+    let pts = obj
+        .get("points")
+        .ok_or("missing key 'points'")?
+        .as_array()
+        .ok_or("'points' must be an array of [x, y] pairs")?;
+    if pts.len() < 2 {
+        return Err(format!(
+            "'points' needs at least 2 points, got {}",
+            pts.len()
+        ));
+    }
+    let mut points = Vec::with_capacity(pts.len());
+    for (i, p) in pts.iter().enumerate() {
+        let pair = p
+            .as_array()
+            .filter(|a| a.len() == 2)
+            .ok_or_else(|| format!("points[{i}] must be [x, y]"))?;
+        let x = pair[0].as_f64().filter(|x| x.is_finite());
+        let y = pair[1].as_f64().filter(|x| x.is_finite());
+        match (x, y) {
+            (Some(x), Some(y)) => points.push([x, y]),
+            _ => return Err(format!("points[{i}] must hold two finite numbers")),
+        }
+    }
+    let s = arc_lengths(&points);
+    if let Some(i) = s.windows(2).position(|w| w[1] - w[0] < 1e-9) {
+        return Err(format!("points[{}] repeats points[{i}]", i + 1));
+    }
+    let duration = num("duration")?;
+    if duration <= 0.0 {
+        return Err(format!("'duration' must be positive, got {duration}"));
+    }
+    let accel = if obj.contains_key("accel") {
+        num("accel")?
+    } else {
+        0.2
+    };
+    if accel <= 0.0 {
+        return Err(format!("'accel' must be positive, got {accel}"));
+    }
+    let problem = from_timing(
+        &name,
+        points,
+        duration,
+        accel,
+        h,
+        num("start_heading")?,
+        num("end_heading")?,
+    )?;
+    if let Some(w) = problem.stages.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(format!(
+            "points[{}] and points[{}] fall on the same stage at h = {h}: use a smaller h",
+            w,
+            w + 1
+        ));
+    }
+    Ok(problem)
+}
+
+/// [`from_json_str`] for a file, with its path in the message.
+pub fn from_file(path: &Path, h: f64) -> Result<PlanProblem, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read waypoint file {}: {e}", path.display()))?;
+    from_json_str(&text, h).map_err(|e| format!("waypoint file {}: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eight_matches_the_spec() {
+        let p = eight(0.005);
+        assert_eq!(p.n, 4235);
+        assert_eq!(
+            p.stages,
+            vec![0, 765, 1216, 1667, 2117, 2568, 3019, 3470, 4235]
+        );
+        let s = arc_lengths(&p.points);
+        assert!((s.last().unwrap() - 8.0 * 2f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn zigzag_matches_the_spec() {
+        let p = zigzag(0.005);
+        assert_eq!(p.n, 3872);
+        assert_eq!(
+            p.stages,
+            vec![
+                0, 529, 748, 921, 1090, 1260, 1429, 1598, 1767, 1936, 2105, 2274, 2443, 2612, 2782,
+                2951, 3124, 3343, 3872
+            ]
+        );
+    }
+
+    #[test]
+    fn scale_series_sizes() {
+        let ns: Vec<usize> = [0.02, 0.01, 0.005, 0.0025, 0.00125]
+            .iter()
+            .map(|&h| eight(h).n)
+            .collect();
+        assert_eq!(ns, vec![1059, 2118, 4235, 8470, 16940]);
+    }
+
+    #[test]
+    fn cruise_speed_is_the_smaller_root() {
+        // T = S/v + v/a at v_c = 0.62718 for the eight (benchmarks.md).
+        let s = arc_lengths(&eight(0.005).points);
+        let t = trapezoid_times(&s, 21.175, 0.2).unwrap();
+        let seg = (t[2] - t[1], s[2] - s[1]); // a cruise segment
+        assert!((seg.1 / seg.0 - 0.62718).abs() < 1e-5);
+    }
+
+    #[test]
+    fn malformed_waypoint_files_are_named() {
+        let bad = [
+            ("[1,2]", "expected a JSON object"),
+            (
+                r#"{"points": [[0,0],[1,0]], "duration": 5, "start_heading": 0}"#,
+                "missing key 'end_heading'",
+            ),
+            (
+                r#"{"points": [[0,0]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
+                "at least 2 points",
+            ),
+            (
+                r#"{"points": [[0,0],[1,"a"]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
+                "points[1]",
+            ),
+            (
+                r#"{"points": [[0,0],[0,0]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
+                "repeats",
+            ),
+            (
+                r#"{"points": [[0,0],[10,0]], "duration": 1, "start_heading": 0, "end_heading": 0}"#,
+                "no trapezoidal profile",
+            ),
+            (
+                r#"{"points": [[0,0],[1,0]], "duration": 5, "start_heading": 0, "end_heading": 0, "speed": 1}"#,
+                "unknown key 'speed'",
+            ),
+            ("{", "not valid JSON"),
+        ];
+        for (text, msg) in bad {
+            let e = from_json_str(text, 0.005).unwrap_err();
+            assert!(e.contains(msg), "'{e}' should contain '{msg}'");
+        }
+        let ok = from_json_str(
+            r#"{"points": [[0,0],[1,0],[1,1]], "duration": 12, "start_heading": 0, "end_heading": 1.5708}"#,
+            0.005,
+        )
+        .unwrap();
+        assert_eq!(ok.n, 2400);
+        assert_eq!(ok.stages.len(), 3);
+    }
+}
