@@ -98,7 +98,7 @@ impl<T: Real, const N: usize> Lu<T, N> {
                 let v = self.lu[(r, c)] * x[c];
                 x[r] -= v;
             }
-            x[r] = x[r] / self.lu[(r, r)];
+            x[r] /= self.lu[(r, r)];
         }
         x
     }

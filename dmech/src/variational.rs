@@ -15,7 +15,7 @@
 use crate::linalg::Lu;
 use crate::partials::{dl_ds, dl_dv, dl_dxi, momenta_and_jacobians, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
-use dmech_lie::{LieGroup, Real};
+use dmech_lie::LieGroup;
 use nalgebra::{SMatrix, SVector};
 use num_dual::{DualSVec64, DualVec};
 use std::fmt;
@@ -471,9 +471,4 @@ impl VariationalIntegrator {
         }
         unreachable!("the loop returns on its last iteration")
     }
-}
-
-/// Shorthand for lifting an `f64` real into any scalar (used by tests and tools).
-pub fn lift<T: Real>(x: f64) -> T {
-    T::from(x)
 }

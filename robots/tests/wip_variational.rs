@@ -29,11 +29,12 @@ fn e(w: &Wip, s: &V5, v: &V5) -> f64 {
 
 /// A conservative WIP: no inputs, no resistance, no friction.
 fn conservative() -> Wip {
-    let mut p = WipParams::default();
-    p.R_m = 0.0;
-    p.d_v = 0.0;
-    p.d_c = 0.0;
-    Wip::new(p)
+    Wip::new(WipParams {
+        R_m: 0.0,
+        d_v: 0.0,
+        d_c: 0.0,
+        ..Default::default()
+    })
 }
 
 /// A tilted, moving, turning start with currents flowing.

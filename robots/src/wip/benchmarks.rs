@@ -41,7 +41,6 @@ pub fn trapezoid_times(s: &[f64], total_time: f64, a: f64) -> Option<Vec<f64>> {
     let vc = 0.5 * a * (total_time - disc.sqrt());
     let t1 = vc / a;
     let s1 = 0.5 * a * t1 * t1;
-    let t2 = total_time - t1;
     let s2 = total - s1;
     Some(
         s.iter()
