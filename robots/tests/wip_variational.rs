@@ -291,28 +291,67 @@ fn left_point_forcing_diverges_default_does_not() {
     let h = 0.005;
     let (g, s, v) = start(&w.params, [0.0, 0.0, 0.0, 0.02, 0.0, 0.0, 0.0, 0.05, 0.0]);
     let u = U2::new(0.5, 0.5);
-    let run = |q: ForcingQuadrature| -> Result<f64, String> {
+    // The currents iR of each step, until a step fails.
+    let run = |q: ForcingQuadrature| -> (Vec<f64>, Option<String>) {
         let vi = VariationalIntegrator::new(h).with_quadrature(q);
         let mut x = ViState { g, s, v };
-        let mut imax: f64 = 0.0;
+        let mut currents = vec![x.v[3]];
         for _ in 0..100 {
-            x = vi.step(&w, &x, &u, &u).map_err(|e| e.to_string())?.0;
-            imax = imax.max(x.v[3].abs()).max(x.v[4].abs());
+            match vi.step(&w, &x, &u, &u) {
+                Ok((next, _)) => x = next,
+                Err(e) => return (currents, Some(e.to_string())),
+            }
+            currents.push(x.v[3]);
         }
-        Ok(imax)
+        (currents, None)
     };
-    let left = run(ForcingQuadrature::Left);
-    println!("left-point forcing: {left:?}");
+    let (left, err) = run(ForcingQuadrature::Left);
+    let ratios: Vec<f64> = left
+        .windows(2)
+        .skip(1)
+        .take(4)
+        .map(|p| p[1] / p[0])
+        .collect();
+    println!(
+        "left-point forcing: first currents {:?}, ratios {ratios:?}, ended by {err:?}",
+        &left[..6.min(left.len())]
+    );
+    // Geometric divergence. Per step the current is multiplied by
+    //   1 − h R_m/L_m − h² (k_e n_wm)²/(L_m J)
+    // (the second term: the lagged motor torque k_e n_wm i_{k−1} spins the rotor, whose
+    // back-EMF enters the same step), J the inertia the relative wheel motion drives. J is at
+    // least the rotor and gear stage, I_m n_wm² + I_g n_wg², which bounds the factor:
+    // −17.75 − 2.9 ≤ factor < −17.75.
+    let p = w.params;
+    let electrical = 1.0 - h * p.R_m / p.L_m;
+    let j_min = p.I_m * p.n_wm * p.n_wm + p.I_g * p.n_wg * p.n_wg;
+    let coupling = h * h * (p.k_e * p.n_wm).powi(2) / (p.L_m * j_min);
+    println!(
+        "predicted factor in [{:.2}, {electrical:.2})",
+        electrical - coupling
+    );
     assert!(
-        match &left {
-            Err(_) => true,
-            Ok(i) => *i > 1e6,
-        },
+        ratios
+            .iter()
+            .all(|&r| r < electrical && r >= electrical - coupling),
+        "{ratios:?}"
+    );
+    assert!(
+        ratios
+            .windows(2)
+            .skip(1)
+            .all(|q| (q[1] / q[0] - 1.0).abs() < 0.01),
+        "geometric: {ratios:?}"
+    );
+    assert!(
+        err.is_some() || left.last().unwrap().abs() > 1e6,
         "explicit forcing must diverge"
     );
-    let right = run(ForcingQuadrature::Right).expect("default quadrature steps");
-    println!("right-point forcing: max |i| = {right:.4} A");
-    assert!(right < 1.0, "default stays bounded");
+    let (right, err) = run(ForcingQuadrature::Right);
+    assert!(err.is_none(), "default quadrature steps: {err:?}");
+    let imax = right.iter().fold(0.0f64, |m, i| m.max(i.abs()));
+    println!("right-point forcing: 100 steps, max |iR| = {imax:.4} A");
+    assert!(imax < 1.0, "default stays bounded");
 }
 
 /// The two Newton Jacobian policies solve the same equations to the same tolerance: over
