@@ -18,5 +18,6 @@
 //! come from dual numbers, stage by stage. The design is written up in `docs/ocp.md`.
 
 pub mod layout;
+pub mod riccati;
 pub mod runge_kutta;
 pub mod varint;
