@@ -97,13 +97,9 @@ pub enum RungeKutta {
     Rk4,
 }
 
-/// A state of the continuous model: group element, shape, shape velocity.
-#[derive(Clone, Debug)]
-pub struct ContinuousState<G, const NS: usize> {
-    pub g: G,
-    pub s: SVector<f64, NS>,
-    pub v: SVector<f64, NS>,
-}
+/// A state of the continuous model: group element, shape, shape velocity (the same
+/// type as the integrator's state).
+pub type ContinuousState<G, const NS: usize> = crate::variational::ViState<G, NS>;
 
 /// The continuous model of a system, with its Runge–Kutta steps.
 pub struct ContinuousModel;

@@ -184,8 +184,9 @@ where
     (out - inc) / T::from(h) - f
 }
 
-/// State of the discrete path at node `k`: `g_k`, `s_k`, and the velocity `v_k` on the
-/// interval `[t_k, t_{k+1})`.
+/// A state `(g, s, v)`. For the variational integrator, node `k`'s `g_k`, `s_k` and the
+/// velocity `v_k` on the interval `[t_k, t_{k+1})`; for the continuous model
+/// ([`crate::continuous::ContinuousState`], the same type) the instantaneous velocity.
 #[derive(Clone, Copy, Debug)]
 pub struct ViState<G, const NS: usize> {
     pub g: G,
@@ -345,22 +346,17 @@ impl VariationalIntegrator {
         let a_next = sys.connection(&s_next);
         let incoming = incoming_momentum::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v, &a_next);
         let f_prev = match self.quadrature {
-            ForcingQuadrature::Right => SVector::zeros(),
-            _ => sys.forcing(&x.s, &x.v, u_k),
+            ForcingQuadrature::Left => sys.forcing(&x.s, &x.v, u_k),
+            _ => SVector::zeros(),
         };
 
         type D<const N: usize> = DualSVec64<N>;
-        let (sk, uk) = (s_next.map(D::<NS>::from), u_next.map(D::<NS>::from));
-        let (sp, vp, up) = (
-            x.s.map(D::<NS>::from),
-            x.v.map(D::<NS>::from),
-            u_k.map(D::<NS>::from),
-        );
         let at = a_next.transpose();
-        let ad = a_next.map(D::<NS>::from);
 
         // Residual and exact Jacobian at v.
+        // (The dual lifts live here: chord steps, the common case, never need them.)
         let full = |v: &SVector<f64, NS>| {
+            let ad = a_next.map(D::<NS>::from);
             let m = momenta_and_jacobians::<S, DOF, DIM, NS, NU>(sys, &s_next, v, &a_next);
             let mu_d = m.mu.map(D::<NS>::from);
             let (dinv_mu, d_dinv_mu) = value_and_jacobian(
@@ -375,14 +371,19 @@ impl VariationalIntegrator {
             let d_out = m.dp - m.dls * h - at * (dinv.transpose() * m.dmu + d_dinv_mu);
             let (f, df) = match self.quadrature {
                 ForcingQuadrature::Left => (f_prev, SMatrix::zeros()),
-                q => value_and_jacobian(
-                    |vd: &SVector<D<NS>, NS>| {
-                        discrete_force::<S, D<NS>, DOF, DIM, NS, NU>(
-                            sys, q, &sp, &vp, &up, &sk, vd, &uk,
-                        )
-                    },
-                    v,
-                ),
+                q => {
+                    let (sk, uk) = (s_next.map(D::<NS>::from), u_next.map(D::<NS>::from));
+                    let (sp, vp) = (x.s.map(D::<NS>::from), x.v.map(D::<NS>::from));
+                    let up = u_k.map(D::<NS>::from);
+                    value_and_jacobian(
+                        |vd: &SVector<D<NS>, NS>| {
+                            discrete_force::<S, D<NS>, DOF, DIM, NS, NU>(
+                                sys, q, &sp, &vp, &up, &sk, vd, &uk,
+                            )
+                        },
+                        v,
+                    )
+                }
             };
             ((out - incoming) / h - f, d_out / h - df)
         };

@@ -1,9 +1,10 @@
 //! The variational integrator on the WIP: the structure it preserves, and how it converges.
 
 use dmech::continuous::{ContinuousModel, ContinuousState, RungeKutta};
-use dmech::{energy, ForcingQuadrature, PrincipalKinematicSystem, VariationalIntegrator, ViState};
+use dmech::{ForcingQuadrature, PrincipalKinematicSystem, VariationalIntegrator, ViState};
 use dmech_lie::{LieGroup, Se2};
 use nalgebra::SVector;
+use robots::wip::invariants::energy;
 use robots::wip::state::from_reduced;
 use robots::wip::{ReducedState, Wip, WipParams};
 
@@ -21,10 +22,6 @@ impl std::fmt::Display for Sci<'_> {
 
 fn start(p: &WipParams, x: [f64; 9]) -> (Se2<f64>, V5, V5) {
     from_reduced(p, &ReducedState::from_column_slice(&x), [0.0; 4])
-}
-
-fn e(w: &Wip, s: &V5, v: &V5) -> f64 {
-    energy::<Wip, f64, 3, 2, 5, 2>(w, s, v)
 }
 
 /// A conservative WIP: no inputs, no resistance, no friction.
@@ -72,7 +69,7 @@ fn energy_bounded_for_vi_drifts_for_rk4() {
     let n = 100_000;
     let chunks = 10;
     let (g, s, v) = start(&w.params, MOVING);
-    let e0 = e(&w, &s, &v);
+    let e0 = energy(&w, &s, &v);
     let zero = U2::zeros();
 
     // Least-squares slope of E − E0 against t over the last nine tenths (after the
@@ -108,7 +105,7 @@ fn energy_bounded_for_vi_drifts_for_rk4() {
     };
     for k in 0..n {
         x = vi.step(&w, &x, &zero, &zero).unwrap().0;
-        let err = e(&w, &x.s, &x.v) - e0;
+        let err = energy(&w, &x.s, &x.v) - e0;
         let c = k * chunks / n;
         vi_max[c] = vi_max[c].max(err.abs());
         if c > 0 {
@@ -127,7 +124,7 @@ fn energy_bounded_for_vi_drifts_for_rk4() {
     };
     for k in 0..n {
         y = ContinuousModel::step(&w, RungeKutta::Rk4, h, &y, &zero).unwrap();
-        let err = e(&w, &y.s, &y.v) - e0;
+        let err = energy(&w, &y.s, &y.v) - e0;
         let c = k * chunks / n;
         rk_err[c] = err;
         if c > 0 {
@@ -211,7 +208,7 @@ fn power_balance_per_step() {
         let u_at = |k: usize| U2::new(2.0 + (k as f64 * h * 7.0).sin(), -1.0);
         for k in 0..n {
             let (next, _) = vi.step(&w, &x, &u_at(k), &u_at(k + 1)).unwrap();
-            let de = e(&w, &next.s, &next.v) - e(&w, &x.s, &x.v);
+            let de = energy(&w, &next.s, &next.v) - energy(&w, &x.s, &x.v);
             let work = h * w.forcing(&next.s, &next.v, &u_at(k + 1)).dot(&next.v);
             // The first steps relax the stiff current (time constant L/R = 0.27 ms < h) to
             // its quasi-steady value: an O(1) jump per step, outside the asymptotic regime.

@@ -1,7 +1,5 @@
 //! The WIP's parameters (model.md, table "WIP model parameters"), loadable from JSON.
 
-use dmech::Lift;
-use dmech_lie::Real;
 use std::path::Path;
 
 /// Physical parameters, SI units. Generic over the scalar so that parameters can be dual
@@ -89,13 +87,6 @@ impl<P: Copy> WipParams<P> {
             L_m: f(self.L_m),
             R_m: f(self.R_m),
         }
-    }
-    /// The parameters in scalar `T`.
-    pub fn lift<T: Lift<P>>(&self) -> WipParams<T>
-    where
-        P: Real,
-    {
-        self.map(T::lift)
     }
 }
 

@@ -2,8 +2,10 @@
 
 use super::state::{from_reduced, to_reduced, ReducedState};
 use super::Wip;
-use dmech::continuous::{ContinuousModel, ContinuousState, RungeKutta};
-use dmech::{ForcingQuadrature, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
+use dmech::continuous::{ContinuousModel, RungeKutta};
+use dmech::{
+    ForcingQuadrature, JacobianPolicy, NewtonCache, StepError, VariationalIntegrator, ViState,
+};
 use nalgebra::SVector;
 
 /// The time-stepping schemes `wip` offers.
@@ -94,58 +96,44 @@ pub fn simulate(
         let u = inputs.at(k as f64 * h);
         (u, SVector::<f64, 2>::new(u[0], u[1]))
     };
-    let mut traj = Trajectory::default();
-    match integrator {
-        Integrator::VarInt {
-            quadrature,
-            jacobian,
-        } => {
-            let vi = VariationalIntegrator::new(h)
-                .with_quadrature(quadrature)
-                .with_jacobian(jacobian);
-            let mut cache = NewtonCache::default();
-            let mut v_prev = v0;
-            let mut x = ViState {
-                g: g0,
-                s: s0,
-                v: v0,
-            };
-            for k in 0..=n_steps {
-                let (u, uk) = uvec(k);
-                traj.t.push(k as f64 * h);
-                traj.x.push(to_reduced(&p, &x.g, &x.s, &x.v));
-                traj.u.push(u);
-                if k == n_steps {
-                    break;
-                }
-                let (_, unext) = uvec(k + 1);
-                // Newton starts from the linear extrapolation 2 v_k − v_{k−1}.
+    // One step k → k+1 of the chosen scheme; the VI also carries its Newton cache and the
+    // previous velocity, for the start 2 v_k − v_{k−1}.
+    let mut cache = NewtonCache::default();
+    let mut v_prev = v0;
+    let mut advance = |k: usize, x: &ViState<_, 5>| -> Result<ViState<_, 5>, StepError> {
+        let (_, uk) = uvec(k);
+        match integrator {
+            Integrator::VarInt {
+                quadrature,
+                jacobian,
+            } => {
+                let vi = VariationalIntegrator::new(h)
+                    .with_quadrature(quadrature)
+                    .with_jacobian(jacobian);
                 let guess = x.v * 2.0 - v_prev;
                 v_prev = x.v;
-                x = vi
-                    .step_cached(w, &x, &uk, &unext, &guess, &mut cache)
-                    .map_err(|e| format!("step {k} (t = {:.4} s) failed: {e}", k as f64 * h))?
-                    .0;
+                let (_, unext) = uvec(k + 1);
+                Ok(vi.step_cached(w, x, &uk, &unext, &guess, &mut cache)?.0)
             }
+            Integrator::Rk(m) => ContinuousModel::step(w, m, h, x, &uk),
         }
-        Integrator::Rk(m) => {
-            let mut x = ContinuousState {
-                g: g0,
-                s: s0,
-                v: v0,
-            };
-            for k in 0..=n_steps {
-                let (u, uk) = uvec(k);
-                traj.t.push(k as f64 * h);
-                traj.x.push(to_reduced(&p, &x.g, &x.s, &x.v));
-                traj.u.push(u);
-                if k == n_steps {
-                    break;
-                }
-                x = ContinuousModel::step(w, m, h, &x, &uk)
-                    .map_err(|e| format!("step {k} (t = {:.4} s) failed: {e}", k as f64 * h))?;
-            }
+    };
+
+    let mut traj = Trajectory::default();
+    let mut x = ViState {
+        g: g0,
+        s: s0,
+        v: v0,
+    };
+    for k in 0..=n_steps {
+        traj.t.push(k as f64 * h);
+        traj.x.push(to_reduced(&p, &x.g, &x.s, &x.v));
+        traj.u.push(uvec(k).0);
+        if k == n_steps {
+            break;
         }
+        x = advance(k, &x)
+            .map_err(|e| format!("step {k} (t = {:.4} s) failed: {e}", k as f64 * h))?;
     }
     Ok(traj)
 }
