@@ -17,7 +17,10 @@
 //! All stage functions are generic over the scalar, so their exact Jacobians and Hessians
 //! come from dual numbers, stage by stage. The design is written up in `docs/ocp.md`.
 
+pub mod derivatives;
+pub mod ipm;
 pub mod layout;
+pub mod problem;
 pub mod riccati;
 pub mod runge_kutta;
 pub mod varint;

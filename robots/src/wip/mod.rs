@@ -9,6 +9,7 @@ pub mod closed_form;
 pub mod invariants;
 pub mod model;
 pub mod params;
+pub mod plan;
 pub mod simulate;
 pub mod state;
 

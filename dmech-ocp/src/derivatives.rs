@@ -1,0 +1,185 @@
+//! Exact stage derivatives of a [`StageProblem`] by dual numbers.
+//!
+//! Jacobians of the dynamics, the stage equality, the cost and the inequalities come from
+//! two vector-dual passes (seeded in `x`, then in `w`). The Hessian of
+//! `Φ = ℓ_k + ζᵀ c_k` (cost plus inequality curvature, `ζ` the inequality multipliers)
+//! comes from three second-order passes (`xx`, `ww` by `Dual2`, `xw` by hyper-duals).
+//! The curvature of the dynamics and of the stage equality is not formed: with the WIP's
+//! variational integrator it costs 2.5 ms per stage by nested duals (50× the Jacobian),
+//! see `docs/ocp.md`.
+
+use crate::problem::StageProblem;
+use nalgebra::{SMatrix, SVector};
+use num_dual::{Derivative, Dual2SVec64, DualNum, DualSVec64, HyperDualSVec64};
+
+/// Values and first derivatives at one stage, and the Hessian of `ℓ + ζᵀc`.
+#[derive(Clone, Debug)]
+pub struct StageDerivatives<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
+{
+    pub f: SVector<f64, NX>,
+    pub fx: SMatrix<f64, NX, NX>,
+    pub fw: SMatrix<f64, NX, NW>,
+    pub e: SVector<f64, NE>,
+    pub ex: SMatrix<f64, NE, NX>,
+    pub ew: SMatrix<f64, NE, NW>,
+    pub cost: f64,
+    pub gx: SVector<f64, NX>,
+    pub gw: SVector<f64, NW>,
+    pub c: SVector<f64, NC>,
+    pub cx: SMatrix<f64, NC, NX>,
+    pub cw: SMatrix<f64, NC, NW>,
+    pub hxx: SMatrix<f64, NX, NX>,
+    pub hxw: SMatrix<f64, NX, NW>,
+    pub hww: SMatrix<f64, NW, NW>,
+}
+
+fn seed<const N: usize>(x: &SVector<f64, N>) -> SVector<DualSVec64<N>, N> {
+    SVector::from_fn(|i, _| {
+        let mut e = SVector::<f64, N>::zeros();
+        e[i] = 1.0;
+        DualSVec64::new(x[i], Derivative::some(e))
+    })
+}
+
+fn seed2<const N: usize>(x: &SVector<f64, N>) -> SVector<Dual2SVec64<N>, N> {
+    SVector::from_fn(|i, _| {
+        let mut e = SMatrix::<f64, 1, N>::zeros();
+        e[i] = 1.0;
+        Dual2SVec64::new(x[i], Derivative::some(e), Derivative::none())
+    })
+}
+
+fn grad<const N: usize>(d: &DualSVec64<N>) -> SVector<f64, N> {
+    d.eps.0.unwrap_or_else(SVector::zeros)
+}
+
+fn hess2<const N: usize>(d: &Dual2SVec64<N>) -> SMatrix<f64, N, N> {
+    d.v2.0.unwrap_or_else(SMatrix::zeros)
+}
+
+/// `ℓ + ζᵀ c` in any scalar.
+fn phi<P, T, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+    p: &P,
+    k: usize,
+    zeta: &SVector<f64, NC>,
+    x: &SVector<T, NX>,
+    w: &SVector<T, NW>,
+) -> T
+where
+    P: StageProblem<NX, NW, NE, NC>,
+    T: dmech_lie::Real,
+{
+    let c = p.constraints(k, x, w);
+    let mut v = p.cost(k, x, w);
+    for i in 0..NC {
+        if zeta[i] != 0.0 {
+            v += c[i] * zeta[i];
+        }
+    }
+    v
+}
+
+/// All derivatives of stage `k` at `(x, w)`, with inequality multipliers `ζ = z_hi − z_lo`.
+pub fn stage_derivatives<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    zeta: &SVector<f64, NC>,
+) -> StageDerivatives<NX, NW, NE, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    // Pass seeded in x.
+    let xd = seed(x);
+    let wc = w.map(DualSVec64::<NX>::from_re);
+    let f_d = p.dynamics(k, &xd, &wc);
+    let e_d = p.equality(k, &xd, &wc);
+    let l_d = p.cost(k, &xd, &wc);
+    let c_d = p.constraints(k, &xd, &wc);
+    // Pass seeded in w.
+    let xc = x.map(DualSVec64::<NW>::from_re);
+    let wd = seed(w);
+    let f_w = p.dynamics(k, &xc, &wd);
+    let e_w = p.equality(k, &xc, &wd);
+    let l_w = p.cost(k, &xc, &wd);
+    let c_w = p.constraints(k, &xc, &wd);
+
+    // Second order of ℓ + ζᵀc.
+    let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
+        p,
+        k,
+        zeta,
+        &seed2(x),
+        &w.map(Dual2SVec64::<NX>::from_re),
+    ));
+    let hww = hess2(&phi::<P, _, NX, NW, NE, NC>(
+        p,
+        k,
+        zeta,
+        &x.map(Dual2SVec64::<NW>::from_re),
+        &seed2(w),
+    ));
+    let xh: SVector<HyperDualSVec64<NX, NW>, NX> = SVector::from_fn(|i, _| {
+        let mut e = SVector::<f64, NX>::zeros();
+        e[i] = 1.0;
+        let mut h = HyperDualSVec64::<NX, NW>::from_re(x[i]);
+        h.eps1 = Derivative::some(e);
+        h
+    });
+    let wh: SVector<HyperDualSVec64<NX, NW>, NW> = SVector::from_fn(|i, _| {
+        let mut e = SMatrix::<f64, 1, NW>::zeros();
+        e[i] = 1.0;
+        let mut h = HyperDualSVec64::<NX, NW>::from_re(w[i]);
+        h.eps2 = Derivative::some(e);
+        h
+    });
+    let hxw = phi::<P, _, NX, NW, NE, NC>(p, k, zeta, &xh, &wh)
+        .eps1eps2
+        .0
+        .unwrap_or_else(SMatrix::zeros);
+
+    StageDerivatives {
+        f: f_d.map(|d| d.re),
+        fx: SMatrix::from_fn(|i, j| grad(&f_d[i])[j]),
+        fw: SMatrix::from_fn(|i, j| grad(&f_w[i])[j]),
+        e: e_d.map(|d| d.re),
+        ex: SMatrix::from_fn(|i, j| grad(&e_d[i])[j]),
+        ew: SMatrix::from_fn(|i, j| grad(&e_w[i])[j]),
+        cost: l_d.re,
+        gx: grad(&l_d),
+        gw: grad(&l_w),
+        c: c_d.map(|d| d.re),
+        cx: SMatrix::from_fn(|i, j| grad(&c_d[i])[j]),
+        cw: SMatrix::from_fn(|i, j| grad(&c_w[i])[j]),
+        hxx,
+        hxw,
+        hww,
+    }
+}
+
+/// Stage values only (for the line search).
+#[derive(Clone, Copy, Debug)]
+pub struct StageValues<const NX: usize, const NE: usize, const NC: usize> {
+    pub f: SVector<f64, NX>,
+    pub e: SVector<f64, NE>,
+    pub cost: f64,
+    pub c: SVector<f64, NC>,
+}
+
+pub fn stage_values<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+) -> StageValues<NX, NE, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    StageValues {
+        f: p.dynamics(k, x, w),
+        e: p.equality(k, x, w),
+        cost: p.cost(k, x, w),
+        c: p.constraints(k, x, w),
+    }
+}

@@ -1,0 +1,988 @@
+//! A primal–dual interior-point method for [`StageProblem`]s whose Newton systems are
+//! solved by a Riccati recursion over the stages (the FATROP/HPIPM family).
+//!
+//! Per iteration: stage derivatives (in parallel), the stage equality eliminated for its
+//! `NE` dependent decisions, inequality slacks and multipliers condensed into the stage
+//! Hessian (`Cᵀ Σ C`), state equalities as dual-regularised rows (a quadratic term
+//! `‖G δx + c‖²/(2δ_c)` and the multiplier update `y⁺ = y + (G δx + c)/δ_c`), then one
+//! backward and one forward Riccati sweep, inertia correction by a primal shift when a
+//! stage's `H_uu` is not positive definite, and IPOPT's filter line search with the
+//! fraction-to-the-boundary rule. The barrier parameter follows IPOPT's monotone rule.
+//! Algorithm and options: `docs/ocp.md`.
+
+use crate::derivatives::{stage_derivatives, stage_values, StageDerivatives, StageValues};
+use crate::problem::{StageProblem, StateEquality};
+use dmech::linalg::Lu;
+use nalgebra::{SMatrix, SVector};
+use std::time::Instant;
+
+/// `M⁻¹ B` column by column.
+fn solve_columns<const N: usize, const C: usize>(
+    lu: &Lu<f64, N>,
+    b: &SMatrix<f64, N, C>,
+) -> SMatrix<f64, N, C> {
+    let mut out = SMatrix::<f64, N, C>::zeros();
+    for j in 0..C {
+        out.set_column(j, &lu.solve(&b.column(j).into_owned()));
+    }
+    out
+}
+
+/// Options of the solver.
+#[derive(Clone, Debug)]
+pub struct IpOptions {
+    /// Convergence tolerance on the scaled KKT error (IPOPT's `tol`).
+    pub tol: f64,
+    /// Largest allowed constraint violation at convergence.
+    pub constr_viol_tol: f64,
+    pub max_iter: usize,
+    pub mu_init: f64,
+    /// Dual regularisation of the state equalities.
+    pub delta_c: f64,
+    /// Worker threads for the stage derivatives and the line search.
+    pub threads: usize,
+    /// Print an iteration table on stderr.
+    pub verbose: bool,
+    /// Wall-clock limit in seconds (reported as `MaxIterations`).
+    pub time_limit: f64,
+}
+
+impl Default for IpOptions {
+    fn default() -> Self {
+        IpOptions {
+            tol: 1e-6,
+            constr_viol_tol: 1e-8,
+            max_iter: 500,
+            mu_init: 0.1,
+            delta_c: 1e-9,
+            threads: std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1)
+                .min(8),
+            verbose: false,
+            time_limit: f64::INFINITY,
+        }
+    }
+}
+
+/// How a solve ended. Callers can tell these apart; only `Solved` carries an optimum.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Status {
+    Solved,
+    /// The constraint violation stopped decreasing far from zero: no feasible point near.
+    Infeasible { violation: f64 },
+    MaxIterations,
+    /// Non-finite values or iterates growing without bound.
+    Diverged,
+    /// The line search or the inertia correction gave up.
+    Failed(String),
+}
+
+impl Status {
+    pub fn code(&self) -> &'static str {
+        match self {
+            Status::Solved => "solved",
+            Status::Infeasible { .. } => "infeasible",
+            Status::MaxIterations => "max_iterations",
+            Status::Diverged => "diverged",
+            Status::Failed(_) => "failed",
+        }
+    }
+}
+
+/// Where the time went.
+#[derive(Clone, Debug, Default)]
+pub struct Timings {
+    pub derivatives: f64,
+    pub kkt: f64,
+    pub line_search: f64,
+    pub total: f64,
+}
+
+/// The primal–dual iterate.
+#[derive(Clone, Debug)]
+pub struct Iterate<const NX: usize, const NW: usize, const NC: usize> {
+    pub x: Vec<SVector<f64, NX>>,
+    pub w: Vec<SVector<f64, NW>>,
+    /// `lambda[k]`: multiplier of `x_{k+1} = f_k(x_k, w_k)`.
+    pub lambda: Vec<SVector<f64, NX>>,
+    pub t_lo: Vec<SVector<f64, NC>>,
+    pub t_hi: Vec<SVector<f64, NC>>,
+    pub z_lo: Vec<SVector<f64, NC>>,
+    pub z_hi: Vec<SVector<f64, NC>>,
+    pub y: Vec<f64>,
+}
+
+/// The result of a solve.
+#[derive(Clone, Debug)]
+pub struct SolveResult<const NX: usize, const NW: usize, const NC: usize> {
+    pub status: Status,
+    pub iterate: Iterate<NX, NW, NC>,
+    pub iterations: usize,
+    pub objective: f64,
+    /// Largest constraint violation (dynamics, stage equalities, inequalities, state
+    /// equalities), recomputed at the returned point.
+    pub max_violation: f64,
+    pub timings: Timings,
+}
+
+/// Split `0..n` over `threads` workers and fill `out[k] = f(k)`.
+fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads: usize, f: F) {
+    let n = out.len();
+    let chunk = n.div_ceil(threads.max(1)).max(1);
+    std::thread::scope(|sc| {
+        for (ci, part) in out.chunks_mut(chunk).enumerate() {
+            let f = &f;
+            sc.spawn(move || {
+                for (j, slot) in part.iter_mut().enumerate() {
+                    *slot = f(ci * chunk + j);
+                }
+            });
+        }
+    });
+}
+
+/// One stage of the condensed LQ problem in `(δx, δu)`.
+#[derive(Clone, Debug)]
+struct Condensed<const NX: usize, const NW: usize, const NU: usize> {
+    q_mat: SMatrix<f64, NX, NX>,
+    s_mat: SMatrix<f64, NX, NU>,
+    r_mat: SMatrix<f64, NU, NU>,
+    q: SVector<f64, NX>,
+    r: SVector<f64, NU>,
+    a: SMatrix<f64, NX, NX>,
+    b: SMatrix<f64, NX, NU>,
+    c: SVector<f64, NX>,
+    // δw = w0 + wx δx + wu δu
+    w0: SVector<f64, NW>,
+    wx: SMatrix<f64, NW, NX>,
+    wu: SMatrix<f64, NW, NU>,
+}
+
+struct Bounds<const NC: usize> {
+    lo: SVector<f64, NC>,
+    hi: SVector<f64, NC>,
+    has_lo: SVector<f64, NC>,
+    has_hi: SVector<f64, NC>,
+}
+
+/// The step of the primal–dual iterate.
+struct Step<const NX: usize, const NW: usize, const NC: usize> {
+    dx: Vec<SVector<f64, NX>>,
+    dw: Vec<SVector<f64, NW>>,
+    lambda: Vec<SVector<f64, NX>>,
+    dt_lo: Vec<SVector<f64, NC>>,
+    dt_hi: Vec<SVector<f64, NC>>,
+    dz_lo: Vec<SVector<f64, NC>>,
+    dz_hi: Vec<SVector<f64, NC>>,
+    y: Vec<f64>,
+}
+
+/// Residual measures at an iterate.
+#[derive(Clone, Copy, Debug)]
+struct Measures {
+    theta: f64,     // Σ |constraint residual| (filter)
+    theta_max: f64, // max |constraint residual|
+    objective: f64,
+    barrier: f64, // objective − μ Σ ln t
+}
+
+pub struct Solver<'a, P, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+{
+    p: &'a P,
+    n: usize,
+    opts: IpOptions,
+    bounds: Vec<Bounds<NC>>,
+    eqs: Vec<StateEquality>,
+    eqs_at: Vec<Vec<usize>>,
+}
+
+impl<'a, P, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, P, NX, NW, NE, NU, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    pub fn new(p: &'a P, opts: IpOptions) -> Self {
+        assert_eq!(NE + NU, NW, "NU must be NW − NE");
+        let n = p.horizon();
+        let bounds = (0..n)
+            .map(|k| {
+                let (lo, hi) = p.bounds(k);
+                Bounds {
+                    lo,
+                    hi,
+                    has_lo: lo.map(|v| if v.is_finite() { 1.0 } else { 0.0 }),
+                    has_hi: hi.map(|v| if v.is_finite() { 1.0 } else { 0.0 }),
+                }
+            })
+            .collect();
+        let eqs = p.state_equalities();
+        let mut eqs_at = vec![Vec::new(); n + 1];
+        for (j, e) in eqs.iter().enumerate() {
+            assert!(e.stage <= n && e.index < NX, "state equality out of range");
+            eqs_at[e.stage].push(j);
+        }
+        Solver {
+            p,
+            n,
+            opts,
+            bounds,
+            eqs,
+            eqs_at,
+        }
+    }
+
+    /// An iterate from primal values: slacks pushed into the interior, unit bound
+    /// multipliers, zero equality multipliers.
+    pub fn initial_iterate(
+        &self,
+        x: Vec<SVector<f64, NX>>,
+        w: Vec<SVector<f64, NW>>,
+    ) -> Iterate<NX, NW, NC> {
+        assert_eq!(x.len(), self.n + 1);
+        assert_eq!(w.len(), self.n);
+        let mut x = x;
+        x[0] = self.p.initial_state();
+        let mut it = Iterate {
+            lambda: vec![SVector::zeros(); self.n],
+            t_lo: vec![SVector::repeat(1.0); self.n],
+            t_hi: vec![SVector::repeat(1.0); self.n],
+            z_lo: vec![SVector::zeros(); self.n],
+            z_hi: vec![SVector::zeros(); self.n],
+            y: vec![0.0; self.eqs.len()],
+            x,
+            w,
+        };
+        for k in 0..self.n {
+            let c = self.p.constraints(k, &it.x[k], &it.w[k]);
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                let gap = if b.has_lo[i] > 0.0 && b.has_hi[i] > 0.0 {
+                    b.hi[i] - b.lo[i]
+                } else {
+                    f64::INFINITY
+                };
+                if b.has_lo[i] > 0.0 {
+                    let push = (1e-2 * b.lo[i].abs().max(1.0)).min(1e-2 * gap);
+                    it.t_lo[k][i] = (c[i] - b.lo[i]).max(push);
+                    it.z_lo[k][i] = 1.0;
+                }
+                if b.has_hi[i] > 0.0 {
+                    let push = (1e-2 * b.hi[i].abs().max(1.0)).min(1e-2 * gap);
+                    it.t_hi[k][i] = (b.hi[i] - c[i]).max(push);
+                    it.z_hi[k][i] = 1.0;
+                }
+            }
+        }
+        it
+    }
+
+    fn values(&self, it: &Iterate<NX, NW, NC>) -> Vec<StageValues<NX, NE, NC>> {
+        let mut out = vec![
+            StageValues {
+                f: SVector::zeros(),
+                e: SVector::zeros(),
+                cost: 0.0,
+                c: SVector::zeros(),
+            };
+            self.n
+        ];
+        par_fill(&mut out, self.opts.threads, |k| {
+            stage_values(self.p, k, &it.x[k], &it.w[k])
+        });
+        out
+    }
+
+    fn measures(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        vals: &[StageValues<NX, NE, NC>],
+        mu: f64,
+    ) -> Measures {
+        let (mut theta, mut theta_max, mut obj, mut logs) = (0.0, 0.0f64, 0.0, 0.0);
+        let mut add = |r: f64| {
+            theta += r.abs();
+            theta_max = theta_max.max(r.abs());
+        };
+        for k in 0..self.n {
+            let v = &vals[k];
+            obj += v.cost;
+            for i in 0..NX {
+                add(v.f[i] - it.x[k + 1][i]);
+            }
+            for i in 0..NE {
+                add(v.e[i]);
+            }
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    add(v.c[i] - b.lo[i] - it.t_lo[k][i]);
+                    logs += it.t_lo[k][i].ln();
+                }
+                if b.has_hi[i] > 0.0 {
+                    add(b.hi[i] - v.c[i] - it.t_hi[k][i]);
+                    logs += it.t_hi[k][i].ln();
+                }
+            }
+        }
+        for e in &self.eqs {
+            add(it.x[e.stage][e.index] - e.value);
+        }
+        Measures {
+            theta,
+            theta_max,
+            objective: obj,
+            barrier: obj - mu * logs,
+        }
+    }
+
+    /// The largest violation of any constraint at a primal point (slacks not used).
+    pub fn max_violation(&self, x: &[SVector<f64, NX>], w: &[SVector<f64, NW>]) -> f64 {
+        let mut worst = 0.0f64;
+        for k in 0..self.n {
+            let v = stage_values(self.p, k, &x[k], &w[k]);
+            worst = worst.max((v.f - x[k + 1]).amax()).max(v.e.amax());
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    worst = worst.max(b.lo[i] - v.c[i]);
+                }
+                if b.has_hi[i] > 0.0 {
+                    worst = worst.max(v.c[i] - b.hi[i]);
+                }
+            }
+        }
+        for e in &self.eqs {
+            worst = worst.max((x[e.stage][e.index] - e.value).abs());
+        }
+        worst
+    }
+
+    /// Condense stage `k`: eliminate the dependent decisions and the inequality slacks.
+    fn condense(
+        &self,
+        k: usize,
+        it: &Iterate<NX, NW, NC>,
+        d: &StageDerivatives<NX, NW, NE, NC>,
+        mu: f64,
+    ) -> Result<Condensed<NX, NW, NU>, String> {
+        let b = &self.bounds[k];
+        // Inequalities: Σ and the barrier gradient term.
+        let mut sigma = SVector::<f64, NC>::zeros();
+        let mut bc = SVector::<f64, NC>::zeros();
+        for i in 0..NC {
+            if b.has_lo[i] > 0.0 {
+                let s = it.z_lo[k][i] / it.t_lo[k][i];
+                let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
+                sigma[i] += s;
+                bc[i] -= mu / it.t_lo[k][i] - s * r;
+            }
+            if b.has_hi[i] > 0.0 {
+                let s = it.z_hi[k][i] / it.t_hi[k][i];
+                let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
+                sigma[i] += s;
+                bc[i] += mu / it.t_hi[k][i] - s * r;
+            }
+        }
+        let cx_s = SMatrix::<f64, NX, NC>::from_fn(|i, j| d.cx[(j, i)] * sigma[j]);
+        let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
+        let hxx = d.hxx + cx_s * d.cx;
+        let hxw = d.hxw + cx_s * d.cw;
+        let hww = d.hww + cw_s * d.cw;
+        let gx = d.gx + d.cx.transpose() * bc;
+        let gw = d.gw + d.cw.transpose() * bc;
+
+        // δw = w0 + wx δx + wu δu, with δv from the linearised stage equality.
+        let mut wx = SMatrix::<f64, NW, NX>::zeros();
+        let mut wu = SMatrix::<f64, NW, NU>::zeros();
+        let mut w0 = SVector::<f64, NW>::zeros();
+        for i in 0..NU {
+            wu[(NE + i, i)] = 1.0;
+        }
+        if NE > 0 {
+            let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
+            let eu: SMatrix<f64, NE, NU> = d.ew.fixed_columns::<NU>(NE).into_owned();
+            let lu = Lu::new(&ev).ok_or_else(|| {
+                format!("stage {k}: the stage equality is singular in its dependent decisions")
+            })?;
+            let dx = solve_columns(&lu, &(-d.ex));
+            let du = solve_columns(&lu, &(-eu));
+            let d0 = lu.solve(&(-d.e));
+            wx.fixed_rows_mut::<NE>(0).copy_from(&dx);
+            wu.fixed_rows_mut::<NE>(0).copy_from(&du);
+            w0.fixed_rows_mut::<NE>(0).copy_from(&d0);
+        }
+        let hww_wx = hww * wx;
+        let hww_wu = hww * wu;
+        let hww_w0 = hww * w0;
+        let q_mat = hxx + hxw * wx + (hxw * wx).transpose() + wx.transpose() * hww_wx;
+        let s_mat = hxw * wu + wx.transpose() * hww_wu;
+        let r_mat = wu.transpose() * hww_wu;
+        let q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
+        let r = wu.transpose() * (gw + hww_w0);
+        let a = d.fx + d.fw * wx;
+        let bm = d.fw * wu;
+        let c = d.f + d.fw * w0 - it.x[k + 1];
+        Ok(Condensed {
+            q_mat,
+            s_mat,
+            r_mat,
+            q,
+            r,
+            a,
+            b: bm,
+            c,
+            w0,
+            wx,
+            wu,
+        })
+    }
+
+    /// The quadratic terms of the state equalities at stage `k`.
+    fn add_state_equalities(
+        &self,
+        k: usize,
+        it: &Iterate<NX, NW, NC>,
+        q_mat: &mut SMatrix<f64, NX, NX>,
+        q: &mut SVector<f64, NX>,
+    ) {
+        let dc = self.opts.delta_c;
+        for &j in &self.eqs_at[k] {
+            let e = &self.eqs[j];
+            q_mat[(e.index, e.index)] += 1.0 / dc;
+            q[e.index] += it.y[j] + (it.x[k][e.index] - e.value) / dc;
+        }
+    }
+
+    /// Riccati sweeps with primal shift `delta`; `Err(stage)` if some `H_uu` is not
+    /// positive definite. Returns `(δx, δu, λ⁺)`.
+    #[allow(clippy::type_complexity)]
+    fn riccati(
+        &self,
+        st: &[Condensed<NX, NW, NU>],
+        it: &Iterate<NX, NW, NC>,
+        delta: f64,
+    ) -> Result<(Vec<SVector<f64, NX>>, Vec<SVector<f64, NU>>, Vec<SVector<f64, NX>>), usize> {
+        let n = self.n;
+        let mut p_mat = SMatrix::<f64, NX, NX>::identity() * delta;
+        let mut p_vec = SVector::<f64, NX>::zeros();
+        self.add_state_equalities(n, it, &mut p_mat, &mut p_vec);
+        let mut cost_to_go = vec![(SMatrix::<f64, NX, NX>::zeros(), SVector::<f64, NX>::zeros()); n + 1];
+        let mut gains = vec![(SMatrix::<f64, NU, NX>::zeros(), SVector::<f64, NU>::zeros()); n];
+        cost_to_go[n] = (p_mat, p_vec);
+        for k in (0..n).rev() {
+            let s = &st[k];
+            let mut q_mat = s.q_mat + SMatrix::<f64, NX, NX>::identity() * delta;
+            let mut q = s.q;
+            self.add_state_equalities(k, it, &mut q_mat, &mut q);
+            let pa = p_mat * s.a;
+            let pb = p_mat * s.b;
+            let pc = p_mat * s.c + p_vec;
+            let huu = s.r_mat + SMatrix::<f64, NU, NU>::identity() * delta + s.b.transpose() * pb;
+            let hux = s.s_mat.transpose() + s.b.transpose() * pa;
+            let hxx = q_mat + s.a.transpose() * pa;
+            let hu = s.r + s.b.transpose() * pc;
+            let hx = q + s.a.transpose() * pc;
+            let chol = huu.cholesky().ok_or(k)?;
+            let gain = -chol.solve(&hux);
+            let ff = -chol.solve(&hu);
+            let pm = hxx + hux.transpose() * gain;
+            p_mat = (pm + pm.transpose()) * 0.5;
+            p_vec = hx + hux.transpose() * ff;
+            gains[k] = (gain, ff);
+            cost_to_go[k] = (p_mat, p_vec);
+        }
+        let mut dx = vec![SVector::<f64, NX>::zeros(); n + 1];
+        let mut du = vec![SVector::<f64, NU>::zeros(); n];
+        let mut lam = vec![SVector::<f64, NX>::zeros(); n];
+        for k in 0..n {
+            du[k] = gains[k].0 * dx[k] + gains[k].1;
+            dx[k + 1] = st[k].a * dx[k] + st[k].b * du[k] + st[k].c;
+            let (pm, pv) = &cost_to_go[k + 1];
+            lam[k] = pm * dx[k + 1] + pv;
+        }
+        Ok((dx, du, lam))
+    }
+
+    /// Scaled KKT errors at the current iterate: (dual, primal max, complementarity at μ).
+    fn kkt_error(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ders: &[StageDerivatives<NX, NW, NE, NC>],
+        mu: f64,
+    ) -> (f64, f64, f64) {
+        let n = self.n;
+        let mut dual = 0.0f64;
+        let mut mult_sum = 0.0;
+        let mut mult_cnt = 0.0;
+        let mut compl = 0.0f64;
+        let mut primal = 0.0f64;
+        let mut gx_next = SVector::<f64, NX>::zeros(); // −λ_k contribution to ∇x_k
+        for k in 0..n {
+            let d = &ders[k];
+            let zeta = it.z_hi[k] - it.z_lo[k];
+            let lam = &it.lambda[k];
+            let mut gx = d.gx + d.fx.transpose() * lam + d.cx.transpose() * zeta + gx_next;
+            let mut gw = d.gw + d.fw.transpose() * lam + d.cw.transpose() * zeta;
+            if NE > 0 {
+                let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
+                let gv: SVector<f64, NE> = gw.fixed_rows::<NE>(0).into_owned();
+                if let Some(lu) = Lu::new(&ev.transpose()) {
+                    let nu = lu.solve(&(-gv));
+                    gx += d.ex.transpose() * nu;
+                    gw += d.ew.transpose() * nu;
+                    mult_sum += nu.abs().sum();
+                    mult_cnt += NE as f64;
+                }
+            }
+            for &j in &self.eqs_at[k] {
+                gx[self.eqs[j].index] += it.y[j];
+            }
+            if k > 0 {
+                dual = dual.max(gx.amax());
+            }
+            dual = dual.max(gw.amax());
+            gx_next = -lam;
+            mult_sum += lam.abs().sum() + it.z_lo[k].sum() + it.z_hi[k].sum();
+            mult_cnt += (NX + 2 * NC) as f64;
+            primal = primal.max((d.f - it.x[k + 1]).amax()).max(d.e.amax());
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    compl = compl.max((it.t_lo[k][i] * it.z_lo[k][i] - mu).abs());
+                    primal = primal.max((d.c[i] - b.lo[i] - it.t_lo[k][i]).abs());
+                }
+                if b.has_hi[i] > 0.0 {
+                    compl = compl.max((it.t_hi[k][i] * it.z_hi[k][i] - mu).abs());
+                    primal = primal.max((b.hi[i] - d.c[i] - it.t_hi[k][i]).abs());
+                }
+            }
+        }
+        let mut gx_n = gx_next;
+        for &j in &self.eqs_at[n] {
+            gx_n[self.eqs[j].index] += it.y[j];
+        }
+        dual = dual.max(gx_n.amax());
+        for (j, e) in self.eqs.iter().enumerate() {
+            primal = primal.max((it.x[e.stage][e.index] - e.value).abs());
+            mult_sum += it.y[j].abs();
+            mult_cnt += 1.0;
+        }
+        let s_max = 100.0;
+        let s_d = (mult_sum / mult_cnt.max(1.0)).max(s_max) / s_max;
+        (dual / s_d, primal, compl / s_d)
+    }
+
+    /// Solve from `start`.
+    pub fn solve(&self, start: Iterate<NX, NW, NC>) -> SolveResult<NX, NW, NC> {
+        let t_start = Instant::now();
+        let n = self.n;
+        let o = &self.opts;
+        let mut tm = Timings::default();
+        let mut it = start;
+        let mut mu = o.mu_init;
+        let mut filter: Vec<(f64, f64)> = Vec::new();
+        let mut delta_last = 0.0f64;
+        let mut vals = self.values(&it);
+        let mut m = self.measures(&it, &vals, mu);
+        let theta_max_f = 1e4 * m.theta.max(1.0);
+        let theta_min_f = 1e-4 * m.theta.max(1.0);
+        let mut theta_hist: Vec<f64> = Vec::new();
+        let mut status = Status::MaxIterations;
+        let mut iter = 0;
+        let (mut alpha_p, mut alpha_d) = (0.0, 0.0);
+        if o.verbose {
+            eprintln!(
+                "{:>4} {:>14} {:>9} {:>9} {:>6} {:>9} {:>9} {:>9} {:>3} {:>7}",
+                "iter", "objective", "inf_pr", "inf_du", "lg(mu)", "lg(rg)", "alpha_du", "alpha_pr", "ls", "time"
+            );
+        }
+        let dummy = StageDerivatives::<NX, NW, NE, NC> {
+            f: SVector::zeros(),
+            fx: SMatrix::zeros(),
+            fw: SMatrix::zeros(),
+            e: SVector::zeros(),
+            ex: SMatrix::zeros(),
+            ew: SMatrix::zeros(),
+            cost: 0.0,
+            gx: SVector::zeros(),
+            gw: SVector::zeros(),
+            c: SVector::zeros(),
+            cx: SMatrix::zeros(),
+            cw: SMatrix::zeros(),
+            hxx: SMatrix::zeros(),
+            hxw: SMatrix::zeros(),
+            hww: SMatrix::zeros(),
+        };
+        let mut ders = vec![dummy; n];
+        let mut ls_count = 0;
+        loop {
+            if !m.objective.is_finite() || !m.theta.is_finite() {
+                status = Status::Diverged;
+                break;
+            }
+            if it.x.iter().any(|x| x.amax() > 1e12) {
+                status = Status::Diverged;
+                break;
+            }
+            // Derivatives.
+            let t0 = Instant::now();
+            par_fill(&mut ders, o.threads, |k| {
+                stage_derivatives(self.p, k, &it.x[k], &it.w[k], &(it.z_hi[k] - it.z_lo[k]))
+            });
+            tm.derivatives += t0.elapsed().as_secs_f64();
+
+            let (dual, primal, _) = self.kkt_error(&it, &ders, 0.0);
+            let (_, _, compl0) = self.kkt_error(&it, &ders, 0.0);
+            if o.verbose {
+                eprintln!(
+                    "{:>4} {:>14.7e} {:>9.2e} {:>9.2e} {:>6.1} {:>9} {:>9.2e} {:>9.2e} {:>3} {:>6.2}s",
+                    iter,
+                    m.objective,
+                    primal,
+                    dual,
+                    mu.log10(),
+                    if delta_last > 0.0 { format!("{:.1}", delta_last.log10()) } else { "-".into() },
+                    alpha_d,
+                    alpha_p,
+                    ls_count,
+                    t_start.elapsed().as_secs_f64()
+                );
+            }
+            if dual <= o.tol && compl0 <= o.tol && primal <= o.constr_viol_tol {
+                status = Status::Solved;
+                break;
+            }
+            if iter >= o.max_iter || t_start.elapsed().as_secs_f64() > o.time_limit {
+                status = Status::MaxIterations;
+                break;
+            }
+            // Infeasibility: the violation has not dropped by 1% over 25 iterations while
+            // still far from zero.
+            theta_hist.push(m.theta_max);
+            if theta_hist.len() > 100 {
+                let old = theta_hist[theta_hist.len() - 101];
+                if m.theta_max > 1e-3 && m.theta_max > 0.99 * old {
+                    status = Status::Infeasible {
+                        violation: m.theta_max,
+                    };
+                    break;
+                }
+            }
+            // Barrier update (IPOPT's monotone rule).
+            loop {
+                let (d_mu, p_mu, c_mu) = self.kkt_error(&it, &ders, mu);
+                let e_mu = d_mu.max(p_mu).max(c_mu);
+                if e_mu <= 10.0 * mu && mu > o.tol / 10.0 {
+                    mu = (o.tol / 10.0).max((0.2 * mu).min(mu.powf(1.5)));
+                    filter.clear();
+                } else {
+                    break;
+                }
+            }
+            vals.iter_mut().zip(ders.iter()).for_each(|(v, d)| {
+                *v = StageValues {
+                    f: d.f,
+                    e: d.e,
+                    cost: d.cost,
+                    c: d.c,
+                }
+            });
+            m = self.measures(&it, &vals, mu);
+
+            // KKT solve.
+            let t1 = Instant::now();
+            let mut cond = Vec::with_capacity(n);
+            for k in 0..n {
+                match self.condense(k, &it, &ders[k], mu) {
+                    Ok(c) => cond.push(c),
+                    Err(e) => {
+                        return self.finish(Status::Failed(e), it, iter, tm, t_start);
+                    }
+                }
+            }
+            let mut delta = 0.0;
+            let sol = loop {
+                match self.riccati(&cond, &it, delta) {
+                    Ok(s) => break Some(s),
+                    Err(_) => {
+                        delta = if delta == 0.0 {
+                            if delta_last == 0.0 { 1e-4 } else { (delta_last / 3.0).max(1e-20) }
+                        } else if delta_last == 0.0 {
+                            delta * 100.0
+                        } else {
+                            delta * 8.0
+                        };
+                        if delta > 1e40 {
+                            break None;
+                        }
+                    }
+                }
+            };
+            let Some((dx, du, lam_new)) = sol else {
+                return self.finish(
+                    Status::Failed("inertia correction failed".into()),
+                    it,
+                    iter,
+                    tm,
+                    t_start,
+                );
+            };
+            if delta > 0.0 {
+                delta_last = delta;
+            }
+            let step = self.recover(&it, &ders, &cond, dx, du, lam_new, mu);
+            tm.kkt += t1.elapsed().as_secs_f64();
+
+            // Fraction to the boundary.
+            let tau = (1.0 - mu).max(0.99);
+            let mut amax_p: f64 = 1.0;
+            let mut amax_d: f64 = 1.0;
+            for k in 0..n {
+                let b = &self.bounds[k];
+                for i in 0..NC {
+                    if b.has_lo[i] > 0.0 {
+                        if step.dt_lo[k][i] < 0.0 {
+                            amax_p = amax_p.min(-tau * it.t_lo[k][i] / step.dt_lo[k][i]);
+                        }
+                        if step.dz_lo[k][i] < 0.0 {
+                            amax_d = amax_d.min(-tau * it.z_lo[k][i] / step.dz_lo[k][i]);
+                        }
+                    }
+                    if b.has_hi[i] > 0.0 {
+                        if step.dt_hi[k][i] < 0.0 {
+                            amax_p = amax_p.min(-tau * it.t_hi[k][i] / step.dt_hi[k][i]);
+                        }
+                        if step.dz_hi[k][i] < 0.0 {
+                            amax_d = amax_d.min(-tau * it.z_hi[k][i] / step.dz_hi[k][i]);
+                        }
+                    }
+                }
+            }
+
+            if std::env::var("IPM_DEBUG").is_ok() {
+                let (mut pd, mut pe, mut ps) = (SVector::<f64, NX>::zeros(), 0.0f64, 0.0f64);
+                for k in 0..n {
+                    pd = pd.zip_map(&(ders[k].f - it.x[k + 1]), |a, b| a.max(b.abs()));
+                    pe = pe.max(ders[k].e.amax());
+                }
+                let mut wi = (0, 0);
+                for e in &self.eqs {
+                    let r = (it.x[e.stage][e.index] - e.value).abs();
+                    if r > ps { ps = r; wi = (e.stage, e.index); }
+                }
+                eprintln!("  worst state eq at stage {} index {}", wi.0, wi.1);
+                eprintln!("  defects {:.1e} | e {pe:.1e} | state eq {ps:.1e} | y max {:.1e}", pd.transpose(), it.y.iter().fold(0.0f64, |a, b| a.max(b.abs())));
+                let mut worst = (1.0f64, 0usize, 0usize, 0.0, 0.0);
+                for k in 0..n {
+                    for i in 0..NC {
+                        if step.dt_lo[k][i] < 0.0 {
+                            let a = -tau * it.t_lo[k][i] / step.dt_lo[k][i];
+                            if a < worst.0 { worst = (a, k, i, it.t_lo[k][i], step.dt_lo[k][i]); }
+                        }
+                        if step.dt_hi[k][i] < 0.0 {
+                            let a = -tau * it.t_hi[k][i] / step.dt_hi[k][i];
+                            if a < worst.0 { worst = (a, k, 100 + i, it.t_hi[k][i], step.dt_hi[k][i]); }
+                        }
+                    }
+                }
+                eprintln!("  limiting: alpha {:.2e} stage {} row {} t {:.3e} dt {:.3e}; |dx| {:.2e} |dw| {:.2e}", worst.0, worst.1, worst.2, worst.3, worst.4,
+                    step.dx.iter().map(|v| v.amax()).fold(0.0, f64::max), step.dw.iter().map(|v| v.amax()).fold(0.0, f64::max));
+            }
+            // Filter line search.
+            let t2 = Instant::now();
+            let mut dphi = 0.0;
+            for k in 0..n {
+                dphi += ders[k].gx.dot(&step.dx[k]) + ders[k].gw.dot(&step.dw[k]);
+                let b = &self.bounds[k];
+                for i in 0..NC {
+                    if b.has_lo[i] > 0.0 {
+                        dphi -= mu * step.dt_lo[k][i] / it.t_lo[k][i];
+                    }
+                    if b.has_hi[i] > 0.0 {
+                        dphi -= mu * step.dt_hi[k][i] / it.t_hi[k][i];
+                    }
+                }
+            }
+            let (gth, gph, eta, s_th, s_ph, dl): (f64, f64, f64, f64, f64, f64) =
+                (1e-5, 1e-5, 1e-4, 1.1, 2.3, 1.0);
+            let alpha_min = if dphi < 0.0 {
+                0.05 * gth
+                    .min(gph * m.theta / (-dphi))
+                    .min(dl * m.theta.powf(s_th) / (-dphi).powf(s_ph))
+            } else {
+                0.05 * gth
+            };
+            let mut alpha = amax_p;
+            ls_count = 0;
+            let accepted = loop {
+                ls_count += 1;
+                let trial = self.trial(&it, &step, alpha);
+                let tv = self.values(&trial);
+                let tmz = self.measures(&trial, &tv, mu);
+                let ok_val = tmz.theta.is_finite() && tmz.barrier.is_finite() && tmz.theta <= theta_max_f;
+                let in_filter = filter.iter().any(|&(ft, fp)| tmz.theta >= ft && tmz.barrier >= fp);
+                let mut accept = false;
+                let mut augment = false;
+                if ok_val && !in_filter {
+                    let switching =
+                        dphi < 0.0 && alpha * (-dphi).powf(s_ph) > dl * m.theta.powf(s_th);
+                    if m.theta <= theta_min_f && switching {
+                        accept = tmz.barrier <= m.barrier + eta * alpha * dphi;
+                    } else {
+                        accept = tmz.theta <= (1.0 - gth) * m.theta
+                            || tmz.barrier <= m.barrier - gph * m.theta;
+                        augment = true;
+                    }
+                }
+                if accept {
+                    if augment {
+                        filter.push(((1.0 - gth) * m.theta, m.barrier - gph * m.theta));
+                    }
+                    break Some((trial, tv, tmz));
+                }
+                alpha *= 0.5;
+                if alpha < alpha_min {
+                    break None;
+                }
+            };
+            tm.line_search += t2.elapsed().as_secs_f64();
+            let Some((mut trial, tv, tmz)) = accepted else {
+                status = if m.theta_max > o.constr_viol_tol.max(1e-3) {
+                    Status::Infeasible {
+                        violation: m.theta_max,
+                    }
+                } else {
+                    Status::Failed("line search: no acceptable step".into())
+                };
+                break;
+            };
+            // Dual step with its own step length, kept within κ_Σ of μ/t.
+            for k in 0..n {
+                let b = &self.bounds[k];
+                for i in 0..NC {
+                    if b.has_lo[i] > 0.0 {
+                        let z = it.z_lo[k][i] + amax_d * step.dz_lo[k][i];
+                        let t = trial.t_lo[k][i];
+                        trial.z_lo[k][i] = z.clamp(mu / (1e10 * t), 1e10 * mu / t);
+                    }
+                    if b.has_hi[i] > 0.0 {
+                        let z = it.z_hi[k][i] + amax_d * step.dz_hi[k][i];
+                        let t = trial.t_hi[k][i];
+                        trial.z_hi[k][i] = z.clamp(mu / (1e10 * t), 1e10 * mu / t);
+                    }
+                }
+            }
+            alpha_p = alpha;
+            alpha_d = amax_d;
+            it = trial;
+            vals = tv;
+            m = tmz;
+            iter += 1;
+        }
+        self.finish(status, it, iter, tm, t_start)
+    }
+
+    fn finish(
+        &self,
+        status: Status,
+        it: Iterate<NX, NW, NC>,
+        iterations: usize,
+        mut tm: Timings,
+        t_start: Instant,
+    ) -> SolveResult<NX, NW, NC> {
+        tm.total = t_start.elapsed().as_secs_f64();
+        let objective = (0..self.n)
+            .map(|k| self.p.cost(k, &it.x[k], &it.w[k]))
+            .sum();
+        let max_violation = self.max_violation(&it.x, &it.w);
+        SolveResult {
+            status,
+            iterate: it,
+            iterations,
+            objective,
+            max_violation,
+            timings: tm,
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn recover(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ders: &[StageDerivatives<NX, NW, NE, NC>],
+        cond: &[Condensed<NX, NW, NU>],
+        dx: Vec<SVector<f64, NX>>,
+        du: Vec<SVector<f64, NU>>,
+        lambda: Vec<SVector<f64, NX>>,
+        mu: f64,
+    ) -> Step<NX, NW, NC> {
+        let n = self.n;
+        let mut dw = Vec::with_capacity(n);
+        let (mut dt_lo, mut dt_hi) = (vec![SVector::zeros(); n], vec![SVector::zeros(); n]);
+        let (mut dz_lo, mut dz_hi) = (vec![SVector::zeros(); n], vec![SVector::zeros(); n]);
+        for k in 0..n {
+            let c = &cond[k];
+            let dwk = c.w0 + c.wx * dx[k] + c.wu * du[k];
+            let d = &ders[k];
+            let cd = d.cx * dx[k] + d.cw * dwk;
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
+                    dt_lo[k][i] = cd[i] + r;
+                    dz_lo[k][i] = mu / it.t_lo[k][i]
+                        - it.z_lo[k][i]
+                        - it.z_lo[k][i] / it.t_lo[k][i] * dt_lo[k][i];
+                }
+                if b.has_hi[i] > 0.0 {
+                    let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
+                    dt_hi[k][i] = r - cd[i];
+                    dz_hi[k][i] = mu / it.t_hi[k][i]
+                        - it.z_hi[k][i]
+                        - it.z_hi[k][i] / it.t_hi[k][i] * dt_hi[k][i];
+                }
+            }
+            dw.push(dwk);
+        }
+        let y = self
+            .eqs
+            .iter()
+            .enumerate()
+            .map(|(j, e)| {
+                it.y[j] + (dx[e.stage][e.index] + it.x[e.stage][e.index] - e.value) / self.opts.delta_c
+            })
+            .collect();
+        Step {
+            dx,
+            dw,
+            lambda,
+            dt_lo,
+            dt_hi,
+            dz_lo,
+            dz_hi,
+            y,
+        }
+    }
+
+    fn trial(&self, it: &Iterate<NX, NW, NC>, s: &Step<NX, NW, NC>, a: f64) -> Iterate<NX, NW, NC> {
+        let n = self.n;
+        Iterate {
+            x: (0..=n).map(|k| it.x[k] + s.dx[k] * a).collect(),
+            w: (0..n).map(|k| it.w[k] + s.dw[k] * a).collect(),
+            lambda: (0..n)
+                .map(|k| it.lambda[k] + (s.lambda[k] - it.lambda[k]) * a)
+                .collect(),
+            t_lo: (0..n).map(|k| it.t_lo[k] + s.dt_lo[k] * a).collect(),
+            t_hi: (0..n).map(|k| it.t_hi[k] + s.dt_hi[k] * a).collect(),
+            z_lo: it.z_lo.clone(),
+            z_hi: it.z_hi.clone(),
+            y: it
+                .y
+                .iter()
+                .zip(&s.y)
+                .map(|(y0, y1)| y0 + (y1 - y0) * a)
+                .collect(),
+        }
+    }
+}

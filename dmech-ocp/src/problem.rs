@@ -1,0 +1,54 @@
+//! A stage-structured nonlinear program, as the interior-point solver sees it.
+//!
+//! ```text
+//! min  Σ_{k<N} ℓ_k(x_k, w_k)
+//! s.t. x_0 = x̄                                  (given)
+//!      x_{k+1} = f_k(x_k, w_k)                  (dynamics, explicit)
+//!      e_k(x_k, w_k) = 0                        (stage equality, NE rows)
+//!      lo_k ≤ c_k(x_k, w_k) ≤ hi_k              (stage inequalities, NC rows)
+//!      x_k[i] = value                           (state equalities: waypoints, end state)
+//! ```
+//! The stage equality must be solvable for the first `NE` components of `w` (its Jacobian
+//! with respect to them is invertible): the solver eliminates them stage by stage, which
+//! leaves the Riccati recursion `NU = NW − NE` free inputs per stage. For the variational
+//! integrator these are the velocities `v_k`, and the matrix is the integrator's Newton
+//! matrix.
+//!
+//! Every function is generic over the scalar: the solver takes exact derivatives with
+//! dual numbers. Nothing here knows about a particular robot.
+
+use dmech_lie::Real;
+use nalgebra::SVector;
+
+/// `x_k[index] = value` at stage `k` (`k = N` is the end state).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StateEquality {
+    pub stage: usize,
+    pub index: usize,
+    pub value: f64,
+}
+
+/// The problem. `NX` state, `NW` stage decision, `NE` stage equalities, `NC` inequalities.
+pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const NC: usize>:
+    Sync
+{
+    /// The number of stages `N` (decisions `w_0 … w_{N−1}`, states `x_0 … x_N`).
+    fn horizon(&self) -> usize;
+    /// `x̄ = x_0`.
+    fn initial_state(&self) -> SVector<f64, NX>;
+    fn dynamics<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>)
+        -> SVector<T, NX>;
+    fn equality<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>)
+        -> SVector<T, NE>;
+    fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T;
+    fn constraints<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NC>;
+    /// `(lo, hi)` of the stage inequalities; infinite entries mean "no bound".
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>);
+    /// The state equalities, any order.
+    fn state_equalities(&self) -> Vec<StateEquality>;
+}

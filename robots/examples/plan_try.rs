@@ -1,0 +1,15 @@
+use dmech_ocp::ipm::IpOptions;
+use robots::wip::benchmarks;
+use robots::wip::plan::{plan, Transcription};
+use robots::wip::Wip;
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let h: f64 = args.get(1).map(|s| s.parse().unwrap()).unwrap_or(0.02);
+    let tr = match args.get(2).map(|s| s.as_str()) { Some("rk1") => Transcription::Rk(dmech::RungeKutta::Rk1), _ => Transcription::VarInt };
+    let wip = Wip::default();
+    let p = benchmarks::eight(h);
+    let dc: f64 = std::env::var("DC").map(|s| s.parse().unwrap()).unwrap_or(1e-9); let mu: f64 = std::env::var("MU").map(|s| s.parse().unwrap()).unwrap_or(0.1);
+    let opts = IpOptions { verbose: true, max_iter: 200, delta_c: dc, mu_init: mu, ..Default::default() };
+    let o = plan(&wip, &p, tr, opts);
+    println!("{:?} iters {} obj {} viol {:.2e} {:?}", o.status, o.iterations, o.objective, o.max_violation, o.timings);
+}
