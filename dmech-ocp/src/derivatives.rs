@@ -10,7 +10,8 @@
 
 use crate::problem::StageProblem;
 use nalgebra::{SMatrix, SVector};
-use num_dual::{Derivative, Dual2SVec64, DualNum, DualSVec64, HyperDualSVec64};
+use dmech::linalg::Lu;
+use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
 
 /// Values and first derivatives at one stage, and the Hessian of `ℓ + ζᵀc`.
 #[derive(Clone, Debug)]
@@ -57,11 +58,16 @@ fn hess2<const N: usize>(d: &Dual2SVec64<N>) -> SMatrix<f64, N, N> {
     d.v2.0.unwrap_or_else(SMatrix::zeros)
 }
 
-/// `ℓ + ζᵀ c` in any scalar.
+/// Multipliers of the dynamics and the stage equality, for the exact Hessian.
+pub type Multipliers<'a, const NX: usize, const NE: usize> =
+    Option<(&'a SVector<f64, NX>, SVector<f64, NE>)>;
+
+/// `ℓ + ζᵀ c (+ λᵀ f + νᵀ e)` in any scalar.
 fn phi<P, T, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
     p: &P,
     k: usize,
     zeta: &SVector<f64, NC>,
+    mult: &Multipliers<NX, NE>,
     x: &SVector<T, NX>,
     w: &SVector<T, NW>,
 ) -> T
@@ -70,10 +76,20 @@ where
     T: dmech_lie::Real,
 {
     let c = p.constraints(k, x, w);
-    let mut v = p.cost(k, x, w);
+    let mut v = p.hessian_model(k, x, w).unwrap_or_else(|| p.cost(k, x, w));
     for i in 0..NC {
         if zeta[i] != 0.0 {
             v += c[i] * zeta[i];
+        }
+    }
+    if let Some((lam, nu)) = mult {
+        let f = p.dynamics(k, x, w);
+        for i in 0..NX {
+            v += f[i] * lam[i];
+        }
+        let e = p.equality(k, x, w);
+        for i in 0..NE {
+            v += e[i] * nu[i];
         }
     }
     v
@@ -86,6 +102,7 @@ pub fn stage_derivatives<P, const NX: usize, const NW: usize, const NE: usize, c
     x: &SVector<f64, NX>,
     w: &SVector<f64, NW>,
     zeta: &SVector<f64, NC>,
+    lambda: Option<&SVector<f64, NX>>,
 ) -> StageDerivatives<NX, NW, NE, NC>
 where
     P: StageProblem<NX, NW, NE, NC>,
@@ -105,11 +122,28 @@ where
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
 
-    // Second order of ℓ + ζᵀc.
+    // The multiplier estimate of the stage equality that zeroes the gradient of the
+    // Lagrangian with respect to the dependent decisions (as the solver uses).
+    let mult: Multipliers<NX, NE> = lambda.map(|lam| {
+        let mut nu = SVector::<f64, NE>::zeros();
+        if NE > 0 {
+            let ew = SMatrix::<f64, NE, NW>::from_fn(|i, j| grad(&e_w[i])[j]);
+            let fw = SMatrix::<f64, NX, NW>::from_fn(|i, j| grad(&f_w[i])[j]);
+            let cw = SMatrix::<f64, NC, NW>::from_fn(|i, j| grad(&c_w[i])[j]);
+            let gw = grad(&l_w) + fw.transpose() * lam + cw.transpose() * zeta;
+            let ev: SMatrix<f64, NE, NE> = ew.fixed_columns::<NE>(0).into_owned();
+            if let Some(lu) = Lu::new(&ev.transpose()) {
+                nu = lu.solve(&(-gw.fixed_rows::<NE>(0).into_owned()));
+            }
+        }
+        (lam, nu)
+    });
+    // Second order of the Lagrangian (or of ℓ + ζᵀc only).
     let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
         p,
         k,
         zeta,
+        &mult,
         &seed2(x),
         &w.map(Dual2SVec64::<NX>::from_re),
     ));
@@ -117,6 +151,7 @@ where
         p,
         k,
         zeta,
+        &mult,
         &x.map(Dual2SVec64::<NW>::from_re),
         &seed2(w),
     ));
@@ -134,7 +169,7 @@ where
         h.eps2 = Derivative::some(e);
         h
     });
-    let hxw = phi::<P, _, NX, NW, NE, NC>(p, k, zeta, &xh, &wh)
+    let hxw = phi::<P, _, NX, NW, NE, NC>(p, k, zeta, &mult, &xh, &wh)
         .eps1eps2
         .0
         .unwrap_or_else(SMatrix::zeros);

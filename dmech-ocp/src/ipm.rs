@@ -37,14 +37,32 @@ pub struct IpOptions {
     pub constr_viol_tol: f64,
     pub max_iter: usize,
     pub mu_init: f64,
-    /// Dual regularisation of the state equalities.
+    /// Dual regularisation of the state equalities at `μ = mu_init`; it shrinks like `μ²`
+    /// down to `delta_c_min`.
     pub delta_c: f64,
+    pub delta_c_min: f64,
     /// Worker threads for the stage derivatives and the line search.
     pub threads: usize,
     /// Print an iteration table on stderr.
     pub verbose: bool,
+    /// Include the curvature of the dynamics and stage equalities in the Hessian
+    /// (exact Newton; expensive with nested duals). Otherwise a Gauss–Newton-type
+    /// Hessian: cost and inequality curvature only.
+    pub exact_hessian: bool,
+    /// Partitioned SR1 approximation of the dynamics' and stage equalities' curvature
+    /// (used when `exact_hessian` is off).
+    pub quasi_newton: bool,
+    /// Project each stage Hessian onto the positive semidefinite cone.
+    pub convexify: bool,
     /// Wall-clock limit in seconds (reported as `MaxIterations`).
     pub time_limit: f64,
+}
+
+impl IpOptions {
+    /// The barrier parameter to restart with from a nearby solution.
+    pub fn warm_mu_init(&self) -> f64 {
+        (self.mu_init * 1e-3).max(self.tol)
+    }
 }
 
 impl Default for IpOptions {
@@ -54,12 +72,16 @@ impl Default for IpOptions {
             constr_viol_tol: 1e-8,
             max_iter: 500,
             mu_init: 0.1,
-            delta_c: 1e-9,
+            delta_c: 1e-5,
+            delta_c_min: 1e-10,
             threads: std::thread::available_parallelism()
                 .map(|n| n.get())
                 .unwrap_or(1)
                 .min(8),
             verbose: false,
+            exact_hessian: false,
+            convexify: false,
+            quasi_newton: true,
             time_limit: f64::INFINITY,
         }
     }
@@ -142,6 +164,106 @@ fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads: usize, f:
     });
 }
 
+/// Replace the stage Hessian `[hxx hxw; hxwᵀ hww]` by its projection onto the positive
+/// semidefinite cone (negative eigenvalues clipped to zero).
+fn convexify<const NX: usize, const NW: usize>(
+    hxx: &mut SMatrix<f64, NX, NX>,
+    hxw: &mut SMatrix<f64, NX, NW>,
+    hww: &mut SMatrix<f64, NW, NW>,
+) {
+    let n = NX + NW;
+    let mut h = nalgebra::DMatrix::<f64>::zeros(n, n);
+    h.view_mut((0, 0), (NX, NX)).copy_from(hxx);
+    h.view_mut((0, NX), (NX, NW)).copy_from(hxw);
+    h.view_mut((NX, 0), (NW, NX)).copy_from(&hxw.transpose());
+    h.view_mut((NX, NX), (NW, NW)).copy_from(hww);
+    if h.iter().all(|v| *v == 0.0) {
+        return;
+    }
+    let eig = h.symmetric_eigen();
+    if eig.eigenvalues.iter().all(|&l| l >= 0.0) {
+        return;
+    }
+    let lam = eig.eigenvalues.map(|l| l.max(0.0));
+    let p = &eig.eigenvectors * nalgebra::DMatrix::from_diagonal(&lam) * eig.eigenvectors.transpose();
+    hxx.copy_from(&p.view((0, 0), (NX, NX)));
+    hxw.copy_from(&p.view((0, NX), (NX, NW)));
+    hww.copy_from(&p.view((NX, NX), (NW, NW)));
+}
+
+/// Partitioned SR1 approximation of one stage's constraint curvature
+/// `∇²(λᵀf + νᵀe)`, updated from the exact Jacobians at consecutive iterates.
+#[derive(Clone, Debug)]
+struct QuasiNewton<const NX: usize, const NW: usize, const NE: usize> {
+    bxx: SMatrix<f64, NX, NX>,
+    bxw: SMatrix<f64, NX, NW>,
+    bww: SMatrix<f64, NW, NW>,
+    x: SVector<f64, NX>,
+    w: SVector<f64, NW>,
+    fx: SMatrix<f64, NX, NX>,
+    fw: SMatrix<f64, NX, NW>,
+    ex: SMatrix<f64, NE, NX>,
+    ew: SMatrix<f64, NE, NW>,
+    valid: bool,
+}
+
+impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> {
+    fn new() -> Self {
+        QuasiNewton {
+            bxx: SMatrix::zeros(),
+            bxw: SMatrix::zeros(),
+            bww: SMatrix::zeros(),
+            x: SVector::zeros(),
+            w: SVector::zeros(),
+            fx: SMatrix::zeros(),
+            fw: SMatrix::zeros(),
+            ex: SMatrix::zeros(),
+            ew: SMatrix::zeros(),
+            valid: false,
+        }
+    }
+
+    fn reset(&mut self) {
+        self.bxx.fill(0.0);
+        self.bxw.fill(0.0);
+        self.bww.fill(0.0);
+    }
+
+    /// SR1 update with the multipliers of the new iterate, then remember the new point.
+    #[allow(clippy::too_many_arguments)]
+    fn update<const NC: usize>(
+        &mut self,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        d: &StageDerivatives<NX, NW, NE, NC>,
+        lam: &SVector<f64, NX>,
+        nu: &SVector<f64, NE>,
+    ) {
+        if self.valid {
+            let (sx, sw) = (x - self.x, w - self.w);
+            let yx = (d.fx - self.fx).transpose() * lam + (d.ex - self.ex).transpose() * nu;
+            let yw = (d.fw - self.fw).transpose() * lam + (d.ew - self.ew).transpose() * nu;
+            let rx = yx - (self.bxx * sx + self.bxw * sw);
+            let rw = yw - (self.bxw.transpose() * sx + self.bww * sw);
+            let den = sx.dot(&rx) + sw.dot(&rw);
+            let ns = (sx.norm_squared() + sw.norm_squared()).sqrt();
+            let nr = (rx.norm_squared() + rw.norm_squared()).sqrt();
+            if den.abs() > 1e-8 * ns * nr && ns > 0.0 {
+                self.bxx += rx * rx.transpose() / den;
+                self.bxw += rx * rw.transpose() / den;
+                self.bww += rw * rw.transpose() / den;
+            }
+        }
+        self.x = *x;
+        self.w = *w;
+        self.fx = d.fx;
+        self.fw = d.fw;
+        self.ex = d.ex;
+        self.ew = d.ew;
+        self.valid = true;
+    }
+}
+
 /// One stage of the condensed LQ problem in `(δx, δu)`.
 #[derive(Clone, Debug)]
 struct Condensed<const NX: usize, const NW: usize, const NU: usize> {
@@ -195,6 +317,8 @@ pub struct Solver<'a, P, const NX: usize, const NW: usize, const NE: usize, cons
     bounds: Vec<Bounds<NC>>,
     eqs: Vec<StateEquality>,
     eqs_at: Vec<Vec<usize>>,
+    /// The current dual regularisation of the state equalities (f64 bits).
+    delta_c_bits: std::sync::atomic::AtomicU64,
 }
 
 impl<'a, P, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
@@ -229,7 +353,17 @@ where
             bounds,
             eqs,
             eqs_at,
+            delta_c_bits: std::sync::atomic::AtomicU64::new(0),
         }
+    }
+
+    fn delta_c(&self) -> f64 {
+        f64::from_bits(self.delta_c_bits.load(std::sync::atomic::Ordering::Relaxed))
+    }
+
+    fn set_delta_c(&self, v: f64) {
+        self.delta_c_bits
+            .store(v.to_bits(), std::sync::atomic::Ordering::Relaxed);
     }
 
     /// An iterate from primal values: slacks pushed into the interior, unit bound
@@ -271,6 +405,30 @@ where
                     let push = (1e-2 * b.hi[i].abs().max(1.0)).min(1e-2 * gap);
                     it.t_hi[k][i] = (b.hi[i] - c[i]).max(push);
                     it.z_hi[k][i] = 1.0;
+                }
+            }
+        }
+        it
+    }
+
+    /// A warm start from a previous solution (of this or a nearby problem): primal values
+    /// and multipliers kept, slacks recomputed from the constraints at this problem and
+    /// pushed at least `√μ₀`-ish into the interior, bound multipliers set to `μ₀/t`.
+    pub fn warm_iterate(&self, prev: Iterate<NX, NW, NC>) -> Iterate<NX, NW, NC> {
+        let mut it = prev;
+        it.x[0] = self.p.initial_state();
+        let mu = self.opts.mu_init;
+        for k in 0..self.n {
+            let c = self.p.constraints(k, &it.x[k], &it.w[k]);
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    it.t_lo[k][i] = (c[i] - b.lo[i]).max(mu);
+                    it.z_lo[k][i] = it.z_lo[k][i].max(mu / it.t_lo[k][i]);
+                }
+                if b.has_hi[i] > 0.0 {
+                    it.t_hi[k][i] = (b.hi[i] - c[i]).max(mu);
+                    it.z_hi[k][i] = it.z_hi[k][i].max(mu / it.t_hi[k][i]);
                 }
             }
         }
@@ -364,6 +522,7 @@ where
         k: usize,
         it: &Iterate<NX, NW, NC>,
         d: &StageDerivatives<NX, NW, NE, NC>,
+        qn: Option<&QuasiNewton<NX, NW, NE>>,
         mu: f64,
     ) -> Result<Condensed<NX, NW, NU>, String> {
         let b = &self.bounds[k];
@@ -386,9 +545,18 @@ where
         }
         let cx_s = SMatrix::<f64, NX, NC>::from_fn(|i, j| d.cx[(j, i)] * sigma[j]);
         let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
-        let hxx = d.hxx + cx_s * d.cx;
-        let hxw = d.hxw + cx_s * d.cw;
-        let hww = d.hww + cw_s * d.cw;
+        let (mut hxx0, mut hxw0, mut hww0) = (d.hxx, d.hxw, d.hww);
+        if self.opts.convexify {
+            convexify(&mut hxx0, &mut hxw0, &mut hww0);
+        }
+        if let Some(q) = qn {
+            hxx0 += q.bxx;
+            hxw0 += q.bxw;
+            hww0 += q.bww;
+        }
+        let hxx = hxx0 + cx_s * d.cx;
+        let hxw = hxw0 + cx_s * d.cw;
+        let hww = hww0 + cw_s * d.cw;
         let gx = d.gx + d.cx.transpose() * bc;
         let gw = d.gw + d.cw.transpose() * bc;
 
@@ -446,7 +614,7 @@ where
         q_mat: &mut SMatrix<f64, NX, NX>,
         q: &mut SVector<f64, NX>,
     ) {
-        let dc = self.opts.delta_c;
+        let dc = self.delta_c();
         for &j in &self.eqs_at[k] {
             let e = &self.eqs[j];
             q_mat[(e.index, e.index)] += 1.0 / dc;
@@ -483,7 +651,19 @@ where
             let hxx = q_mat + s.a.transpose() * pa;
             let hu = s.r + s.b.transpose() * pc;
             let hx = q + s.a.transpose() * pc;
-            let chol = huu.cholesky().ok_or(k)?;
+            let Some(chol) = huu.cholesky() else {
+                if std::env::var("IPM_DEBUG").is_ok() {
+                    let mut full = nalgebra::DMatrix::<f64>::zeros(NX + NU, NX + NU);
+                    full.view_mut((0, 0), (NX, NX)).copy_from(&q_mat);
+                    full.view_mut((0, NX), (NX, NU)).copy_from(&s.s_mat);
+                    full.view_mut((NX, 0), (NU, NX)).copy_from(&s.s_mat.transpose());
+                    full.view_mut((NX, NX), (NU, NU)).copy_from(&s.r_mat);
+                    let ev = full.symmetric_eigen().eigenvalues;
+                    let pe = nalgebra::DMatrix::from_column_slice(NX, NX, p_mat.as_slice()).symmetric_eigen().eigenvalues;
+                    eprintln!("  riccati fails at stage {k} (delta {delta:.1e}): huu {huu:?}; stage min eig {:.3e}, P min eig {:.3e} max {:.3e}", ev.min(), pe.min(), pe.max());
+                }
+                return Err(k);
+            };
             let gain = -chol.solve(&hux);
             let ff = -chol.solve(&hu);
             let pm = hxx + hux.transpose() * gain;
@@ -535,8 +715,16 @@ where
                     mult_cnt += NE as f64;
                 }
             }
+            // A state equality fixes one component: its multiplier estimate zeroes that
+            // component of the gradient (the iterate's y carries the round-off of the
+            // regularised update, amplified by 1/δ_c).
             for &j in &self.eqs_at[k] {
-                gx[self.eqs[j].index] += it.y[j];
+                gx[self.eqs[j].index] = 0.0;
+            }
+            if std::env::var("DUAL_DEBUG").is_ok() && mu == 0.0 {
+                let (a, b) = (gx.amax(), gw.amax());
+                if k > 0 && a > dual { eprintln!("    dual x stage {k}: {a:.2e} at {}", gx.iamax()); }
+                if b > dual.max(a) { eprintln!("    dual w stage {k}: {b:.2e} at {}", gw.iamax()); }
             }
             if k > 0 {
                 dual = dual.max(gx.amax());
@@ -560,7 +748,7 @@ where
         }
         let mut gx_n = gx_next;
         for &j in &self.eqs_at[n] {
-            gx_n[self.eqs[j].index] += it.y[j];
+            gx_n[self.eqs[j].index] = 0.0;
         }
         dual = dual.max(gx_n.amax());
         for (j, e) in self.eqs.iter().enumerate() {
@@ -615,7 +803,12 @@ where
             hww: SMatrix::zeros(),
         };
         let mut ders = vec![dummy; n];
+        let mut qn = vec![QuasiNewton::<NX, NW, NE>::new(); if o.quasi_newton { n } else { 0 }];
         let mut ls_count = 0;
+        let mut qn_resets = 0usize;
+        // Proximal primal regularisation (Levenberg–Marquardt-like damping of the step):
+        // it changes the steps, not the solution; shrinks as full steps are accepted.
+        let mut prox: f64 = std::env::var("PROX").map(|s| s.parse().unwrap()).unwrap_or(0.0);
         loop {
             if !m.objective.is_finite() || !m.theta.is_finite() {
                 status = Status::Diverged;
@@ -628,8 +821,30 @@ where
             // Derivatives.
             let t0 = Instant::now();
             par_fill(&mut ders, o.threads, |k| {
-                stage_derivatives(self.p, k, &it.x[k], &it.w[k], &(it.z_hi[k] - it.z_lo[k]))
+                stage_derivatives(
+                    self.p,
+                    k,
+                    &it.x[k],
+                    &it.w[k],
+                    &(it.z_hi[k] - it.z_lo[k]),
+                    o.exact_hessian.then_some(&it.lambda[k]),
+                )
             });
+            if o.quasi_newton {
+                for k in 0..n {
+                    let d = &ders[k];
+                    let zeta = it.z_hi[k] - it.z_lo[k];
+                    let mut nu = SVector::<f64, NE>::zeros();
+                    if NE > 0 {
+                        let gw = d.gw + d.fw.transpose() * it.lambda[k] + d.cw.transpose() * zeta;
+                        let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
+                        if let Some(lu) = Lu::new(&ev.transpose()) {
+                            nu = lu.solve(&(-gw.fixed_rows::<NE>(0).into_owned()));
+                        }
+                    }
+                    qn[k].update(&it.x[k], &it.w[k], d, &it.lambda[k], &nu);
+                }
+            }
             tm.derivatives += t0.elapsed().as_secs_f64();
 
             let (dual, primal, _) = self.kkt_error(&it, &ders, 0.0);
@@ -689,24 +904,28 @@ where
                 }
             });
             m = self.measures(&it, &vals, mu);
+            // The state equalities' regularisation follows the barrier parameter: loose
+            // while far from the solution (steps that respect the other constraints),
+            // tight near it (fast convergence of their multipliers).
+            self.set_delta_c((o.delta_c * (mu / o.mu_init).powi(2)).max(o.delta_c_min));
 
             // KKT solve.
             let t1 = Instant::now();
             let mut cond = Vec::with_capacity(n);
             for k in 0..n {
-                match self.condense(k, &it, &ders[k], mu) {
+                match self.condense(k, &it, &ders[k], qn.get(k), mu) {
                     Ok(c) => cond.push(c),
                     Err(e) => {
                         return self.finish(Status::Failed(e), it, iter, tm, t_start);
                     }
                 }
             }
-            let mut delta = 0.0;
+            let mut delta = prox;
             let sol = loop {
                 match self.riccati(&cond, &it, delta) {
                     Ok(s) => break Some(s),
                     Err(_) => {
-                        delta = if delta == 0.0 {
+                        delta = if delta == prox {
                             if delta_last == 0.0 { 1e-4 } else { (delta_last / 3.0).max(1e-20) }
                         } else if delta_last == 0.0 {
                             delta * 100.0
@@ -772,6 +991,36 @@ where
                     if r > ps { ps = r; wi = (e.stage, e.index); }
                 }
                 eprintln!("  worst state eq at stage {} index {}", wi.0, wi.1);
+                let a = 1e-7;
+                let tr = self.trial(&it, &step, a);
+                let (mut errd, mut erre) = (0.0f64, 0.0f64);
+                let mut worst_k = 0;
+                for k in 0..n {
+                    let v = stage_values(self.p, k, &tr.x[k], &tr.w[k]);
+                    let dd = ((v.f - tr.x[k + 1]) - (ders[k].f - it.x[k + 1]) * (1.0 - a)).amax() / a;
+                    let de = (v.e - ders[k].e * (1.0 - a)).amax() / a;
+                    if de > erre { worst_k = k; }
+                    errd = errd.max(dd);
+                    erre = erre.max(de);
+                }
+                let mut mx = SVector::<f64, NX>::zeros();
+                let mut mw = SVector::<f64, NW>::zeros();
+                for k in 0..n { mx = mx.zip_map(&step.dx[k+1], |a, b| a.max(b.abs())); mw = mw.zip_map(&step.dw[k], |a, b| a.max(b.abs())); }
+                eprintln!("  max |dx| {:.1e}\n  max |dw| {:.1e}", mx.transpose(), mw.transpose());
+                {
+                    let tr = self.trial(&it, &step, 1.0);
+                    let (mut dd, mut de, mut kk) = (SVector::<f64, NX>::zeros(), SVector::<f64, NE>::zeros(), 0usize);
+                    for k in 0..n {
+                        let v = stage_values(self.p, k, &tr.x[k], &tr.w[k]);
+                        dd = dd.zip_map(&(v.f - tr.x[k + 1]), |a, b| a.max(b.abs()));
+                        if v.e.amax() > de.amax() { kk = k; }
+                        de = de.zip_map(&v.e, |a, b| a.max(b.abs()));
+                    }
+                    let mut ps = 0.0f64;
+                    for e in &self.eqs { ps = ps.max((tr.x[e.stage][e.index] - e.value).abs()); }
+                    eprintln!("  full step: defects {:.1e}\n  e {:.1e} (stage {kk}) state eq {ps:.1e}", dd.transpose(), de.transpose());
+                }
+                eprintln!("  linearisation check: dynamics {errd:.2e}, equality {erre:.2e} (stage {worst_k})");
                 eprintln!("  defects {:.1e} | e {pe:.1e} | state eq {ps:.1e} | y max {:.1e}", pd.transpose(), it.y.iter().fold(0.0f64, |a, b| a.max(b.abs())));
                 let mut worst = (1.0f64, 0usize, 0usize, 0.0, 0.0);
                 for k in 0..n {
@@ -815,7 +1064,26 @@ where
             };
             let mut alpha = amax_p;
             ls_count = 0;
+            // IPOPT's tiny-step rule: a primal step at round-off level is taken whole
+            // (its dual part may still be large), without the line search.
+            let rel_step = (0..n)
+                .map(|k| {
+                    let a = step.dx[k + 1].zip_map(&it.x[k + 1], |d, x| d.abs() / (1.0 + x.abs())).amax();
+                    let b = step.dw[k].zip_map(&it.w[k], |d, x| d.abs() / (1.0 + x.abs())).amax();
+                    a.max(b)
+                })
+                .fold(0.0f64, f64::max);
+            if std::env::var("LS_DEBUG").is_ok() {
+                eprintln!("    relative step {rel_step:.2e}");
+            }
+            let tiny = rel_step < 1e-9 && m.theta_max <= o.constr_viol_tol;
             let accepted = loop {
+                if tiny {
+                    let trial = self.trial(&it, &step, alpha);
+                    let tv = self.values(&trial);
+                    let tmz = self.measures(&trial, &tv, mu);
+                    break Some((trial, tv, tmz));
+                }
                 ls_count += 1;
                 let trial = self.trial(&it, &step, alpha);
                 let tv = self.values(&trial);
@@ -824,6 +1092,9 @@ where
                 let in_filter = filter.iter().any(|&(ft, fp)| tmz.theta >= ft && tmz.barrier >= fp);
                 let mut accept = false;
                 let mut augment = false;
+                if std::env::var("LS_DEBUG").is_ok() {
+                    eprintln!("    alpha {alpha:.3e} theta {:.6e} (cur {:.6e}) barrier {:.6e} (cur {:.6e}) in_filter {in_filter} ok {ok_val} dphi {dphi:.3e}", tmz.theta, m.theta, tmz.barrier, m.barrier);
+                }
                 if ok_val && !in_filter {
                     let switching =
                         dphi < 0.0 && alpha * (-dphi).powf(s_ph) > dl * m.theta.powf(s_th);
@@ -848,6 +1119,17 @@ where
             };
             tm.line_search += t2.elapsed().as_secs_f64();
             let Some((mut trial, tv, tmz)) = accepted else {
+                // With a quasi-Newton curvature, first forget it (a secant model gone bad
+                // gives steps the barrier function does not accept) and try again.
+                if qn.iter().any(|q| q.bxx.amax() > 0.0 || q.bww.amax() > 0.0) {
+                    for q in qn.iter_mut() {
+                        q.reset();
+                    }
+                    qn_resets += 1;
+                    filter.clear();
+                    iter += 1;
+                    continue;
+                }
                 status = if m.theta_max > o.constr_viol_tol.max(1e-3) {
                     Status::Infeasible {
                         violation: m.theta_max,
@@ -872,6 +1154,11 @@ where
                         trial.z_hi[k][i] = z.clamp(mu / (1e10 * t), 1e10 * mu / t);
                     }
                 }
+            }
+            if alpha >= 0.999 && amax_p >= 0.999 {
+                prox *= 0.1;
+            } else if ls_count > 2 {
+                prox = (prox * 10.0).max(1e-8);
             }
             alpha_p = alpha;
             alpha_d = amax_d;
@@ -950,7 +1237,7 @@ where
             .iter()
             .enumerate()
             .map(|(j, e)| {
-                it.y[j] + (dx[e.stage][e.index] + it.x[e.stage][e.index] - e.value) / self.opts.delta_c
+                it.y[j] + (dx[e.stage][e.index] + it.x[e.stage][e.index] - e.value) / self.delta_c()
             })
             .collect();
         Step {

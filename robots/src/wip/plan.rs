@@ -74,6 +74,9 @@ impl WipPlan<'_> {
             b.alpha_max,
             b.v_theta_max,
         ]);
+        if std::env::var("NO_BOUNDS").is_ok() {
+            return (SVector::repeat(f64::NEG_INFINITY), SVector::repeat(f64::INFINITY));
+        }
         (-hi, hi)
     }
 
@@ -105,9 +108,11 @@ impl WipPlan<'_> {
         fix(0, end[0]);
         fix(1, end[1]);
         fix(2, p.end_heading);
+        if std::env::var("NO_REST").is_err() {
         fix(3, 0.0);
         for i in 0..5 {
             fix(V_AT + i, 0.0);
+        }
         }
         eqs
     }
@@ -171,6 +176,19 @@ impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
     fn state_equalities(&self) -> Vec<StateEquality> {
         self.plan.equalities()
     }
+    fn hessian_model<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 7>) -> Option<T> {
+        if std::env::var("NO_MODEL").is_ok() { return None; }
+        // ½ u·i = ½ [R i² + (L/h)(i_k − i_{k−1}) i_k + k_e n_wm ω_rel i] per motor on the
+        // feasible set; the mechanical power sums to friction loss plus a boundary term.
+        let p = &self.plan.wip.params;
+        let mut m = T::zero();
+        for j in 0..2 {
+            let (i, ip) = (w[3 + j], x[V_AT + 3 + j]);
+            let rel = w[1 + j] - w[0];
+            m += i * i * p.R_m + (i - ip) * (i - ip) * (0.5 * p.L_m / self.plan.problem.h) + rel * rel * p.d_v;
+        }
+        Some(m * 0.5)
+    }
 }
 
 /// The Runge–Kutta transcriptions: `NW = 2` (`u_k`), no stage equality.
@@ -225,6 +243,17 @@ impl StageProblem<NX, 2, 0, NC> for RkPlan<'_> {
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
         self.plan.equalities()
+    }
+    fn hessian_model<T: Real>(&self, _k: usize, x: &SVector<T, NX>, _w: &SVector<T, 2>) -> Option<T> {
+        if std::env::var("NO_MODEL").is_ok() { return None; }
+        let p = &self.plan.wip.params;
+        let mut m = T::zero();
+        for j in 0..2 {
+            let i = x[V_AT + 3 + j];
+            let rel = x[V_AT + 1 + j] - x[V_AT];
+            m += i * i * p.R_m + rel * rel * p.d_v;
+        }
+        Some(m * 0.5)
     }
 }
 
@@ -411,6 +440,13 @@ fn outcome<const NW: usize>(
 }
 
 /// Plan with the given transcription from the polyline start.
+///
+/// Two phases: the problem with the Coulomb friction switched off (`d_c = 0`, smooth),
+/// from the polyline start; then the true problem, warm-started from that solution with a
+/// small barrier parameter. The `tanh` of the Coulomb friction has slope `d_c d_0` at zero
+/// wheel speed and saturates within ~0.3 rad/s: Newton steps from a start at rest or with
+/// wrong wheel speeds overshoot it by orders of magnitude and the line search stalls;
+/// near the smooth problem's optimum the wheel speeds are right and it converges fast.
 pub fn plan(
     wip: &Wip,
     problem: &PlanProblem,
@@ -418,20 +454,51 @@ pub fn plan(
     opts: IpOptions,
 ) -> PlanOutcome {
     let bounds = PlanBounds::default();
+    let mut smooth = *wip;
+    smooth.params.d_c = 0.0;
+    let warm = |o: &IpOptions| IpOptions {
+        mu_init: o.warm_mu_init(),
+        ..o.clone()
+    };
     match transcription {
         Transcription::VarInt => {
-            let ocp = VarIntPlan::new(wip, problem, bounds);
-            let solver: Solver<_, NX, 7, 5, 2, NC> = Solver::new(&ocp, opts);
             let (xs, ws) = varint_start(wip, problem);
-            let r = solver.solve(solver.initial_iterate(xs, ws));
-            outcome(r, problem.h, true)
+            let ocp0 = VarIntPlan::new(&smooth, problem, bounds);
+            let s0: Solver<_, NX, 7, 5, 2, NC> = Solver::new(&ocp0, opts.clone());
+            let r0 = s0.solve(s0.initial_iterate(xs, ws));
+            if wip.params.d_c == 0.0 || r0.status != dmech_ocp::ipm::Status::Solved {
+                return outcome(r0, problem.h, true);
+            }
+            let ocp = VarIntPlan::new(wip, problem, bounds);
+            let s1: Solver<_, NX, 7, 5, 2, NC> = Solver::new(&ocp, warm(&opts));
+            let r = s1.solve(s1.warm_iterate(r0.iterate.clone()));
+            outcome(merge(r, &r0), problem.h, true)
         }
         Transcription::Rk(rk) => {
-            let ocp = RkPlan::new(wip, problem, bounds, rk);
-            let solver: Solver<_, NX, 2, 0, 2, NC> = Solver::new(&ocp, opts);
             let (xs, ws) = rk_start(wip, problem);
-            let r = solver.solve(solver.initial_iterate(xs, ws));
-            outcome(r, problem.h, false)
+            let ocp0 = RkPlan::new(&smooth, problem, bounds, rk);
+            let s0: Solver<_, NX, 2, 0, 2, NC> = Solver::new(&ocp0, opts.clone());
+            let r0 = s0.solve(s0.initial_iterate(xs, ws));
+            if wip.params.d_c == 0.0 || r0.status != dmech_ocp::ipm::Status::Solved {
+                return outcome(r0, problem.h, false);
+            }
+            let ocp = RkPlan::new(wip, problem, bounds, rk);
+            let s1: Solver<_, NX, 2, 0, 2, NC> = Solver::new(&ocp, warm(&opts));
+            let r = s1.solve(s1.warm_iterate(r0.iterate.clone()));
+            outcome(merge(r, &r0), problem.h, false)
         }
     }
+}
+
+/// The second phase's result with the first phase's iterations and time added.
+fn merge<const NW: usize>(
+    mut r: SolveResult<NX, NW, NC>,
+    r0: &SolveResult<NX, NW, NC>,
+) -> SolveResult<NX, NW, NC> {
+    r.iterations += r0.iterations;
+    r.timings.derivatives += r0.timings.derivatives;
+    r.timings.kkt += r0.timings.kkt;
+    r.timings.line_search += r0.timings.line_search;
+    r.timings.total += r0.timings.total;
+    r
 }
