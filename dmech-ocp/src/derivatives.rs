@@ -76,7 +76,7 @@ where
     T: dmech_lie::Real,
 {
     let c = p.constraints(k, x, w);
-    let mut v = p.hessian_model(k, x, w).unwrap_or_else(|| p.cost(k, x, w));
+    let mut v = p.cost(k, x, w);
     for i in 0..NC {
         if zeta[i] != 0.0 {
             v += c[i] * zeta[i];

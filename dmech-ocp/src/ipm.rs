@@ -52,8 +52,6 @@ pub struct IpOptions {
     /// Partitioned SR1 approximation of the dynamics' and stage equalities' curvature
     /// (used when `exact_hessian` is off).
     pub quasi_newton: bool,
-    /// Project each stage Hessian onto the positive semidefinite cone.
-    pub convexify: bool,
     /// Wall-clock limit in seconds (reported as `MaxIterations`).
     pub time_limit: f64,
 }
@@ -61,7 +59,7 @@ pub struct IpOptions {
 impl IpOptions {
     /// The barrier parameter to restart with from a nearby solution.
     pub fn warm_mu_init(&self) -> f64 {
-        (self.mu_init * 1e-3).max(self.tol)
+        (self.mu_init * 1e-2).max(self.tol)
     }
 }
 
@@ -80,7 +78,6 @@ impl Default for IpOptions {
                 .min(8),
             verbose: false,
             exact_hessian: false,
-            convexify: false,
             quasi_newton: true,
             time_limit: f64::INFINITY,
         }
@@ -162,33 +159,6 @@ fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads: usize, f:
             });
         }
     });
-}
-
-/// Replace the stage Hessian `[hxx hxw; hxwᵀ hww]` by its projection onto the positive
-/// semidefinite cone (negative eigenvalues clipped to zero).
-fn convexify<const NX: usize, const NW: usize>(
-    hxx: &mut SMatrix<f64, NX, NX>,
-    hxw: &mut SMatrix<f64, NX, NW>,
-    hww: &mut SMatrix<f64, NW, NW>,
-) {
-    let n = NX + NW;
-    let mut h = nalgebra::DMatrix::<f64>::zeros(n, n);
-    h.view_mut((0, 0), (NX, NX)).copy_from(hxx);
-    h.view_mut((0, NX), (NX, NW)).copy_from(hxw);
-    h.view_mut((NX, 0), (NW, NX)).copy_from(&hxw.transpose());
-    h.view_mut((NX, NX), (NW, NW)).copy_from(hww);
-    if h.iter().all(|v| *v == 0.0) {
-        return;
-    }
-    let eig = h.symmetric_eigen();
-    if eig.eigenvalues.iter().all(|&l| l >= 0.0) {
-        return;
-    }
-    let lam = eig.eigenvalues.map(|l| l.max(0.0));
-    let p = &eig.eigenvectors * nalgebra::DMatrix::from_diagonal(&lam) * eig.eigenvectors.transpose();
-    hxx.copy_from(&p.view((0, 0), (NX, NX)));
-    hxw.copy_from(&p.view((0, NX), (NX, NW)));
-    hww.copy_from(&p.view((NX, NX), (NW, NW)));
 }
 
 /// Partitioned SR1 approximation of one stage's constraint curvature
@@ -546,9 +516,6 @@ where
         let cx_s = SMatrix::<f64, NX, NC>::from_fn(|i, j| d.cx[(j, i)] * sigma[j]);
         let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
         let (mut hxx0, mut hxw0, mut hww0) = (d.hxx, d.hxw, d.hww);
-        if self.opts.convexify {
-            convexify(&mut hxx0, &mut hxw0, &mut hww0);
-        }
         if let Some(q) = qn {
             hxx0 += q.bxx;
             hxw0 += q.bxw;
@@ -651,19 +618,7 @@ where
             let hxx = q_mat + s.a.transpose() * pa;
             let hu = s.r + s.b.transpose() * pc;
             let hx = q + s.a.transpose() * pc;
-            let Some(chol) = huu.cholesky() else {
-                if std::env::var("IPM_DEBUG").is_ok() {
-                    let mut full = nalgebra::DMatrix::<f64>::zeros(NX + NU, NX + NU);
-                    full.view_mut((0, 0), (NX, NX)).copy_from(&q_mat);
-                    full.view_mut((0, NX), (NX, NU)).copy_from(&s.s_mat);
-                    full.view_mut((NX, 0), (NU, NX)).copy_from(&s.s_mat.transpose());
-                    full.view_mut((NX, NX), (NU, NU)).copy_from(&s.r_mat);
-                    let ev = full.symmetric_eigen().eigenvalues;
-                    let pe = nalgebra::DMatrix::from_column_slice(NX, NX, p_mat.as_slice()).symmetric_eigen().eigenvalues;
-                    eprintln!("  riccati fails at stage {k} (delta {delta:.1e}): huu {huu:?}; stage min eig {:.3e}, P min eig {:.3e} max {:.3e}", ev.min(), pe.min(), pe.max());
-                }
-                return Err(k);
-            };
+            let chol = huu.cholesky().ok_or(k)?;
             let gain = -chol.solve(&hux);
             let ff = -chol.solve(&hu);
             let pm = hxx + hux.transpose() * gain;
@@ -721,11 +676,6 @@ where
             for &j in &self.eqs_at[k] {
                 gx[self.eqs[j].index] = 0.0;
             }
-            if std::env::var("DUAL_DEBUG").is_ok() && mu == 0.0 {
-                let (a, b) = (gx.amax(), gw.amax());
-                if k > 0 && a > dual { eprintln!("    dual x stage {k}: {a:.2e} at {}", gx.iamax()); }
-                if b > dual.max(a) { eprintln!("    dual w stage {k}: {b:.2e} at {}", gw.iamax()); }
-            }
             if k > 0 {
                 dual = dual.max(gx.amax());
             }
@@ -776,7 +726,7 @@ where
         let theta_max_f = 1e4 * m.theta.max(1.0);
         let theta_min_f = 1e-4 * m.theta.max(1.0);
         let mut theta_hist: Vec<f64> = Vec::new();
-        let mut status = Status::MaxIterations;
+        let status;
         let mut iter = 0;
         let (mut alpha_p, mut alpha_d) = (0.0, 0.0);
         if o.verbose {
@@ -805,10 +755,6 @@ where
         let mut ders = vec![dummy; n];
         let mut qn = vec![QuasiNewton::<NX, NW, NE>::new(); if o.quasi_newton { n } else { 0 }];
         let mut ls_count = 0;
-        let mut qn_resets = 0usize;
-        // Proximal primal regularisation (Levenberg–Marquardt-like damping of the step):
-        // it changes the steps, not the solution; shrinks as full steps are accepted.
-        let mut prox: f64 = std::env::var("PROX").map(|s| s.parse().unwrap()).unwrap_or(0.0);
         loop {
             if !m.objective.is_finite() || !m.theta.is_finite() {
                 status = Status::Diverged;
@@ -920,12 +866,12 @@ where
                     }
                 }
             }
-            let mut delta = prox;
+            let mut delta = 0.0;
             let sol = loop {
                 match self.riccati(&cond, &it, delta) {
                     Ok(s) => break Some(s),
                     Err(_) => {
-                        delta = if delta == prox {
+                        delta = if delta == 0.0 {
                             if delta_last == 0.0 { 1e-4 } else { (delta_last / 3.0).max(1e-20) }
                         } else if delta_last == 0.0 {
                             delta * 100.0
@@ -979,65 +925,6 @@ where
                 }
             }
 
-            if std::env::var("IPM_DEBUG").is_ok() {
-                let (mut pd, mut pe, mut ps) = (SVector::<f64, NX>::zeros(), 0.0f64, 0.0f64);
-                for k in 0..n {
-                    pd = pd.zip_map(&(ders[k].f - it.x[k + 1]), |a, b| a.max(b.abs()));
-                    pe = pe.max(ders[k].e.amax());
-                }
-                let mut wi = (0, 0);
-                for e in &self.eqs {
-                    let r = (it.x[e.stage][e.index] - e.value).abs();
-                    if r > ps { ps = r; wi = (e.stage, e.index); }
-                }
-                eprintln!("  worst state eq at stage {} index {}", wi.0, wi.1);
-                let a = 1e-7;
-                let tr = self.trial(&it, &step, a);
-                let (mut errd, mut erre) = (0.0f64, 0.0f64);
-                let mut worst_k = 0;
-                for k in 0..n {
-                    let v = stage_values(self.p, k, &tr.x[k], &tr.w[k]);
-                    let dd = ((v.f - tr.x[k + 1]) - (ders[k].f - it.x[k + 1]) * (1.0 - a)).amax() / a;
-                    let de = (v.e - ders[k].e * (1.0 - a)).amax() / a;
-                    if de > erre { worst_k = k; }
-                    errd = errd.max(dd);
-                    erre = erre.max(de);
-                }
-                let mut mx = SVector::<f64, NX>::zeros();
-                let mut mw = SVector::<f64, NW>::zeros();
-                for k in 0..n { mx = mx.zip_map(&step.dx[k+1], |a, b| a.max(b.abs())); mw = mw.zip_map(&step.dw[k], |a, b| a.max(b.abs())); }
-                eprintln!("  max |dx| {:.1e}\n  max |dw| {:.1e}", mx.transpose(), mw.transpose());
-                {
-                    let tr = self.trial(&it, &step, 1.0);
-                    let (mut dd, mut de, mut kk) = (SVector::<f64, NX>::zeros(), SVector::<f64, NE>::zeros(), 0usize);
-                    for k in 0..n {
-                        let v = stage_values(self.p, k, &tr.x[k], &tr.w[k]);
-                        dd = dd.zip_map(&(v.f - tr.x[k + 1]), |a, b| a.max(b.abs()));
-                        if v.e.amax() > de.amax() { kk = k; }
-                        de = de.zip_map(&v.e, |a, b| a.max(b.abs()));
-                    }
-                    let mut ps = 0.0f64;
-                    for e in &self.eqs { ps = ps.max((tr.x[e.stage][e.index] - e.value).abs()); }
-                    eprintln!("  full step: defects {:.1e}\n  e {:.1e} (stage {kk}) state eq {ps:.1e}", dd.transpose(), de.transpose());
-                }
-                eprintln!("  linearisation check: dynamics {errd:.2e}, equality {erre:.2e} (stage {worst_k})");
-                eprintln!("  defects {:.1e} | e {pe:.1e} | state eq {ps:.1e} | y max {:.1e}", pd.transpose(), it.y.iter().fold(0.0f64, |a, b| a.max(b.abs())));
-                let mut worst = (1.0f64, 0usize, 0usize, 0.0, 0.0);
-                for k in 0..n {
-                    for i in 0..NC {
-                        if step.dt_lo[k][i] < 0.0 {
-                            let a = -tau * it.t_lo[k][i] / step.dt_lo[k][i];
-                            if a < worst.0 { worst = (a, k, i, it.t_lo[k][i], step.dt_lo[k][i]); }
-                        }
-                        if step.dt_hi[k][i] < 0.0 {
-                            let a = -tau * it.t_hi[k][i] / step.dt_hi[k][i];
-                            if a < worst.0 { worst = (a, k, 100 + i, it.t_hi[k][i], step.dt_hi[k][i]); }
-                        }
-                    }
-                }
-                eprintln!("  limiting: alpha {:.2e} stage {} row {} t {:.3e} dt {:.3e}; |dx| {:.2e} |dw| {:.2e}", worst.0, worst.1, worst.2, worst.3, worst.4,
-                    step.dx.iter().map(|v| v.amax()).fold(0.0, f64::max), step.dw.iter().map(|v| v.amax()).fold(0.0, f64::max));
-            }
             // Filter line search.
             let t2 = Instant::now();
             let mut dphi = 0.0;
@@ -1073,9 +960,6 @@ where
                     a.max(b)
                 })
                 .fold(0.0f64, f64::max);
-            if std::env::var("LS_DEBUG").is_ok() {
-                eprintln!("    relative step {rel_step:.2e}");
-            }
             let tiny = rel_step < 1e-9 && m.theta_max <= o.constr_viol_tol;
             let accepted = loop {
                 if tiny {
@@ -1092,9 +976,6 @@ where
                 let in_filter = filter.iter().any(|&(ft, fp)| tmz.theta >= ft && tmz.barrier >= fp);
                 let mut accept = false;
                 let mut augment = false;
-                if std::env::var("LS_DEBUG").is_ok() {
-                    eprintln!("    alpha {alpha:.3e} theta {:.6e} (cur {:.6e}) barrier {:.6e} (cur {:.6e}) in_filter {in_filter} ok {ok_val} dphi {dphi:.3e}", tmz.theta, m.theta, tmz.barrier, m.barrier);
-                }
                 if ok_val && !in_filter {
                     let switching =
                         dphi < 0.0 && alpha * (-dphi).powf(s_ph) > dl * m.theta.powf(s_th);
@@ -1125,7 +1006,6 @@ where
                     for q in qn.iter_mut() {
                         q.reset();
                     }
-                    qn_resets += 1;
                     filter.clear();
                     iter += 1;
                     continue;
@@ -1154,11 +1034,6 @@ where
                         trial.z_hi[k][i] = z.clamp(mu / (1e10 * t), 1e10 * mu / t);
                     }
                 }
-            }
-            if alpha >= 0.999 && amax_p >= 0.999 {
-                prox *= 0.1;
-            } else if ls_count > 2 {
-                prox = (prox * 10.0).max(1e-8);
             }
             alpha_p = alpha;
             alpha_d = amax_d;

@@ -51,18 +51,4 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>);
     /// The state equalities, any order.
     fn state_equalities(&self) -> Vec<StateEquality>;
-    /// A convex stage function whose Hessian stands in for the cost's in the Newton
-    /// matrix (the gradient is always the cost's). For costs that are indefinite but equal,
-    /// on the feasible set, to a convex expression plus boundary terms (electrical energy
-    /// = resistive loss + friction loss + change of stored energy), this gives the Newton
-    /// steps the curvature the dynamics would contribute through their multipliers.
-    /// `None`: the cost's own Hessian.
-    fn hessian_model<T: Real>(
-        &self,
-        _k: usize,
-        _x: &SVector<T, NX>,
-        _w: &SVector<T, NW>,
-    ) -> Option<T> {
-        None
-    }
 }

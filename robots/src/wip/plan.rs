@@ -74,9 +74,6 @@ impl WipPlan<'_> {
             b.alpha_max,
             b.v_theta_max,
         ]);
-        if std::env::var("NO_BOUNDS").is_ok() {
-            return (SVector::repeat(f64::NEG_INFINITY), SVector::repeat(f64::INFINITY));
-        }
         (-hi, hi)
     }
 
@@ -108,11 +105,9 @@ impl WipPlan<'_> {
         fix(0, end[0]);
         fix(1, end[1]);
         fix(2, p.end_heading);
-        if std::env::var("NO_REST").is_err() {
         fix(3, 0.0);
         for i in 0..5 {
             fix(V_AT + i, 0.0);
-        }
         }
         eqs
     }
@@ -176,19 +171,6 @@ impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
     fn state_equalities(&self) -> Vec<StateEquality> {
         self.plan.equalities()
     }
-    fn hessian_model<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 7>) -> Option<T> {
-        if std::env::var("NO_MODEL").is_ok() { return None; }
-        // ½ u·i = ½ [R i² + (L/h)(i_k − i_{k−1}) i_k + k_e n_wm ω_rel i] per motor on the
-        // feasible set; the mechanical power sums to friction loss plus a boundary term.
-        let p = &self.plan.wip.params;
-        let mut m = T::zero();
-        for j in 0..2 {
-            let (i, ip) = (w[3 + j], x[V_AT + 3 + j]);
-            let rel = w[1 + j] - w[0];
-            m += i * i * p.R_m + (i - ip) * (i - ip) * (0.5 * p.L_m / self.plan.problem.h) + rel * rel * p.d_v;
-        }
-        Some(m * 0.5)
-    }
 }
 
 /// The Runge–Kutta transcriptions: `NW = 2` (`u_k`), no stage equality.
@@ -243,17 +225,6 @@ impl StageProblem<NX, 2, 0, NC> for RkPlan<'_> {
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
         self.plan.equalities()
-    }
-    fn hessian_model<T: Real>(&self, _k: usize, x: &SVector<T, NX>, _w: &SVector<T, 2>) -> Option<T> {
-        if std::env::var("NO_MODEL").is_ok() { return None; }
-        let p = &self.plan.wip.params;
-        let mut m = T::zero();
-        for j in 0..2 {
-            let i = x[V_AT + 3 + j];
-            let rel = x[V_AT + 1 + j] - x[V_AT];
-            m += i * i * p.R_m + rel * rel * p.d_v;
-        }
-        Some(m * 0.5)
     }
 }
 
