@@ -234,6 +234,12 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
     }
 }
 
+/// A violation that stalls above this is reported as infeasibility.
+const INFEASIBLE_VIOLATION: f64 = 1e-2;
+
+/// Steps taken without line-search acceptance, at most, per solve.
+const MAX_FORCED_STEPS: usize = 20;
+
 /// One stage of the condensed LQ problem in `(δx, δu)`.
 #[derive(Clone, Debug)]
 struct Condensed<const NX: usize, const NW: usize, const NU: usize> {
@@ -755,6 +761,7 @@ where
         let mut ders = vec![dummy; n];
         let mut qn = vec![QuasiNewton::<NX, NW, NE>::new(); if o.quasi_newton { n } else { 0 }];
         let mut ls_count = 0;
+        let mut forced_steps = 0usize;
         loop {
             if !m.objective.is_finite() || !m.theta.is_finite() {
                 status = Status::Diverged;
@@ -818,12 +825,13 @@ where
                 status = Status::MaxIterations;
                 break;
             }
-            // Infeasibility: the violation has not dropped by 1% over 25 iterations while
-            // still far from zero.
+            // Infeasibility: the violation has not dropped by 1% over 100 iterations while
+            // still far from zero (no restoration phase: this is the stationary point of
+            // the violation that the regularised equalities lead to).
             theta_hist.push(m.theta_max);
             if theta_hist.len() > 100 {
                 let old = theta_hist[theta_hist.len() - 101];
-                if m.theta_max > 1e-3 && m.theta_max > 0.99 * old {
+                if m.theta_max > INFEASIBLE_VIOLATION && m.theta_max > 0.99 * old {
                     status = Status::Infeasible {
                         violation: m.theta_max,
                     };
@@ -999,24 +1007,32 @@ where
                 }
             };
             tm.line_search += t2.elapsed().as_secs_f64();
-            let Some((mut trial, tv, tmz)) = accepted else {
-                // With a quasi-Newton curvature, first forget it (a secant model gone bad
-                // gives steps the barrier function does not accept) and try again.
-                if qn.iter().any(|q| q.bxx.amax() > 0.0 || q.bww.amax() > 0.0) {
+            let accepted = match accepted {
+                Some(a) => Some(a),
+                None if forced_steps < MAX_FORCED_STEPS => {
+                    // No restoration phase: forget the quasi-Newton curvature (a secant
+                    // model gone bad gives steps the barrier function does not accept),
+                    // take a short step anyway and restart the filter. Bounded in number,
+                    // so a problem without an acceptable step still ends.
                     for q in qn.iter_mut() {
                         q.reset();
                     }
                     filter.clear();
-                    iter += 1;
-                    continue;
+                    forced_steps += 1;
+                    let a = amax_p * 0.125;
+                    let trial = self.trial(&it, &step, a);
+                    let tv = self.values(&trial);
+                    let tmz = self.measures(&trial, &tv, mu);
+                    alpha = a;
+                    Some((trial, tv, tmz))
                 }
-                status = if m.theta_max > o.constr_viol_tol.max(1e-3) {
-                    Status::Infeasible {
-                        violation: m.theta_max,
-                    }
-                } else {
-                    Status::Failed("line search: no acceptable step".into())
-                };
+                None => None,
+            };
+            let Some((mut trial, tv, tmz)) = accepted else {
+                status = Status::Failed(format!(
+                    "line search: no acceptable step (constraint violation {:.2e})",
+                    m.theta_max
+                ));
                 break;
             };
             // Dual step with its own step length, kept within κ_Σ of μ/t.

@@ -2,4 +2,5 @@
 //! file formats of the `wip` tool.
 
 pub mod io;
+pub mod plot;
 pub mod wip;

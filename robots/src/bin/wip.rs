@@ -12,6 +12,7 @@ const USAGE: &str = "\
 usage: wip <subcommand> [options]
 
 subcommands:
+  plan       constrained energy-optimal trajectory through waypoints (eight, zigzag, FILE.json)
   simulate   open-loop simulation from a state with given voltages
 
 Run `wip <subcommand> --help` for its options.";
@@ -29,6 +30,29 @@ row's t is the end of the horizon). Writes DIR/trajectory.csv (default DIR: out)
                 rk1, rk2 (explicit midpoint), rk4 on the continuous model
   --h           step in seconds (default 0.005)
   --params      JSON parameter file; any subset of the keys of model.md's table";
+
+const PLAN_HELP: &str = "\
+usage: wip plan <eight|zigzag|FILE.json> [--integrator varint|rk1|rk2|rk4]
+                [--current dynamic] [--h SECONDS] [--params FILE] [--out DIR]
+                [--max-iter N] [--quiet]
+
+Solves the paper's constrained energy-optimal control problem (benchmarks.md) through the
+waypoints of a benchmark or of a waypoint file, and writes DIR/trajectory.csv,
+DIR/summary.json and SVG plots (path, voltages, voltage rates, currents, tilt, heading
+rate; bounds dashed). The iteration table goes to stderr. Default DIR: out.
+
+  --integrator  varint (default: variational integrator), rk1, rk2, rk4 (continuous model)
+  --current     dynamic (default; the algebraic-current variant is not implemented yet)
+  --h           step in seconds (default 0.005)
+  --params      JSON parameter file (model.md's keys)
+  --max-iter    interior-point iteration limit (default 500)
+  --quiet       no iteration table
+
+Waypoint file (JSON): {\"name\": \"square\", \"points\": [[0,0],[1,0],[1,1]], \"duration\": 12.0,
+  \"accel\": 0.2, \"start_heading\": 0.0, \"end_heading\": 1.5708} (see docs/ocp.md).
+
+Exit status: 0 solved; 1 not solved (infeasible, iteration limit, failure: one line on
+stderr, files still written) or a bad input file; 2 bad usage.";
 
 /// A failure: exit status and one line.
 enum Failure {
@@ -69,6 +93,7 @@ fn run() -> Result<(), Failure> {
     };
     match sub.as_str() {
         "simulate" => cmd_simulate(parser),
+        "plan" => cmd_plan(parser),
         other => Err(Failure::Usage(format!("unknown subcommand '{other}'"))),
     }
 }
@@ -148,4 +173,125 @@ fn cmd_simulate(mut parser: lexopt::Parser) -> Result<(), Failure> {
     );
     println!("wrote {}", out.join("trajectory.csv").display());
     Ok(())
+}
+
+fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
+    use robots::wip::benchmarks;
+    use robots::wip::plan::{plan, PlanBounds, Transcription};
+    use robots::wip::plan_report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
+    let t_setup = std::time::Instant::now();
+    let (mut which, mut params, mut out) = (None, None, PathBuf::from("out"));
+    let mut integrator = "varint".to_string();
+    let mut current = "dynamic".to_string();
+    let (mut h, mut max_iter, mut quiet) = (0.005, 500usize, false);
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Value(v) if which.is_none() => which = Some(v.string()?),
+            Long("integrator") => integrator = parser.value()?.string()?,
+            Long("current") => current = parser.value()?.string()?,
+            Long("h") => h = parse_f64(&parser.value()?.string()?, "--h")?,
+            Long("params") => params = Some(PathBuf::from(parser.value()?)),
+            Long("out") => out = PathBuf::from(parser.value()?),
+            Long("max-iter") => {
+                let v = parser.value()?.string()?;
+                max_iter = v
+                    .parse()
+                    .map_err(|_| Failure::Usage(format!("--max-iter: '{v}' is not a count")))?;
+            }
+            Long("quiet") => quiet = true,
+            Long("help") | Short('h') => {
+                println!("{PLAN_HELP}");
+                return Ok(());
+            }
+            other => return Err(Failure::Usage(other.unexpected().to_string())),
+        }
+    }
+    let which = which.ok_or_else(|| {
+        Failure::Usage("plan: which problem? (eight, zigzag or a waypoint FILE.json)".into())
+    })?;
+    let transcription = match integrator.as_str() {
+        "varint" => Transcription::VarInt,
+        "rk1" => Transcription::Rk(dmech::RungeKutta::Rk1),
+        "rk2" => Transcription::Rk(dmech::RungeKutta::Rk2),
+        "rk4" => Transcription::Rk(dmech::RungeKutta::Rk4),
+        other => {
+            return Err(Failure::Usage(format!(
+                "unknown integrator '{other}' (expected varint, rk1, rk2 or rk4)"
+            )))
+        }
+    };
+    match current.as_str() {
+        "dynamic" => {}
+        "algebraic" => {
+            return Err(Failure::Run(
+                "--current algebraic is not implemented yet (only the current dynamics are)".into(),
+            ))
+        }
+        other => {
+            return Err(Failure::Usage(format!(
+                "unknown current model '{other}' (expected dynamic or algebraic)"
+            )))
+        }
+    }
+    if !(h > 0.0 && h <= 0.1) {
+        return Err(Failure::Run(format!("--h must be in (0, 0.1] s, got {h}")));
+    }
+    let problem = match which.as_str() {
+        "eight" => benchmarks::eight(h),
+        "zigzag" => benchmarks::zigzag(h),
+        file => benchmarks::from_file(std::path::Path::new(file), h).map_err(Failure::Run)?,
+    };
+    let wip = Wip::new(load_params(params)?);
+    let opts = dmech_ocp::ipm::IpOptions {
+        verbose: !quiet,
+        max_iter,
+        ..Default::default()
+    };
+    let setup = t_setup.elapsed().as_secs_f64();
+    if !quiet {
+        eprintln!(
+            "wip plan {}: {} stages of {} s, {} waypoints, integrator {integrator}",
+            problem.name,
+            problem.n,
+            problem.h,
+            problem.points.len()
+        );
+    }
+    let o = plan(&wip, &problem, transcription, opts);
+    let traj = reduced_trajectory(&wip, &o);
+    let write = |name: &str, text: &str| write_atomic(&out, name, text.as_bytes()).map_err(Failure::Run);
+    write("trajectory.csv", &trajectory_csv(&traj))?;
+    write(
+        "summary.json",
+        &summary_json(&problem.name, &integrator, &current, &problem, &o, &traj, setup),
+    )?;
+    for (name, svg) in plots(&problem, &traj, &PlanBounds::default()) {
+        write(&name, &svg)?;
+    }
+    let status = o.status.code();
+    println!(
+        "{}: {status} after {} iterations in {:.2} s (set-up {:.3} s); objective {:.6}, max violation {:.1e}, waypoint error {:.1e} m",
+        problem.name,
+        o.iterations,
+        o.timings.total,
+        setup,
+        o.objective,
+        o.max_violation,
+        waypoint_error_max(&problem, &traj)
+    );
+    println!("wrote {}/{{trajectory.csv, summary.json, *.svg}}", out.display());
+    match o.status {
+        dmech_ocp::ipm::Status::Solved => Ok(()),
+        dmech_ocp::ipm::Status::Infeasible { violation } => Err(Failure::Run(format!(
+            "infeasible: the constraint violation stopped decreasing at {violation:.3e} (waypoints or end state out of reach within the bounds)"
+        ))),
+        dmech_ocp::ipm::Status::MaxIterations => Err(Failure::Run(format!(
+            "not solved within {} iterations (--max-iter)",
+            o.iterations
+        ))),
+        dmech_ocp::ipm::Status::Diverged => {
+            Err(Failure::Run("the iterates diverged (non-finite or unbounded values)".into()))
+        }
+        dmech_ocp::ipm::Status::Failed(why) => Err(Failure::Run(format!("solver failed: {why}"))),
+    }
 }

@@ -10,6 +10,7 @@ pub mod invariants;
 pub mod model;
 pub mod params;
 pub mod plan;
+pub mod plan_report;
 pub mod simulate;
 pub mod state;
 
