@@ -1029,10 +1029,16 @@ where
                 None => None,
             };
             let Some((mut trial, tv, tmz)) = accepted else {
-                status = Status::Failed(format!(
-                    "line search: no acceptable step (constraint violation {:.2e})",
-                    m.theta_max
-                ));
+                status = if m.theta_max > INFEASIBLE_VIOLATION {
+                    Status::Infeasible {
+                        violation: m.theta_max,
+                    }
+                } else {
+                    Status::Failed(format!(
+                        "line search: no acceptable step (constraint violation {:.2e})",
+                        m.theta_max
+                    ))
+                };
                 break;
             };
             // Dual step with its own step length, kept within κ_Σ of μ/t.
