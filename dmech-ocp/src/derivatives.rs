@@ -9,14 +9,13 @@
 //! see `docs/ocp.md`.
 
 use crate::problem::StageProblem;
-use nalgebra::{SMatrix, SVector};
 use dmech::linalg::Lu;
+use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
 
 /// Values and first derivatives at one stage, and the Hessian of `ℓ + ζᵀc`.
 #[derive(Clone, Debug)]
-pub struct StageDerivatives<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
-{
+pub struct StageDerivatives<const NX: usize, const NW: usize, const NE: usize, const NC: usize> {
     pub f: SVector<f64, NX>,
     pub fx: SMatrix<f64, NX, NX>,
     pub fw: SMatrix<f64, NX, NW>,

@@ -10,6 +10,9 @@
 //! fraction-to-the-boundary rule. The barrier parameter follows IPOPT's monotone rule.
 //! Algorithm and options: `docs/ocp.md`.
 
+// Stage loops index several per-stage arrays (derivatives, iterate, step) in step.
+#![allow(clippy::needless_range_loop)]
+
 use crate::derivatives::{stage_derivatives, stage_values, StageDerivatives, StageValues};
 use crate::problem::{StageProblem, StateEquality};
 use dmech::linalg::Lu;
@@ -89,7 +92,9 @@ impl Default for IpOptions {
 pub enum Status {
     Solved,
     /// The constraint violation stopped decreasing far from zero: no feasible point near.
-    Infeasible { violation: f64 },
+    Infeasible {
+        violation: f64,
+    },
     MaxIterations,
     /// Non-finite values or iterates growing without bound.
     Diverged,
@@ -285,8 +290,15 @@ struct Measures {
     barrier: f64, // objective − μ Σ ln t
 }
 
-pub struct Solver<'a, P, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-{
+pub struct Solver<
+    'a,
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NU: usize,
+    const NC: usize,
+> {
     p: &'a P,
     n: usize,
     opts: IpOptions,
@@ -297,8 +309,15 @@ pub struct Solver<'a, P, const NX: usize, const NW: usize, const NE: usize, cons
     delta_c_bits: std::sync::atomic::AtomicU64,
 }
 
-impl<'a, P, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, P, NX, NW, NE, NU, NC>
+impl<
+        'a,
+        P,
+        const NX: usize,
+        const NW: usize,
+        const NE: usize,
+        const NU: usize,
+        const NC: usize,
+    > Solver<'a, P, NX, NW, NE, NU, NC>
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
@@ -603,12 +622,20 @@ where
         st: &[Condensed<NX, NW, NU>],
         it: &Iterate<NX, NW, NC>,
         delta: f64,
-    ) -> Result<(Vec<SVector<f64, NX>>, Vec<SVector<f64, NU>>, Vec<SVector<f64, NX>>), usize> {
+    ) -> Result<
+        (
+            Vec<SVector<f64, NX>>,
+            Vec<SVector<f64, NU>>,
+            Vec<SVector<f64, NX>>,
+        ),
+        usize,
+    > {
         let n = self.n;
         let mut p_mat = SMatrix::<f64, NX, NX>::identity() * delta;
         let mut p_vec = SVector::<f64, NX>::zeros();
         self.add_state_equalities(n, it, &mut p_mat, &mut p_vec);
-        let mut cost_to_go = vec![(SMatrix::<f64, NX, NX>::zeros(), SVector::<f64, NX>::zeros()); n + 1];
+        let mut cost_to_go =
+            vec![(SMatrix::<f64, NX, NX>::zeros(), SVector::<f64, NX>::zeros()); n + 1];
         let mut gains = vec![(SMatrix::<f64, NU, NX>::zeros(), SVector::<f64, NU>::zeros()); n];
         cost_to_go[n] = (p_mat, p_vec);
         for k in (0..n).rev() {
@@ -738,7 +765,16 @@ where
         if o.verbose {
             eprintln!(
                 "{:>4} {:>14} {:>9} {:>9} {:>6} {:>9} {:>9} {:>9} {:>3} {:>7}",
-                "iter", "objective", "inf_pr", "inf_du", "lg(mu)", "lg(rg)", "alpha_du", "alpha_pr", "ls", "time"
+                "iter",
+                "objective",
+                "inf_pr",
+                "inf_du",
+                "lg(mu)",
+                "lg(rg)",
+                "alpha_du",
+                "alpha_pr",
+                "ls",
+                "time"
             );
         }
         let dummy = StageDerivatives::<NX, NW, NE, NC> {
@@ -880,7 +916,11 @@ where
                     Ok(s) => break Some(s),
                     Err(_) => {
                         delta = if delta == 0.0 {
-                            if delta_last == 0.0 { 1e-4 } else { (delta_last / 3.0).max(1e-20) }
+                            if delta_last == 0.0 {
+                                1e-4
+                            } else {
+                                (delta_last / 3.0).max(1e-20)
+                            }
                         } else if delta_last == 0.0 {
                             delta * 100.0
                         } else {
@@ -963,8 +1003,12 @@ where
             // (its dual part may still be large), without the line search.
             let rel_step = (0..n)
                 .map(|k| {
-                    let a = step.dx[k + 1].zip_map(&it.x[k + 1], |d, x| d.abs() / (1.0 + x.abs())).amax();
-                    let b = step.dw[k].zip_map(&it.w[k], |d, x| d.abs() / (1.0 + x.abs())).amax();
+                    let a = step.dx[k + 1]
+                        .zip_map(&it.x[k + 1], |d, x| d.abs() / (1.0 + x.abs()))
+                        .amax();
+                    let b = step.dw[k]
+                        .zip_map(&it.w[k], |d, x| d.abs() / (1.0 + x.abs()))
+                        .amax();
                     a.max(b)
                 })
                 .fold(0.0f64, f64::max);
@@ -980,8 +1024,11 @@ where
                 let trial = self.trial(&it, &step, alpha);
                 let tv = self.values(&trial);
                 let tmz = self.measures(&trial, &tv, mu);
-                let ok_val = tmz.theta.is_finite() && tmz.barrier.is_finite() && tmz.theta <= theta_max_f;
-                let in_filter = filter.iter().any(|&(ft, fp)| tmz.theta >= ft && tmz.barrier >= fp);
+                let ok_val =
+                    tmz.theta.is_finite() && tmz.barrier.is_finite() && tmz.theta <= theta_max_f;
+                let in_filter = filter
+                    .iter()
+                    .any(|&(ft, fp)| tmz.theta >= ft && tmz.barrier >= fp);
                 let mut accept = false;
                 let mut augment = false;
                 if ok_val && !in_filter {

@@ -60,8 +60,12 @@ impl Plot<'_> {
             .chain(self.bounds.iter().copied())
             .chain(self.markers.iter().map(|m| m.1));
         let xs = xs.chain(self.markers.iter().map(|m| m.0));
-        let (mut x0, mut x1) = xs.filter(finite).fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
-        let (mut y0, mut y1) = ys.filter(finite).fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+        let (mut x0, mut x1) = xs
+            .filter(finite)
+            .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+        let (mut y0, mut y1) = ys
+            .filter(finite)
+            .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
         if x0 > x1 {
             (x0, x1) = (0.0, 1.0);
         }
@@ -101,13 +105,30 @@ impl Plot<'_> {
         );
         for t in nice_ticks(x0, x1) {
             let x = px(t);
-            let _ = writeln!(s, r##"<line x1="{x:.1}" y1="{MT}" x2="{x:.1}" y2="{:.1}" stroke="#eee"/>"##, H - MB);
-            let _ = writeln!(s, r#"<text x="{x:.1}" y="{:.1}" text-anchor="middle">{t}</text>"#, H - MB + 16.0);
+            let _ = writeln!(
+                s,
+                r##"<line x1="{x:.1}" y1="{MT}" x2="{x:.1}" y2="{:.1}" stroke="#eee"/>"##,
+                H - MB
+            );
+            let _ = writeln!(
+                s,
+                r#"<text x="{x:.1}" y="{:.1}" text-anchor="middle">{t}</text>"#,
+                H - MB + 16.0
+            );
         }
         for t in nice_ticks(y0, y1) {
             let y = py(t);
-            let _ = writeln!(s, r##"<line x1="{ML}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#eee"/>"##, W - MR);
-            let _ = writeln!(s, r#"<text x="{:.1}" y="{:.1}" text-anchor="end">{t}</text>"#, ML - 6.0, y + 4.0);
+            let _ = writeln!(
+                s,
+                r##"<line x1="{ML}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#eee"/>"##,
+                W - MR
+            );
+            let _ = writeln!(
+                s,
+                r#"<text x="{:.1}" y="{:.1}" text-anchor="end">{t}</text>"#,
+                ML - 6.0,
+                y + 4.0
+            );
         }
         let _ = writeln!(
             s,
@@ -139,7 +160,10 @@ impl Plot<'_> {
             // Thin the polyline to at most ~2000 points: the file stays small.
             let stride = (ser.x.len() / 2000).max(1);
             let mut pts = String::new();
-            for j in (0..ser.x.len()).step_by(stride).chain(std::iter::once(ser.x.len().saturating_sub(1))) {
+            for j in (0..ser.x.len())
+                .step_by(stride)
+                .chain(std::iter::once(ser.x.len().saturating_sub(1)))
+            {
                 if ser.x[j].is_finite() && ser.y[j].is_finite() {
                     let _ = write!(pts, "{:.2},{:.2} ", px(ser.x[j]), py(ser.y[j]));
                 }

@@ -36,7 +36,14 @@ fn plans_a_short_waypoint_problem() {
     .unwrap();
     let h = 0.02;
     let out = wip()
-        .args(["plan", file.to_str().unwrap(), "--h", "0.02", "--quiet", "--out"])
+        .args([
+            "plan",
+            file.to_str().unwrap(),
+            "--h",
+            "0.02",
+            "--quiet",
+            "--out",
+        ])
         .arg(&dir)
         .output()
         .unwrap();
@@ -71,9 +78,21 @@ fn plans_a_short_waypoint_problem() {
     // Start and end poses, at rest at the end.
     let (first, last) = (&rows[0], rows.last().unwrap());
     assert!(first[1].abs() < 1e-12 && first[2].abs() < 1e-12 && first[3].abs() < 1e-12);
-    assert!((last[1] - 1.0).abs() < tol && (last[2] - 0.6).abs() < tol && (last[3] - 0.8).abs() < tol);
-    assert!(last[4..10].iter().all(|v| v.abs() < tol), "not at rest: {last:?}");
-    for name in ["path", "voltages", "voltage_rates", "currents", "tilt", "heading_rate"] {
+    assert!(
+        (last[1] - 1.0).abs() < tol && (last[2] - 0.6).abs() < tol && (last[3] - 0.8).abs() < tol
+    );
+    assert!(
+        last[4..10].iter().all(|v| v.abs() < tol),
+        "not at rest: {last:?}"
+    );
+    for name in [
+        "path",
+        "voltages",
+        "voltage_rates",
+        "currents",
+        "tilt",
+        "heading_rate",
+    ] {
         let svg = std::fs::read_to_string(dir.join(format!("{name}.svg"))).unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("polyline"));
     }
@@ -94,7 +113,14 @@ fn infeasible_waypoint_is_reported() {
     .unwrap();
     let t0 = Instant::now();
     let out = wip()
-        .args(["plan", file.to_str().unwrap(), "--h", "0.01", "--quiet", "--out"])
+        .args([
+            "plan",
+            file.to_str().unwrap(),
+            "--h",
+            "0.01",
+            "--quiet",
+            "--out",
+        ])
         .arg(&dir)
         .output()
         .unwrap();
@@ -115,10 +141,22 @@ fn infeasible_waypoint_is_reported() {
 fn malformed_waypoint_files_exit_1() {
     let dir = scratch("malformed");
     let cases = [
-        (r#"{"points": [[0, 0]], "duration": 5, "start_heading": 0, "end_heading": 0}"#, "point"),
-        (r#"{"points": [[0, 0], [1, 0]], "duration": 5, "start_heading": 0, "end_heading": 0, "speed": 1}"#, "speed"),
-        (r#"{"points": [[0, 0], [1, "a"]], "duration": 5, "start_heading": 0, "end_heading": 0}"#, "points"),
-        (r#"{"points": [[0, 0], [1, 0]], "duration": 1, "start_heading": 0, "end_heading": 0}"#, "trapezoidal"),
+        (
+            r#"{"points": [[0, 0]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
+            "point",
+        ),
+        (
+            r#"{"points": [[0, 0], [1, 0]], "duration": 5, "start_heading": 0, "end_heading": 0, "speed": 1}"#,
+            "speed",
+        ),
+        (
+            r#"{"points": [[0, 0], [1, "a"]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
+            "points",
+        ),
+        (
+            r#"{"points": [[0, 0], [1, 0]], "duration": 1, "start_heading": 0, "end_heading": 0}"#,
+            "trapezoidal",
+        ),
         ("not json", "JSON"),
     ];
     for (i, (text, expect)) in cases.iter().enumerate() {
@@ -132,8 +170,14 @@ fn malformed_waypoint_files_exit_1() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "case {i}: {stderr}");
         assert_eq!(stderr.trim().lines().count(), 1, "case {i}: {stderr}");
-        assert!(stderr.contains(expect), "case {i}: expected '{expect}' in: {stderr}");
+        assert!(
+            stderr.contains(expect),
+            "case {i}: expected '{expect}' in: {stderr}"
+        );
     }
-    let missing = wip().args(["plan", "no-such-file.json", "--quiet"]).output().unwrap();
+    let missing = wip()
+        .args(["plan", "no-such-file.json", "--quiet"])
+        .output()
+        .unwrap();
     assert_eq!(missing.status.code(), Some(1));
 }

@@ -259,11 +259,20 @@ fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
     }
     let o = plan(&wip, &problem, transcription, opts);
     let traj = reduced_trajectory(&wip, &o);
-    let write = |name: &str, text: &str| write_atomic(&out, name, text.as_bytes()).map_err(Failure::Run);
+    let write =
+        |name: &str, text: &str| write_atomic(&out, name, text.as_bytes()).map_err(Failure::Run);
     write("trajectory.csv", &trajectory_csv(&traj))?;
     write(
         "summary.json",
-        &summary_json(&problem.name, &integrator, &current, &problem, &o, &traj, setup),
+        &summary_json(
+            &problem.name,
+            &integrator,
+            &current,
+            &problem,
+            &o,
+            &traj,
+            setup,
+        ),
     )?;
     for (name, svg) in plots(&problem, &traj, &PlanBounds::default()) {
         write(&name, &svg)?;
@@ -279,7 +288,10 @@ fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
         o.max_violation,
         waypoint_error_max(&problem, &traj)
     );
-    println!("wrote {}/{{trajectory.csv, summary.json, *.svg}}", out.display());
+    println!(
+        "wrote {}/{{trajectory.csv, summary.json, *.svg}}",
+        out.display()
+    );
     match o.status {
         dmech_ocp::ipm::Status::Solved => Ok(()),
         dmech_ocp::ipm::Status::Infeasible { violation } => Err(Failure::Run(format!(

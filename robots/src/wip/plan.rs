@@ -89,11 +89,11 @@ impl WipPlan<'_> {
             if k == 0 || k == p.n {
                 continue;
             }
-            for i in 0..2 {
+            for (i, &value) in pt.iter().enumerate() {
                 eqs.push(StateEquality {
                     stage: k,
                     index: i,
-                    value: pt[i],
+                    value,
                 });
             }
         }
@@ -147,7 +147,12 @@ impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
     fn initial_state(&self) -> SVector<f64, NX> {
         self.plan.x0()
     }
-    fn dynamics<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 7>) -> SVector<T, NX> {
+    fn dynamics<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, 7>,
+    ) -> SVector<T, NX> {
         self.stages.dynamics::<T, 3, 2, 5, 2, NX, 7>(x, w)
     }
     fn equality<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 7>) -> SVector<T, 5> {
@@ -156,7 +161,12 @@ impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
     fn cost<T: Real>(&self, _k: usize, _x: &SVector<T, NX>, w: &SVector<T, 7>) -> T {
         (w[5] * w[3] + w[6] * w[4]) * 0.5
     }
-    fn constraints<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 7>) -> SVector<T, NC> {
+    fn constraints<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, 7>,
+    ) -> SVector<T, NC> {
         SVector::<T, NC>::from_column_slice(&[
             w[5],
             w[6],
@@ -202,16 +212,31 @@ impl StageProblem<NX, 2, 0, NC> for RkPlan<'_> {
     fn initial_state(&self) -> SVector<f64, NX> {
         self.plan.x0()
     }
-    fn dynamics<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 2>) -> SVector<T, NX> {
+    fn dynamics<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, 2>,
+    ) -> SVector<T, NX> {
         self.stages.dynamics::<T, 3, 2, 5, 2, NX, 2>(x, w)
     }
-    fn equality<T: Real>(&self, _k: usize, _x: &SVector<T, NX>, _w: &SVector<T, 2>) -> SVector<T, 0> {
+    fn equality<T: Real>(
+        &self,
+        _k: usize,
+        _x: &SVector<T, NX>,
+        _w: &SVector<T, 2>,
+    ) -> SVector<T, 0> {
         SVector::<T, 0>::zeros()
     }
     fn cost<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 2>) -> T {
         (w[0] * x[V_AT + 3] + w[1] * x[V_AT + 4]) * 0.5
     }
-    fn constraints<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 2>) -> SVector<T, NC> {
+    fn constraints<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, 2>,
+    ) -> SVector<T, NC> {
         SVector::<T, NC>::from_column_slice(&[
             w[0],
             w[1],
@@ -241,7 +266,10 @@ pub fn polyline_start(wip: &Wip, p: &PlanProblem) -> Vec<(SVector<f64, 3>, SVect
     let n = p.n;
     let s_at = arc_lengths(&p.points);
     let arc_of_stage = |k: usize| -> f64 {
-        let j = p.stages.partition_point(|&sk| sk <= k).clamp(1, p.stages.len() - 1);
+        let j = p
+            .stages
+            .partition_point(|&sk| sk <= k)
+            .clamp(1, p.stages.len() - 1);
         let (k0, k1) = (p.stages[j - 1], p.stages[j]);
         let f = ((k as f64 - k0 as f64) / (k1 - k0) as f64).clamp(0.0, 1.0);
         s_at[j - 1] + f * (s_at[j] - s_at[j - 1])
@@ -269,7 +297,10 @@ pub fn polyline_start(wip: &Wip, p: &PlanProblem) -> Vec<(SVector<f64, 3>, SVect
     let mut raw_theta = vec![p.start_heading; n + 1];
     let mut prev = p.start_heading;
     for k in 0..n {
-        let (dx, dy) = (smooth[k + 1][0] - smooth[k][0], smooth[k + 1][1] - smooth[k][1]);
+        let (dx, dy) = (
+            smooth[k + 1][0] - smooth[k][0],
+            smooth[k + 1][1] - smooth[k][1],
+        );
         if (dx * dx + dy * dy).sqrt() > 1e-9 {
             let a = dy.atan2(dx);
             let mut d = a - prev;
@@ -297,7 +328,10 @@ pub fn polyline_start(wip: &Wip, p: &PlanProblem) -> Vec<(SVector<f64, 3>, SVect
     let mut out = Vec::with_capacity(n + 1);
     for k in 0..=n {
         if k > 0 {
-            let (dx, dy) = (smooth[k][0] - smooth[k - 1][0], smooth[k][1] - smooth[k - 1][1]);
+            let (dx, dy) = (
+                smooth[k][0] - smooth[k - 1][0],
+                smooth[k][1] - smooth[k - 1][1],
+            );
             dist += (dx * dx + dy * dy).sqrt();
         }
         let th = theta[k] - p.start_heading;
@@ -309,10 +343,7 @@ pub fn polyline_start(wip: &Wip, p: &PlanProblem) -> Vec<(SVector<f64, 3>, SVect
 }
 
 /// The VI start: states from [`polyline_start`], `v_k = (s_{k+1} − s_k)/h`, `u = 0`.
-pub fn varint_start(
-    wip: &Wip,
-    p: &PlanProblem,
-) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 7>>) {
+pub fn varint_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 7>>) {
     let path = polyline_start(wip, p);
     let n = p.n;
     let vel: Vec<SVector<f64, 5>> = (0..n).map(|k| (path[k + 1].1 - path[k].1) / p.h).collect();

@@ -46,7 +46,10 @@ pub fn peaks(traj: &Trajectory) -> Peaks {
         let u = traj.u[k];
         p.abs_u = p.abs_u.max(u[0].abs()).max(u[1].abs());
         let prev = if k == 0 { [0.0, 0.0] } else { traj.u[k - 1] };
-        p.abs_du = p.abs_du.max((u[0] - prev[0]).abs()).max((u[1] - prev[1]).abs());
+        p.abs_du = p
+            .abs_du
+            .max((u[0] - prev[0]).abs())
+            .max((u[1] - prev[1]).abs());
     }
     p
 }
@@ -107,7 +110,11 @@ pub fn summary_json(
 }
 
 /// The plots: `(file name, SVG)`.
-pub fn plots(problem: &PlanProblem, traj: &Trajectory, bounds: &PlanBounds) -> Vec<(String, String)> {
+pub fn plots(
+    problem: &PlanProblem,
+    traj: &Trajectory,
+    bounds: &PlanBounds,
+) -> Vec<(String, String)> {
     let t = &traj.t;
     let col = |i: usize| traj.x.iter().map(|x| x[i]).collect::<Vec<f64>>();
     let (xs, ys) = (col(0), col(1));
@@ -172,19 +179,43 @@ pub fn plots(problem: &PlanProblem, traj: &Trajectory, bounds: &PlanBounds) -> V
         ("path.svg".into(), path),
         (
             "voltages.svg".into(),
-            two("voltages", "u [V]", ("uR", ur.clone()), Some(("uL", ul.clone())), bounds.u_max),
+            two(
+                "voltages",
+                "u [V]",
+                ("uR", ur.clone()),
+                Some(("uL", ul.clone())),
+                bounds.u_max,
+            ),
         ),
         (
             "voltage_rates.svg".into(),
-            two("voltage rates", "du/dt [V/s]", ("uR", dur), Some(("uL", dul)), bounds.du_max_per_s),
+            two(
+                "voltage rates",
+                "du/dt [V/s]",
+                ("uR", dur),
+                Some(("uL", dul)),
+                bounds.du_max_per_s,
+            ),
         ),
         (
             "currents.svg".into(),
-            two("currents", "i [A]", ("iR", ir), Some(("iL", il)), bounds.i_max),
+            two(
+                "currents",
+                "i [A]",
+                ("iR", ir),
+                Some(("iL", il)),
+                bounds.i_max,
+            ),
         ),
         (
             "tilt.svg".into(),
-            two("tilt", "alpha [deg]", ("alpha", alpha_deg), None, bounds.alpha_max.to_degrees()),
+            two(
+                "tilt",
+                "alpha [deg]",
+                ("alpha", alpha_deg),
+                None,
+                bounds.alpha_max.to_degrees(),
+            ),
         ),
         (
             "heading_rate.svg".into(),
