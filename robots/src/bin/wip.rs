@@ -14,6 +14,7 @@ usage: wip <subcommand> [options]
 subcommands:
   plan       constrained energy-optimal trajectory through waypoints (eight, zigzag, FILE.json)
   simulate   open-loop simulation from a state with given voltages
+  bench      the paper's computation-time comparison rerun with our solver
 
 Run `wip <subcommand> --help` for its options.";
 
@@ -53,6 +54,15 @@ Waypoint file (JSON): {\"name\": \"square\", \"points\": [[0,0],[1,0],[1,1]], \"
 
 Exit status: 0 solved; 1 not solved (infeasible, iteration limit, failure: one line on
 stderr, files still written) or a bad input file; 2 bad usage.";
+
+const BENCH_HELP: &str = "\
+usage: wip bench [--problems eight,zigzag] [--integrators varint,rk1,rk2,rk4] [--out DIR]
+
+Reruns the paper's Figure \"computation time\" (MATLAB + CasADi 3.2.3 + IPOPT, i7-8700;
+current dynamics: RK1 553 s, RK2 544 s, RK4 680 s, VarInt 522 s) with our solver: one
+plan per problem and integrator, each alone, and prints a table of status, iterations,
+solve time and objective; writes DIR/bench.json (default DIR: out). The algebraic-current
+variant is not implemented yet and is listed as such. RK runs take minutes each.";
 
 /// A failure: exit status and one line.
 enum Failure {
@@ -94,6 +104,7 @@ fn run() -> Result<(), Failure> {
     match sub.as_str() {
         "simulate" => cmd_simulate(parser),
         "plan" => cmd_plan(parser),
+        "bench" => cmd_bench(parser),
         other => Err(Failure::Usage(format!("unknown subcommand '{other}'"))),
     }
 }
@@ -306,4 +317,94 @@ fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
         }
         dmech_ocp::ipm::Status::Failed(why) => Err(Failure::Run(format!("solver failed: {why}"))),
     }
+}
+
+fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
+    use robots::wip::benchmarks;
+    use robots::wip::plan::{plan, Transcription};
+    let mut problems = vec!["eight".to_string(), "zigzag".to_string()];
+    let mut integrators: Vec<String> = ["varint", "rk1", "rk2", "rk4"].map(String::from).to_vec();
+    let mut out = PathBuf::from("out");
+    let list = |v: String| {
+        v.split(',')
+            .map(|s| s.trim().to_string())
+            .collect::<Vec<_>>()
+    };
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("problems") => problems = list(parser.value()?.string()?),
+            Long("integrators") => integrators = list(parser.value()?.string()?),
+            Long("out") => out = PathBuf::from(parser.value()?),
+            Long("help") | Short('h') => {
+                println!("{BENCH_HELP}");
+                return Ok(());
+            }
+            other => return Err(Failure::Usage(other.unexpected().to_string())),
+        }
+    }
+    // The paper's times with the current dynamics (its Figure "computation time").
+    let paper = |i: &str| match i {
+        "rk1" => Some(553.0),
+        "rk2" => Some(544.0),
+        "rk4" => Some(680.0),
+        "varint" => Some(522.0),
+        _ => None,
+    };
+    let wip = Wip::default();
+    let mut rows = Vec::new();
+    println!(
+        "{:<8} {:<7} {:<9} {:<14} {:>6} {:>10} {:>14} {:>12}",
+        "problem", "integr.", "current", "status", "iter", "time [s]", "objective", "paper [s]"
+    );
+    for p in &problems {
+        let problem = match p.as_str() {
+            "eight" => benchmarks::eight(0.005),
+            "zigzag" => benchmarks::zigzag(0.005),
+            other => return Err(Failure::Usage(format!("unknown benchmark '{other}'"))),
+        };
+        for i in &integrators {
+            let tr = match i.as_str() {
+                "varint" => Transcription::VarInt,
+                "rk1" => Transcription::Rk(dmech::RungeKutta::Rk1),
+                "rk2" => Transcription::Rk(dmech::RungeKutta::Rk2),
+                "rk4" => Transcription::Rk(dmech::RungeKutta::Rk4),
+                other => return Err(Failure::Usage(format!("unknown integrator '{other}'"))),
+            };
+            eprintln!("bench: {p} with {i} …");
+            let opts = dmech_ocp::ipm::IpOptions::default();
+            let o = plan(&wip, &problem, tr, opts);
+            let paper_s = if p == "eight" { paper(i) } else { None };
+            println!(
+                "{:<8} {:<7} {:<9} {:<14} {:>6} {:>10.2} {:>14.4} {:>12}",
+                p,
+                i,
+                "dynamic",
+                o.status.code(),
+                o.iterations,
+                o.timings.total,
+                o.objective,
+                paper_s
+                    .map(|v| format!("{v:.0}"))
+                    .unwrap_or_else(|| "-".into())
+            );
+            rows.push(serde_json::json!({
+                "problem": p, "integrator": i, "current": "dynamic",
+                "status": o.status.code(), "iterations": o.iterations,
+                "solve_time_s": o.timings.total, "objective": o.objective,
+                "max_violation": o.max_violation,
+                "time_breakdown_s": {"derivatives": o.timings.derivatives,
+                    "kkt": o.timings.kkt, "line_search": o.timings.line_search},
+                "paper_time_s": paper_s
+            }));
+        }
+        println!(
+            "{:<8} {:<7} {:<9} {:<14}",
+            p, "*", "algebraic", "not implemented"
+        );
+    }
+    let json = serde_json::to_string_pretty(&serde_json::json!({ "runs": rows }))
+        .expect("JSON of numbers and strings");
+    write_atomic(&out, "bench.json", (json + "\n").as_bytes()).map_err(Failure::Run)?;
+    println!("wrote {}", out.join("bench.json").display());
+    Ok(())
 }
