@@ -476,38 +476,56 @@ pub fn plan(
     let bounds = PlanBounds::default();
     let mut smooth = *wip;
     smooth.params.d_0 = SMOOTH_FRICTION_SLOPE.min(wip.params.d_0);
-    let warm = |o: &IpOptions| IpOptions {
-        mu_init: o.warm_mu_init(),
-        ..o.clone()
-    };
+    let phases = (smooth != *wip).then_some(opts.clone());
     match transcription {
         Transcription::VarInt => {
             let (xs, ws) = varint_start(wip, problem);
-            let ocp0 = VarIntPlan::new(&smooth, problem, bounds);
-            let s0: Solver<_, NX, 7, 5, 2, NC> = Solver::new(&ocp0, opts.clone());
-            let r0 = s0.solve(s0.initial_iterate(xs, ws));
-            if smooth == *wip || r0.status != dmech_ocp::ipm::Status::Solved {
-                return outcome(r0, problem.h, true);
-            }
-            let ocp = VarIntPlan::new(wip, problem, bounds);
-            let s1: Solver<_, NX, 7, 5, 2, NC> = Solver::new(&ocp, warm(&opts));
-            let r = s1.solve(s1.warm_iterate(r0.iterate.clone()));
-            outcome(merge(r, &r0), problem.h, true)
+            let (p0, p1) = (
+                VarIntPlan::new(&smooth, problem, bounds),
+                VarIntPlan::new(wip, problem, bounds),
+            );
+            two_phase::<_, 7, 5, 2>(&p0, &p1, phases, xs, ws, opts, problem.h, true)
         }
         Transcription::Rk(rk) => {
             let (xs, ws) = rk_start(wip, problem);
-            let ocp0 = RkPlan::new(&smooth, problem, bounds, rk);
-            let s0: Solver<_, NX, 2, 0, 2, NC> = Solver::new(&ocp0, opts.clone());
-            let r0 = s0.solve(s0.initial_iterate(xs, ws));
-            if smooth == *wip || r0.status != dmech_ocp::ipm::Status::Solved {
-                return outcome(r0, problem.h, false);
-            }
-            let ocp = RkPlan::new(wip, problem, bounds, rk);
-            let s1: Solver<_, NX, 2, 0, 2, NC> = Solver::new(&ocp, warm(&opts));
-            let r = s1.solve(s1.warm_iterate(r0.iterate.clone()));
-            outcome(merge(r, &r0), problem.h, false)
+            let (p0, p1) = (
+                RkPlan::new(&smooth, problem, bounds, rk),
+                RkPlan::new(wip, problem, bounds, rk),
+            );
+            two_phase::<_, 2, 0, 2>(&p0, &p1, phases, xs, ws, opts, problem.h, false)
         }
     }
+}
+
+/// Phase one (`smoothed`) from `(xs, ws)`; phase two (`exact`) from its solution, unless
+/// `second` is `None` (the model has no friction to smooth). See [`plan`].
+#[allow(clippy::too_many_arguments)]
+fn two_phase<P, const NW: usize, const NE: usize, const NU: usize>(
+    smoothed: &P,
+    exact: &P,
+    second: Option<IpOptions>,
+    xs: Vec<SVector<f64, NX>>,
+    ws: Vec<SVector<f64, NW>>,
+    opts: IpOptions,
+    h: f64,
+    velocity_in_w: bool,
+) -> PlanOutcome
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let first = if second.is_some() { smoothed } else { exact };
+    let s0: Solver<_, NX, NW, NE, NU, NC> = Solver::new(first, opts);
+    let r0 = s0.solve(s0.initial_iterate(xs, ws));
+    let Some(o) = second.filter(|_| r0.status == dmech_ocp::ipm::Status::Solved) else {
+        return outcome(r0, h, velocity_in_w);
+    };
+    let warm = IpOptions {
+        mu_init: o.warm_mu_init(),
+        ..o
+    };
+    let s1: Solver<_, NX, NW, NE, NU, NC> = Solver::new(exact, warm);
+    let r = s1.solve(s1.warm_iterate(r0.iterate.clone()));
+    outcome(merge(r, &r0), h, velocity_in_w)
 }
 
 /// The second phase's result with the first phase's iterations and time added.
