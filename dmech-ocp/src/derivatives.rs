@@ -10,6 +10,7 @@
 
 use crate::problem::StageProblem;
 use dmech::linalg::Lu;
+use dmech::partials::{grad_part as grad, seeded as seed};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
 
@@ -33,12 +34,44 @@ pub struct StageDerivatives<const NX: usize, const NW: usize, const NE: usize, c
     pub hww: SMatrix<f64, NW, NW>,
 }
 
-fn seed<const N: usize>(x: &SVector<f64, N>) -> SVector<DualSVec64<N>, N> {
-    SVector::from_fn(|i, _| {
-        let mut e = SVector::<f64, N>::zeros();
-        e[i] = 1.0;
-        DualSVec64::new(x[i], Derivative::some(e))
-    })
+impl<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
+    StageDerivatives<NX, NW, NE, NC>
+{
+    pub fn zeros() -> Self {
+        StageDerivatives {
+            f: SVector::zeros(),
+            fx: SMatrix::zeros(),
+            fw: SMatrix::zeros(),
+            e: SVector::zeros(),
+            ex: SMatrix::zeros(),
+            ew: SMatrix::zeros(),
+            cost: 0.0,
+            gx: SVector::zeros(),
+            gw: SVector::zeros(),
+            c: SVector::zeros(),
+            cx: SMatrix::zeros(),
+            cw: SMatrix::zeros(),
+            hxx: SMatrix::zeros(),
+            hxw: SMatrix::zeros(),
+            hww: SMatrix::zeros(),
+        }
+    }
+
+    /// The multiplier estimate `ν` of the stage equality that zeroes the Lagrangian's
+    /// gradient in the dependent decisions: `E_vᵀ ν = −(∇_v ℓ + f_vᵀ λ + C_vᵀ ζ)`.
+    /// `None` if `E_v` is singular; zero when there is no stage equality.
+    pub fn equality_multiplier(
+        &self,
+        lambda: &SVector<f64, NX>,
+        zeta: &SVector<f64, NC>,
+    ) -> Option<SVector<f64, NE>> {
+        if NE == 0 {
+            return Some(SVector::zeros());
+        }
+        let gw = self.gw + self.fw.transpose() * lambda + self.cw.transpose() * zeta;
+        let ev: SMatrix<f64, NE, NE> = self.ew.fixed_columns::<NE>(0).into_owned();
+        Lu::new(&ev.transpose()).map(|lu| lu.solve(&(-gw.fixed_rows::<NE>(0).into_owned())))
+    }
 }
 
 fn seed2<const N: usize>(x: &SVector<f64, N>) -> SVector<Dual2SVec64<N>, N> {
@@ -47,10 +80,6 @@ fn seed2<const N: usize>(x: &SVector<f64, N>) -> SVector<Dual2SVec64<N>, N> {
         e[i] = 1.0;
         Dual2SVec64::new(x[i], Derivative::some(e), Derivative::none())
     })
-}
-
-fn grad<const N: usize>(d: &DualSVec64<N>) -> SVector<f64, N> {
-    d.eps.0.unwrap_or_else(SVector::zeros)
 }
 
 fn hess2<const N: usize>(d: &Dual2SVec64<N>) -> SMatrix<f64, N, N> {
@@ -121,21 +150,29 @@ where
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
 
-    // The multiplier estimate of the stage equality that zeroes the gradient of the
-    // Lagrangian with respect to the dependent decisions (as the solver uses).
+    let mut d = StageDerivatives {
+        f: f_d.map(|d| d.re),
+        fx: SMatrix::from_fn(|i, j| grad(&f_d[i])[j]),
+        fw: SMatrix::from_fn(|i, j| grad(&f_w[i])[j]),
+        e: e_d.map(|d| d.re),
+        ex: SMatrix::from_fn(|i, j| grad(&e_d[i])[j]),
+        ew: SMatrix::from_fn(|i, j| grad(&e_w[i])[j]),
+        cost: l_d.re,
+        gx: grad(&l_d),
+        gw: grad(&l_w),
+        c: c_d.map(|d| d.re),
+        cx: SMatrix::from_fn(|i, j| grad(&c_d[i])[j]),
+        cw: SMatrix::from_fn(|i, j| grad(&c_w[i])[j]),
+        hxx: SMatrix::zeros(),
+        hxw: SMatrix::zeros(),
+        hww: SMatrix::zeros(),
+    };
     let mult: Multipliers<NX, NE> = lambda.map(|lam| {
-        let mut nu = SVector::<f64, NE>::zeros();
-        if NE > 0 {
-            let ew = SMatrix::<f64, NE, NW>::from_fn(|i, j| grad(&e_w[i])[j]);
-            let fw = SMatrix::<f64, NX, NW>::from_fn(|i, j| grad(&f_w[i])[j]);
-            let cw = SMatrix::<f64, NC, NW>::from_fn(|i, j| grad(&c_w[i])[j]);
-            let gw = grad(&l_w) + fw.transpose() * lam + cw.transpose() * zeta;
-            let ev: SMatrix<f64, NE, NE> = ew.fixed_columns::<NE>(0).into_owned();
-            if let Some(lu) = Lu::new(&ev.transpose()) {
-                nu = lu.solve(&(-gw.fixed_rows::<NE>(0).into_owned()));
-            }
-        }
-        (lam, nu)
+        (
+            lam,
+            d.equality_multiplier(lam, zeta)
+                .unwrap_or_else(SVector::zeros),
+        )
     });
     // Second order of the Lagrangian (or of ℓ + ζᵀc only).
     let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
@@ -173,23 +210,10 @@ where
         .0
         .unwrap_or_else(SMatrix::zeros);
 
-    StageDerivatives {
-        f: f_d.map(|d| d.re),
-        fx: SMatrix::from_fn(|i, j| grad(&f_d[i])[j]),
-        fw: SMatrix::from_fn(|i, j| grad(&f_w[i])[j]),
-        e: e_d.map(|d| d.re),
-        ex: SMatrix::from_fn(|i, j| grad(&e_d[i])[j]),
-        ew: SMatrix::from_fn(|i, j| grad(&e_w[i])[j]),
-        cost: l_d.re,
-        gx: grad(&l_d),
-        gw: grad(&l_w),
-        c: c_d.map(|d| d.re),
-        cx: SMatrix::from_fn(|i, j| grad(&c_d[i])[j]),
-        cw: SMatrix::from_fn(|i, j| grad(&c_w[i])[j]),
-        hxx,
-        hxw,
-        hww,
-    }
+    d.hxx = hxx;
+    d.hxw = hxw;
+    d.hww = hww;
+    d
 }
 
 /// Stage values only (for the line search).

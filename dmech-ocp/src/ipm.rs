@@ -15,21 +15,10 @@
 
 use crate::derivatives::{stage_derivatives, stage_values, StageDerivatives, StageValues};
 use crate::problem::{StageProblem, StateEquality};
+use crate::riccati::{solve_lq, LqSolution, LqStage};
 use dmech::linalg::Lu;
 use nalgebra::{SMatrix, SVector};
 use std::time::Instant;
-
-/// `M⁻¹ B` column by column.
-fn solve_columns<const N: usize, const C: usize>(
-    lu: &Lu<f64, N>,
-    b: &SMatrix<f64, N, C>,
-) -> SMatrix<f64, N, C> {
-    let mut out = SMatrix::<f64, N, C>::zeros();
-    for j in 0..C {
-        out.set_column(j, &lu.solve(&b.column(j).into_owned()));
-    }
-    out
-}
 
 /// Options of the solver.
 #[derive(Clone, Debug)]
@@ -245,18 +234,9 @@ const INFEASIBLE_VIOLATION: f64 = 1e-2;
 /// Steps taken without line-search acceptance, at most, per solve.
 const MAX_FORCED_STEPS: usize = 20;
 
-/// One stage of the condensed LQ problem in `(δx, δu)`.
+/// How a stage's decision step follows from the condensed one: `δw = w0 + wx δx + wu δu`.
 #[derive(Clone, Debug)]
-struct Condensed<const NX: usize, const NW: usize, const NU: usize> {
-    q_mat: SMatrix<f64, NX, NX>,
-    s_mat: SMatrix<f64, NX, NU>,
-    r_mat: SMatrix<f64, NU, NU>,
-    q: SVector<f64, NX>,
-    r: SVector<f64, NU>,
-    a: SMatrix<f64, NX, NX>,
-    b: SMatrix<f64, NX, NU>,
-    c: SVector<f64, NX>,
-    // δw = w0 + wx δx + wu δu
+struct Elimination<const NX: usize, const NW: usize, const NU: usize> {
     w0: SVector<f64, NW>,
     wx: SMatrix<f64, NW, NX>,
     wu: SMatrix<f64, NW, NU>,
@@ -305,8 +285,6 @@ pub struct Solver<
     bounds: Vec<Bounds<NC>>,
     eqs: Vec<StateEquality>,
     eqs_at: Vec<Vec<usize>>,
-    /// The current dual regularisation of the state equalities (f64 bits).
-    delta_c_bits: std::sync::atomic::AtomicU64,
 }
 
 impl<
@@ -348,17 +326,7 @@ where
             bounds,
             eqs,
             eqs_at,
-            delta_c_bits: std::sync::atomic::AtomicU64::new(0),
         }
-    }
-
-    fn delta_c(&self) -> f64 {
-        f64::from_bits(self.delta_c_bits.load(std::sync::atomic::Ordering::Relaxed))
-    }
-
-    fn set_delta_c(&self, v: f64) {
-        self.delta_c_bits
-            .store(v.to_bits(), std::sync::atomic::Ordering::Relaxed);
     }
 
     /// An iterate from primal values: slacks pushed into the interior, unit bound
@@ -519,7 +487,8 @@ where
         d: &StageDerivatives<NX, NW, NE, NC>,
         qn: Option<&QuasiNewton<NX, NW, NE>>,
         mu: f64,
-    ) -> Result<Condensed<NX, NW, NU>, String> {
+        dc: f64,
+    ) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> {
         let b = &self.bounds[k];
         // Inequalities: Σ and the barrier gradient term.
         let mut sigma = SVector::<f64, NC>::zeros();
@@ -565,8 +534,8 @@ where
             let lu = Lu::new(&ev).ok_or_else(|| {
                 format!("stage {k}: the stage equality is singular in its dependent decisions")
             })?;
-            let dx = solve_columns(&lu, &(-d.ex));
-            let du = solve_columns(&lu, &(-eu));
+            let dx = lu.solve_columns(&(-d.ex));
+            let du = lu.solve_columns(&(-eu));
             let d0 = lu.solve(&(-d.e));
             wx.fixed_rows_mut::<NE>(0).copy_from(&dx);
             wu.fixed_rows_mut::<NE>(0).copy_from(&du);
@@ -575,27 +544,24 @@ where
         let hww_wx = hww * wx;
         let hww_wu = hww * wu;
         let hww_w0 = hww * w0;
-        let q_mat = hxx + hxw * wx + (hxw * wx).transpose() + wx.transpose() * hww_wx;
+        let hxw_wx = hxw * wx;
+        let mut q_mat = hxx + hxw_wx + hxw_wx.transpose() + wx.transpose() * hww_wx;
         let s_mat = hxw * wu + wx.transpose() * hww_wu;
         let r_mat = wu.transpose() * hww_wu;
-        let q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
+        let mut q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
         let r = wu.transpose() * (gw + hww_w0);
-        let a = d.fx + d.fw * wx;
-        let bm = d.fw * wu;
-        let c = d.f + d.fw * w0 - it.x[k + 1];
-        Ok(Condensed {
+        self.add_state_equalities(k, it, dc, &mut q_mat, &mut q);
+        let lq = LqStage {
             q_mat,
             s_mat,
             r_mat,
             q,
             r,
-            a,
-            b: bm,
-            c,
-            w0,
-            wx,
-            wu,
-        })
+            a: d.fx + d.fw * wx,
+            b: d.fw * wu,
+            c: d.f + d.fw * w0 - it.x[k + 1],
+        };
+        Ok((lq, Elimination { w0, wx, wu }))
     }
 
     /// The quadratic terms of the state equalities at stage `k`.
@@ -603,87 +569,49 @@ where
         &self,
         k: usize,
         it: &Iterate<NX, NW, NC>,
+        dc: f64,
         q_mat: &mut SMatrix<f64, NX, NX>,
         q: &mut SVector<f64, NX>,
     ) {
-        let dc = self.delta_c();
         for &j in &self.eqs_at[k] {
             let e = &self.eqs[j];
             q_mat[(e.index, e.index)] += 1.0 / dc;
             q[e.index] += it.y[j] + (it.x[k][e.index] - e.value) / dc;
         }
     }
+}
 
-    /// Riccati sweeps with primal shift `delta`; `Err(stage)` if some `H_uu` is not
-    /// positive definite. Returns `(δx, δu, λ⁺)`.
-    #[allow(clippy::type_complexity)]
-    fn riccati(
-        &self,
-        st: &[Condensed<NX, NW, NU>],
-        it: &Iterate<NX, NW, NC>,
-        delta: f64,
-    ) -> Result<
-        (
-            Vec<SVector<f64, NX>>,
-            Vec<SVector<f64, NU>>,
-            Vec<SVector<f64, NX>>,
-        ),
-        usize,
-    > {
-        let n = self.n;
-        let mut p_mat = SMatrix::<f64, NX, NX>::identity() * delta;
-        let mut p_vec = SVector::<f64, NX>::zeros();
-        self.add_state_equalities(n, it, &mut p_mat, &mut p_vec);
-        let mut cost_to_go =
-            vec![(SMatrix::<f64, NX, NX>::zeros(), SVector::<f64, NX>::zeros()); n + 1];
-        let mut gains = vec![(SMatrix::<f64, NU, NX>::zeros(), SVector::<f64, NU>::zeros()); n];
-        cost_to_go[n] = (p_mat, p_vec);
-        for k in (0..n).rev() {
-            let s = &st[k];
-            let mut q_mat = s.q_mat + SMatrix::<f64, NX, NX>::identity() * delta;
-            let mut q = s.q;
-            self.add_state_equalities(k, it, &mut q_mat, &mut q);
-            let pa = p_mat * s.a;
-            let pb = p_mat * s.b;
-            let pc = p_mat * s.c + p_vec;
-            let huu = s.r_mat + SMatrix::<f64, NU, NU>::identity() * delta + s.b.transpose() * pb;
-            let hux = s.s_mat.transpose() + s.b.transpose() * pa;
-            let hxx = q_mat + s.a.transpose() * pa;
-            let hu = s.r + s.b.transpose() * pc;
-            let hx = q + s.a.transpose() * pc;
-            let chol = huu.cholesky().ok_or(k)?;
-            let gain = -chol.solve(&hux);
-            let ff = -chol.solve(&hu);
-            let pm = hxx + hux.transpose() * gain;
-            p_mat = (pm + pm.transpose()) * 0.5;
-            p_vec = hx + hux.transpose() * ff;
-            gains[k] = (gain, ff);
-            cost_to_go[k] = (p_mat, p_vec);
-        }
-        let mut dx = vec![SVector::<f64, NX>::zeros(); n + 1];
-        let mut du = vec![SVector::<f64, NU>::zeros(); n];
-        let mut lam = vec![SVector::<f64, NX>::zeros(); n];
-        for k in 0..n {
-            du[k] = gains[k].0 * dx[k] + gains[k].1;
-            dx[k + 1] = st[k].a * dx[k] + st[k].b * du[k] + st[k].c;
-            let (pm, pv) = &cost_to_go[k + 1];
-            lam[k] = pm * dx[k + 1] + pv;
-        }
-        Ok((dx, du, lam))
-    }
+/// KKT errors at an iterate: the scaled dual infeasibility, the largest constraint
+/// violation, and IPOPT's dual scaling `s_d` (for the complementarity).
+#[derive(Clone, Copy, Debug)]
+struct KktError {
+    dual: f64,
+    primal: f64,
+    s_d: f64,
+}
 
-    /// Scaled KKT errors at the current iterate: (dual, primal max, complementarity at μ).
+impl<
+        'a,
+        P,
+        const NX: usize,
+        const NW: usize,
+        const NE: usize,
+        const NU: usize,
+        const NC: usize,
+    > Solver<'a, P, NX, NW, NE, NU, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    /// Dual and primal errors at the current iterate (independent of μ).
     fn kkt_error(
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
-        mu: f64,
-    ) -> (f64, f64, f64) {
+    ) -> KktError {
         let n = self.n;
         let mut dual = 0.0f64;
         let mut mult_sum = 0.0;
         let mut mult_cnt = 0.0;
-        let mut compl = 0.0f64;
         let mut primal = 0.0f64;
         let mut gx_next = SVector::<f64, NX>::zeros(); // −λ_k contribution to ∇x_k
         for k in 0..n {
@@ -692,16 +620,11 @@ where
             let lam = &it.lambda[k];
             let mut gx = d.gx + d.fx.transpose() * lam + d.cx.transpose() * zeta + gx_next;
             let mut gw = d.gw + d.fw.transpose() * lam + d.cw.transpose() * zeta;
-            if NE > 0 {
-                let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
-                let gv: SVector<f64, NE> = gw.fixed_rows::<NE>(0).into_owned();
-                if let Some(lu) = Lu::new(&ev.transpose()) {
-                    let nu = lu.solve(&(-gv));
-                    gx += d.ex.transpose() * nu;
-                    gw += d.ew.transpose() * nu;
-                    mult_sum += nu.abs().sum();
-                    mult_cnt += NE as f64;
-                }
+            if let Some(nu) = d.equality_multiplier(lam, &zeta) {
+                gx += d.ex.transpose() * nu;
+                gw += d.ew.transpose() * nu;
+                mult_sum += nu.abs().sum();
+                mult_cnt += NE as f64;
             }
             // A state equality fixes one component: its multiplier estimate zeroes that
             // component of the gradient (the iterate's y carries the round-off of the
@@ -720,11 +643,9 @@ where
             let b = &self.bounds[k];
             for i in 0..NC {
                 if b.has_lo[i] > 0.0 {
-                    compl = compl.max((it.t_lo[k][i] * it.z_lo[k][i] - mu).abs());
                     primal = primal.max((d.c[i] - b.lo[i] - it.t_lo[k][i]).abs());
                 }
                 if b.has_hi[i] > 0.0 {
-                    compl = compl.max((it.t_hi[k][i] * it.z_hi[k][i] - mu).abs());
                     primal = primal.max((b.hi[i] - d.c[i] - it.t_hi[k][i]).abs());
                 }
             }
@@ -741,7 +662,28 @@ where
         }
         let s_max = 100.0;
         let s_d = (mult_sum / mult_cnt.max(1.0)).max(s_max) / s_max;
-        (dual / s_d, primal, compl / s_d)
+        KktError {
+            dual: dual / s_d,
+            primal,
+            s_d,
+        }
+    }
+
+    /// The largest `|t z − μ|` over all bounded sides, scaled by `s_d`.
+    fn complementarity(&self, it: &Iterate<NX, NW, NC>, mu: f64, s_d: f64) -> f64 {
+        let mut compl = 0.0f64;
+        for k in 0..self.n {
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    compl = compl.max((it.t_lo[k][i] * it.z_lo[k][i] - mu).abs());
+                }
+                if b.has_hi[i] > 0.0 {
+                    compl = compl.max((it.t_hi[k][i] * it.z_hi[k][i] - mu).abs());
+                }
+            }
+        }
+        compl / s_d
     }
 
     /// Solve from `start`.
@@ -777,24 +719,7 @@ where
                 "time"
             );
         }
-        let dummy = StageDerivatives::<NX, NW, NE, NC> {
-            f: SVector::zeros(),
-            fx: SMatrix::zeros(),
-            fw: SMatrix::zeros(),
-            e: SVector::zeros(),
-            ex: SMatrix::zeros(),
-            ew: SMatrix::zeros(),
-            cost: 0.0,
-            gx: SVector::zeros(),
-            gw: SVector::zeros(),
-            c: SVector::zeros(),
-            cx: SMatrix::zeros(),
-            cw: SMatrix::zeros(),
-            hxx: SMatrix::zeros(),
-            hxw: SMatrix::zeros(),
-            hww: SMatrix::zeros(),
-        };
-        let mut ders = vec![dummy; n];
+        let mut ders = vec![StageDerivatives::<NX, NW, NE, NC>::zeros(); n];
         let mut qn = vec![QuasiNewton::<NX, NW, NE>::new(); if o.quasi_newton { n } else { 0 }];
         let mut ls_count = 0;
         let mut forced_steps = 0usize;
@@ -822,22 +747,16 @@ where
             if o.quasi_newton {
                 for k in 0..n {
                     let d = &ders[k];
-                    let zeta = it.z_hi[k] - it.z_lo[k];
-                    let mut nu = SVector::<f64, NE>::zeros();
-                    if NE > 0 {
-                        let gw = d.gw + d.fw.transpose() * it.lambda[k] + d.cw.transpose() * zeta;
-                        let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
-                        if let Some(lu) = Lu::new(&ev.transpose()) {
-                            nu = lu.solve(&(-gw.fixed_rows::<NE>(0).into_owned()));
-                        }
-                    }
+                    let nu = d
+                        .equality_multiplier(&it.lambda[k], &(it.z_hi[k] - it.z_lo[k]))
+                        .unwrap_or_else(SVector::zeros);
                     qn[k].update(&it.x[k], &it.w[k], d, &it.lambda[k], &nu);
                 }
             }
             tm.derivatives += t0.elapsed().as_secs_f64();
 
-            let (dual, primal, _) = self.kkt_error(&it, &ders, 0.0);
-            let (_, _, compl0) = self.kkt_error(&it, &ders, 0.0);
+            let KktError { dual, primal, s_d } = self.kkt_error(&it, &ders);
+            let compl0 = self.complementarity(&it, 0.0, s_d);
             if o.verbose {
                 eprintln!(
                     "{:>4} {:>14.7e} {:>9.2e} {:>9.2e} {:>6.1} {:>9} {:>9.2e} {:>9.2e} {:>3} {:>6.2}s",
@@ -876,8 +795,7 @@ where
             }
             // Barrier update (IPOPT's monotone rule).
             loop {
-                let (d_mu, p_mu, c_mu) = self.kkt_error(&it, &ders, mu);
-                let e_mu = d_mu.max(p_mu).max(c_mu);
+                let e_mu = dual.max(primal).max(self.complementarity(&it, mu, s_d));
                 if e_mu <= 10.0 * mu && mu > o.tol / 10.0 {
                     mu = (o.tol / 10.0).max((0.2 * mu).min(mu.powf(1.5)));
                     filter.clear();
@@ -897,22 +815,28 @@ where
             // The state equalities' regularisation follows the barrier parameter: loose
             // while far from the solution (steps that respect the other constraints),
             // tight near it (fast convergence of their multipliers).
-            self.set_delta_c((o.delta_c * (mu / o.mu_init).powi(2)).max(o.delta_c_min));
+            let dc = (o.delta_c * (mu / o.mu_init).powi(2)).max(o.delta_c_min);
 
             // KKT solve.
             let t1 = Instant::now();
-            let mut cond = Vec::with_capacity(n);
+            let mut lq = Vec::with_capacity(n);
+            let mut elim = Vec::with_capacity(n);
             for k in 0..n {
-                match self.condense(k, &it, &ders[k], qn.get(k), mu) {
-                    Ok(c) => cond.push(c),
+                match self.condense(k, &it, &ders[k], qn.get(k), mu, dc) {
+                    Ok((stage, e)) => {
+                        lq.push(stage);
+                        elim.push(e);
+                    }
                     Err(e) => {
                         return self.finish(Status::Failed(e), it, iter, tm, t_start);
                     }
                 }
             }
+            let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
+            self.add_state_equalities(n, &it, dc, &mut q_n, &mut q_vec_n);
             let mut delta = 0.0;
             let sol = loop {
-                match self.riccati(&cond, &it, delta) {
+                match solve_lq(&lq, &q_n, &q_vec_n, &SVector::zeros(), delta) {
                     Ok(s) => break Some(s),
                     Err(_) => {
                         delta = if delta == 0.0 {
@@ -932,7 +856,7 @@ where
                     }
                 }
             };
-            let Some((dx, du, lam_new)) = sol else {
+            let Some(sol) = sol else {
                 return self.finish(
                     Status::Failed("inertia correction failed".into()),
                     it,
@@ -944,7 +868,7 @@ where
             if delta > 0.0 {
                 delta_last = delta;
             }
-            let step = self.recover(&it, &ders, &cond, dx, du, lam_new, mu);
+            let step = self.recover(&it, &ders, &elim, sol, mu, dc);
             tm.kkt += t1.elapsed().as_secs_f64();
 
             // Fraction to the boundary.
@@ -1142,18 +1066,22 @@ where
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
-        cond: &[Condensed<NX, NW, NU>],
-        dx: Vec<SVector<f64, NX>>,
-        du: Vec<SVector<f64, NU>>,
-        lambda: Vec<SVector<f64, NX>>,
+        elim: &[Elimination<NX, NW, NU>],
+        sol: LqSolution<NX, NU>,
         mu: f64,
+        dc: f64,
     ) -> Step<NX, NW, NC> {
+        let LqSolution {
+            x: dx,
+            u: du,
+            lambda,
+        } = sol;
         let n = self.n;
         let mut dw = Vec::with_capacity(n);
         let (mut dt_lo, mut dt_hi) = (vec![SVector::zeros(); n], vec![SVector::zeros(); n]);
         let (mut dz_lo, mut dz_hi) = (vec![SVector::zeros(); n], vec![SVector::zeros(); n]);
         for k in 0..n {
-            let c = &cond[k];
+            let c = &elim[k];
             let dwk = c.w0 + c.wx * dx[k] + c.wu * du[k];
             let d = &ders[k];
             let cd = d.cx * dx[k] + d.cw * dwk;
@@ -1180,9 +1108,7 @@ where
             .eqs
             .iter()
             .enumerate()
-            .map(|(j, e)| {
-                it.y[j] + (dx[e.stage][e.index] + it.x[e.stage][e.index] - e.value) / self.delta_c()
-            })
+            .map(|(j, e)| it.y[j] + (dx[e.stage][e.index] + it.x[e.stage][e.index] - e.value) / dc)
             .collect();
         Step {
             dx,

@@ -12,30 +12,31 @@
 //! `P ← H_xx + H_uxᵀ K`, `p ← h_x + H_uxᵀ κ`. Forward: `u_k = K_k x_k + κ_k`, and the
 //! multipliers of the dynamics are `λ_{k+1} = P_{k+1} x_{k+1} + p_{k+1}`.
 //! `H_uu` must be positive definite at every stage (the reduced Hessian's inertia is
-//! right); otherwise the stage is reported so that the caller can regularise.
+//! right); otherwise the stage is reported so that the caller can regularise. A primal
+//! shift `δ` (added to every `Q`, `R` and `Q_N`) is the caller's inertia correction.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{SMatrix, SVector};
 
-/// One stage of the LQ problem (the last stage uses only `q_mat`, `q`).
+/// One stage of the LQ problem, fixed sizes (`NX` states, `NU` inputs).
 #[derive(Clone, Debug)]
-pub struct LqStage {
-    pub q_mat: DMatrix<f64>,
-    pub s_mat: DMatrix<f64>,
-    pub r_mat: DMatrix<f64>,
-    pub q: DVector<f64>,
-    pub r: DVector<f64>,
-    pub a: DMatrix<f64>,
-    pub b: DMatrix<f64>,
-    pub c: DVector<f64>,
+pub struct LqStage<const NX: usize, const NU: usize> {
+    pub q_mat: SMatrix<f64, NX, NX>,
+    pub s_mat: SMatrix<f64, NX, NU>,
+    pub r_mat: SMatrix<f64, NU, NU>,
+    pub q: SVector<f64, NX>,
+    pub r: SVector<f64, NU>,
+    pub a: SMatrix<f64, NX, NX>,
+    pub b: SMatrix<f64, NX, NU>,
+    pub c: SVector<f64, NX>,
 }
 
-/// The solution: states, inputs, and the multipliers of the dynamics (`lambda[k]` for the
-/// constraint that defines `x_{k+1}`).
+/// The solution: states `x[0..=N]`, inputs `u[0..N]`, and the multipliers of the dynamics
+/// (`lambda[k]` for the constraint that defines `x_{k+1}`).
 #[derive(Clone, Debug)]
-pub struct LqSolution {
-    pub x: Vec<DVector<f64>>,
-    pub u: Vec<DVector<f64>>,
-    pub lambda: Vec<DVector<f64>>,
+pub struct LqSolution<const NX: usize, const NU: usize> {
+    pub x: Vec<SVector<f64, NX>>,
+    pub u: Vec<SVector<f64, NU>>,
+    pub lambda: Vec<SVector<f64, NX>>,
 }
 
 /// Why the recursion stopped.
@@ -45,49 +46,51 @@ pub enum RiccatiError {
     NotPositiveDefinite { stage: usize },
 }
 
-/// Solve the LQ problem over `stages[0..N]` (with dynamics) and the terminal cost
-/// `(q_n, q_vec_n)`, from `x0`.
-pub fn solve_lq(
-    stages: &[LqStage],
-    q_n: &DMatrix<f64>,
-    q_vec_n: &DVector<f64>,
-    x0: &DVector<f64>,
-) -> Result<LqSolution, RiccatiError> {
+/// Solve the LQ problem over `stages[0..N]` and the terminal cost `(q_n, q_vec_n)` from
+/// `x0`, with the primal shift `shift`.
+pub fn solve_lq<const NX: usize, const NU: usize>(
+    stages: &[LqStage<NX, NU>],
+    q_n: &SMatrix<f64, NX, NX>,
+    q_vec_n: &SVector<f64, NX>,
+    x0: &SVector<f64, NX>,
+    shift: f64,
+) -> Result<LqSolution<NX, NU>, RiccatiError> {
     let n = stages.len();
-    let mut p_mat = q_n.clone();
-    let mut p_vec = q_vec_n.clone();
-    let mut gains = Vec::with_capacity(n);
-    let mut costate = vec![(p_mat.clone(), p_vec.clone())];
+    let eye_x = SMatrix::<f64, NX, NX>::identity() * shift;
+    let eye_u = SMatrix::<f64, NU, NU>::identity() * shift;
+    let mut p_mat = q_n + eye_x;
+    let mut p_vec = *q_vec_n;
+    let mut cost_to_go = vec![(p_mat, p_vec); n + 1];
+    let mut gains = vec![(SMatrix::<f64, NU, NX>::zeros(), SVector::<f64, NU>::zeros()); n];
     for (k, st) in stages.iter().enumerate().rev() {
-        let pa = &p_mat * &st.a;
-        let pb = &p_mat * &st.b;
-        let pc_p = &p_mat * &st.c + &p_vec;
-        let huu = &st.r_mat + st.b.transpose() * &pb;
-        let hux = st.s_mat.transpose() + st.b.transpose() * &pa;
-        let hxx = &st.q_mat + st.a.transpose() * &pa;
-        let hu = &st.r + st.b.transpose() * &pc_p;
-        let hx = &st.q + st.a.transpose() * &pc_p;
+        let pa = p_mat * st.a;
+        let pb = p_mat * st.b;
+        let pc = p_mat * st.c + p_vec;
+        let huu = st.r_mat + eye_u + st.b.transpose() * pb;
+        let hux = st.s_mat.transpose() + st.b.transpose() * pa;
+        let hxx = st.q_mat + eye_x + st.a.transpose() * pa;
+        let hu = st.r + st.b.transpose() * pc;
+        let hx = st.q + st.a.transpose() * pc;
         let chol = huu
             .cholesky()
             .ok_or(RiccatiError::NotPositiveDefinite { stage: k })?;
         let gain = -chol.solve(&hux);
         let ff = -chol.solve(&hu);
-        p_mat = &hxx + hux.transpose() * &gain;
-        p_mat = (&p_mat + p_mat.transpose()) * 0.5;
-        p_vec = &hx + hux.transpose() * &ff;
-        gains.push((gain, ff));
-        costate.push((p_mat.clone(), p_vec.clone()));
+        let pm = hxx + hux.transpose() * gain;
+        p_mat = (pm + pm.transpose()) * 0.5;
+        p_vec = hx + hux.transpose() * ff;
+        gains[k] = (gain, ff);
+        cost_to_go[k] = (p_mat, p_vec);
     }
-    gains.reverse();
-    costate.reverse(); // costate[k] = (P_k, p_k), k = 0..=N
-    let mut x = vec![x0.clone()];
+    let mut x = Vec::with_capacity(n + 1);
+    x.push(*x0);
     let mut u = Vec::with_capacity(n);
     let mut lambda = Vec::with_capacity(n);
     for (k, st) in stages.iter().enumerate() {
-        let uk = &gains[k].0 * &x[k] + &gains[k].1;
-        let next = &st.a * &x[k] + &st.b * &uk + &st.c;
-        let (pk, pv) = &costate[k + 1];
-        lambda.push(pk * &next + pv);
+        let uk = gains[k].0 * x[k] + gains[k].1;
+        let next = st.a * x[k] + st.b * uk + st.c;
+        let (pm, pv) = &cost_to_go[k + 1];
+        lambda.push(pm * next + pv);
         u.push(uk);
         x.push(next);
     }
@@ -97,6 +100,7 @@ pub fn solve_lq(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{DMatrix, DVector};
 
     /// A deterministic pseudo-random matrix.
     fn mat(r: usize, c: usize, seed: &mut u64) -> DMatrix<f64> {
@@ -108,31 +112,67 @@ mod tests {
         })
     }
 
+    /// A stage with dynamic sizes, for the dense assembly.
+    struct DenseStage {
+        q_mat: DMatrix<f64>,
+        s_mat: DMatrix<f64>,
+        r_mat: DMatrix<f64>,
+        q: DVector<f64>,
+        r: DVector<f64>,
+        a: DMatrix<f64>,
+        b: DMatrix<f64>,
+        c: DVector<f64>,
+    }
+
+    fn fixed<const R: usize, const C: usize>(m: &DMatrix<f64>) -> SMatrix<f64, R, C> {
+        SMatrix::from_column_slice(m.as_slice())
+    }
+
+    fn fixed_v<const R: usize>(v: &DVector<f64>) -> SVector<f64, R> {
+        SVector::from_column_slice(v.as_slice())
+    }
+
     /// The Riccati solution equals the solution of the whole KKT system, assembled densely
     /// and solved by LU (κ(KKT) ≈ 1e3 here, so agreement to ~1e-12).
     #[test]
     fn riccati_equals_dense_kkt() {
-        let (nx, nu, n) = (4usize, 2usize, 6usize);
+        const NX: usize = 4;
+        const NU: usize = 2;
+        let (nx, nu, n) = (NX, NU, 6usize);
         let mut seed = 3u64;
         let spd = |m: DMatrix<f64>, shift: f64| {
             &m * m.transpose() + DMatrix::identity(m.nrows(), m.nrows()) * shift
         };
-        let stages: Vec<LqStage> = (0..n)
-            .map(|_| LqStage {
+        let vec = |m: DMatrix<f64>| DVector::from_column_slice(m.as_slice());
+        let stages: Vec<DenseStage> = (0..n)
+            .map(|_| DenseStage {
                 q_mat: spd(mat(nx, nx, &mut seed), 0.1),
                 s_mat: mat(nx, nu, &mut seed) * 0.1,
                 r_mat: spd(mat(nu, nu, &mut seed), 0.5),
-                q: DVector::from_column_slice(mat(nx, 1, &mut seed).as_slice()),
-                r: DVector::from_column_slice(mat(nu, 1, &mut seed).as_slice()),
+                q: vec(mat(nx, 1, &mut seed)),
+                r: vec(mat(nu, 1, &mut seed)),
                 a: DMatrix::identity(nx, nx) + mat(nx, nx, &mut seed) * 0.3,
                 b: mat(nx, nu, &mut seed),
-                c: DVector::from_column_slice(mat(nx, 1, &mut seed).as_slice()),
+                c: vec(mat(nx, 1, &mut seed)),
             })
             .collect();
         let q_n = spd(mat(nx, nx, &mut seed), 0.1);
-        let q_vec_n = DVector::from_column_slice(mat(nx, 1, &mut seed).as_slice());
-        let x0 = DVector::from_column_slice(mat(nx, 1, &mut seed).as_slice());
-        let sol = solve_lq(&stages, &q_n, &q_vec_n, &x0).unwrap();
+        let q_vec_n = vec(mat(nx, 1, &mut seed));
+        let x0 = vec(mat(nx, 1, &mut seed));
+        let lq: Vec<LqStage<NX, NU>> = stages
+            .iter()
+            .map(|st| LqStage {
+                q_mat: fixed(&st.q_mat),
+                s_mat: fixed(&st.s_mat),
+                r_mat: fixed(&st.r_mat),
+                q: fixed_v(&st.q),
+                r: fixed_v(&st.r),
+                a: fixed(&st.a),
+                b: fixed(&st.b),
+                c: fixed_v(&st.c),
+            })
+            .collect();
+        let sol = solve_lq(&lq, &fixed(&q_n), &fixed_v(&q_vec_n), &fixed_v(&x0), 0.0).unwrap();
 
         // Dense KKT in z = (u_0, x_1, u_1, …, x_N), constraints x_{k+1} − A x_k − B u_k = c.
         let nz = n * nu + n * nx;
@@ -180,10 +220,10 @@ mod tests {
         let z = kkt.lu().solve(&b).unwrap();
         let mut worst: f64 = 0.0;
         for k in 0..n {
-            worst = worst.max((z.rows(ui(k), nu) - &sol.u[k]).amax());
-            worst = worst.max((z.rows(xi(k + 1), nx) - &sol.x[k + 1]).amax());
+            worst = worst.max((z.fixed_rows::<NU>(ui(k)) - sol.u[k]).amax());
+            worst = worst.max((z.fixed_rows::<NX>(xi(k + 1)) - sol.x[k + 1]).amax());
             // KKT multipliers ν of the rows (x_{k+1} − …): H z + Jᵀν = −g, so λ = −ν.
-            worst = worst.max((z.rows(nz + k * nx, nx) + &sol.lambda[k]).amax());
+            worst = worst.max((z.fixed_rows::<NX>(nz + k * nx) + sol.lambda[k]).amax());
         }
         println!("Riccati vs dense KKT: {worst:.2e}");
         assert!(worst < 1e-10);
@@ -191,21 +231,22 @@ mod tests {
 
     #[test]
     fn indefinite_stage_is_reported() {
-        let st = LqStage {
-            q_mat: DMatrix::identity(1, 1),
-            s_mat: DMatrix::zeros(1, 1),
-            r_mat: DMatrix::from_element(1, 1, -1.0),
-            q: DVector::zeros(1),
-            r: DVector::zeros(1),
-            a: DMatrix::identity(1, 1),
-            b: DMatrix::zeros(1, 1),
-            c: DVector::zeros(1),
+        let st = LqStage::<1, 1> {
+            q_mat: SMatrix::identity(),
+            s_mat: SMatrix::zeros(),
+            r_mat: SMatrix::from_element(-1.0),
+            q: SVector::zeros(),
+            r: SVector::zeros(),
+            a: SMatrix::identity(),
+            b: SMatrix::zeros(),
+            c: SVector::zeros(),
         };
         let e = solve_lq(
             &[st],
-            &DMatrix::identity(1, 1),
-            &DVector::zeros(1),
-            &DVector::zeros(1),
+            &SMatrix::identity(),
+            &SVector::zeros(),
+            &SVector::zeros(),
+            0.0,
         );
         assert_eq!(
             e.unwrap_err(),

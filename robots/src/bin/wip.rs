@@ -220,17 +220,7 @@ fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
     let which = which.ok_or_else(|| {
         Failure::Usage("plan: which problem? (eight, zigzag or a waypoint FILE.json)".into())
     })?;
-    let transcription = match integrator.as_str() {
-        "varint" => Transcription::VarInt,
-        "rk1" => Transcription::Rk(dmech::RungeKutta::Rk1),
-        "rk2" => Transcription::Rk(dmech::RungeKutta::Rk2),
-        "rk4" => Transcription::Rk(dmech::RungeKutta::Rk4),
-        other => {
-            return Err(Failure::Usage(format!(
-                "unknown integrator '{other}' (expected varint, rk1, rk2 or rk4)"
-            )))
-        }
-    };
+    let transcription: Transcription = integrator.parse().map_err(Failure::Usage)?;
     match current.as_str() {
         "dynamic" => {}
         "algebraic" => {
@@ -247,10 +237,9 @@ fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
     if !(h > 0.0 && h <= 0.1) {
         return Err(Failure::Run(format!("--h must be in (0, 0.1] s, got {h}")));
     }
-    let problem = match which.as_str() {
-        "eight" => benchmarks::eight(h),
-        "zigzag" => benchmarks::zigzag(h),
-        file => benchmarks::from_file(std::path::Path::new(file), h).map_err(Failure::Run)?,
+    let problem = match benchmarks::by_name(&which, h) {
+        Some(p) => p,
+        None => benchmarks::from_file(std::path::Path::new(&which), h).map_err(Failure::Run)?,
     };
     let wip = Wip::new(load_params(params)?);
     let opts = dmech_ocp::ipm::IpOptions {
@@ -357,19 +346,10 @@ fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
         "problem", "integr.", "current", "status", "iter", "time [s]", "objective", "paper [s]"
     );
     for p in &problems {
-        let problem = match p.as_str() {
-            "eight" => benchmarks::eight(0.005),
-            "zigzag" => benchmarks::zigzag(0.005),
-            other => return Err(Failure::Usage(format!("unknown benchmark '{other}'"))),
-        };
+        let problem = benchmarks::by_name(p, 0.005)
+            .ok_or_else(|| Failure::Usage(format!("unknown benchmark '{p}' (eight, zigzag)")))?;
         for i in &integrators {
-            let tr = match i.as_str() {
-                "varint" => Transcription::VarInt,
-                "rk1" => Transcription::Rk(dmech::RungeKutta::Rk1),
-                "rk2" => Transcription::Rk(dmech::RungeKutta::Rk2),
-                "rk4" => Transcription::Rk(dmech::RungeKutta::Rk4),
-                other => return Err(Failure::Usage(format!("unknown integrator '{other}'"))),
-            };
+            let tr: Transcription = i.parse().map_err(Failure::Usage)?;
             eprintln!("bench: {p} with {i} …");
             let opts = dmech_ocp::ipm::IpOptions::default();
             let o = plan(&wip, &problem, tr, opts);

@@ -113,6 +113,15 @@ pub fn zigzag(h: f64) -> PlanProblem {
     from_timing("zigzag", points, 19.36, 0.1, h, pi, pi).expect("the benchmark is feasible")
 }
 
+/// A benchmark of benchmarks.md by name (`eight`, `zigzag`) at step `h`.
+pub fn by_name(name: &str, h: f64) -> Option<PlanProblem> {
+    match name {
+        "eight" => Some(eight(h)),
+        "zigzag" => Some(zigzag(h)),
+        _ => None,
+    }
+}
+
 /// Read a waypoint file (JSON, documented in `docs/ocp.md`):
 /// ```json
 /// { "name": "square", "points": [[0,0],[1,0],[1,1]], "duration": 12.0, "accel": 0.2,

@@ -7,6 +7,7 @@
 //! for Runge–Kutta. The VI decides `w = (v_k, u_k)`, RK decides `w = u_k`.
 
 use super::benchmarks::{arc_lengths, PlanProblem};
+use super::simulate::Integrator;
 use super::Wip;
 use dmech::{ForcingQuadrature, RungeKutta};
 use dmech_lie::Real;
@@ -342,49 +343,49 @@ pub fn polyline_start(wip: &Wip, p: &PlanProblem) -> Vec<(SVector<f64, 3>, SVect
     out
 }
 
-/// The VI start: states from [`polyline_start`], `v_k = (s_{k+1} − s_k)/h`, `u = 0`.
-pub fn varint_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 7>>) {
+/// Stage states from [`polyline_start`] and the shape velocities
+/// `vel_j = (s_{j+1} − s_j)/h`; stage `k` (`0 < k < N`) carries `vel_{k − lag}` (`lag = 1`:
+/// the VI's `v_{k−1}`; `lag = 0`: RK's `v_k`). Both ends are at rest.
+fn start_states(
+    wip: &Wip,
+    p: &PlanProblem,
+    lag: usize,
+) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 5>>) {
     let path = polyline_start(wip, p);
     let n = p.n;
     let vel: Vec<SVector<f64, 5>> = (0..n).map(|k| (path[k + 1].1 - path[k].1) / p.h).collect();
-    let mut xs = Vec::with_capacity(n + 1);
-    for k in 0..=n {
-        let mut x = SVector::<f64, NX>::zeros();
-        x.fixed_rows_mut::<3>(0).copy_from(&path[k].0);
-        x.fixed_rows_mut::<5>(3).copy_from(&path[k].1);
-        if k > 0 {
-            x.fixed_rows_mut::<5>(V_AT).copy_from(&vel[k - 1]);
-        }
-        xs.push(x);
-    }
-    // The end state at rest.
-    xs[n].fixed_rows_mut::<5>(V_AT).fill(0.0);
-    let ws = (0..n)
+    let xs = (0..=n)
         .map(|k| {
+            let mut x = SVector::<f64, NX>::zeros();
+            x.fixed_rows_mut::<3>(0).copy_from(&path[k].0);
+            x.fixed_rows_mut::<5>(3).copy_from(&path[k].1);
+            if k > 0 && k < n {
+                x.fixed_rows_mut::<5>(V_AT).copy_from(&vel[k - lag]);
+            }
+            x
+        })
+        .collect();
+    (xs, vel)
+}
+
+/// The VI start: [`start_states`] with `w_k = (v_k, u_k = 0)`.
+pub fn varint_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 7>>) {
+    let (xs, vel) = start_states(wip, p, 1);
+    let ws = vel
+        .iter()
+        .map(|v| {
             let mut w = SVector::<f64, 7>::zeros();
-            w.fixed_rows_mut::<5>(0).copy_from(&vel[k]);
+            w.fixed_rows_mut::<5>(0).copy_from(v);
             w
         })
         .collect();
     (xs, ws)
 }
 
-/// The RK start: the same states with `v_k` in the state, `u = 0`.
+/// The RK start: [`start_states`] with `v_k` in the state, `u = 0`.
 pub fn rk_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 2>>) {
-    let path = polyline_start(wip, p);
+    let (xs, _) = start_states(wip, p, 0);
     let n = p.n;
-    let mut xs = Vec::with_capacity(n + 1);
-    for k in 0..=n {
-        let mut x = SVector::<f64, NX>::zeros();
-        x.fixed_rows_mut::<3>(0).copy_from(&path[k].0);
-        x.fixed_rows_mut::<5>(3).copy_from(&path[k].1);
-        if k < n {
-            x.fixed_rows_mut::<5>(V_AT)
-                .copy_from(&((path[k + 1].1 - path[k].1) / p.h));
-        }
-        xs.push(x);
-    }
-    xs[0].fixed_rows_mut::<5>(V_AT).fill(0.0);
     (xs, vec![SVector::zeros(); n])
 }
 
@@ -404,6 +405,17 @@ pub struct PlannedTrajectory {
 pub enum Transcription {
     VarInt,
     Rk(RungeKutta),
+}
+
+/// The same names as the simulator's integrators (`varint`, `rk1`, `rk2`, `rk4`).
+impl std::str::FromStr for Transcription {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Ok(match s.parse::<Integrator>()? {
+            Integrator::VarInt { .. } => Transcription::VarInt,
+            Integrator::Rk(rk) => Transcription::Rk(rk),
+        })
+    }
 }
 
 /// A finished solve, transcription-independent.
