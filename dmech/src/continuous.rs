@@ -12,7 +12,7 @@
 
 use crate::linalg::solve;
 use crate::partials::{dl_ds, dl_dv, dl_dxi, value_and_jacobian};
-use crate::system::PrincipalKinematicSystem;
+use crate::system::{Lift, PrincipalKinematicSystem};
 use crate::variational::StepError;
 use dmech_lie::{LieGroup, Real};
 use nalgebra::SVector;
@@ -30,6 +30,38 @@ pub fn acceleration<S, T, const DOF: usize, const DIM: usize, const NS: usize, c
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     T: Real,
+{
+    acceleration_with_force::<S, T, DOF, DIM, NS, NU>(sys, s, v, u, &SVector::zeros())
+}
+
+/// The shape acceleration with an external generalised force `f_ext` on the shape added to
+/// the system's forcing, for any parameter scalar (dual parameters give derivatives with
+/// respect to parameters). A force `f_b` on the group, in the body frame, enters as
+/// `f_ext = −Aᵀ f_b` (virtual work along the horizontal variations `g⁻¹δg = −A δs`).
+pub fn acceleration_with_force<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    s: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+    u: &SVector<T, NU>,
+    f_ext: &SVector<T, NS>,
+) -> Option<SVector<T, NS>>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+    Dv<T, DOF>: Lift<S::Param>,
+    Dv<Dv<T, NS>, NS>: Lift<S::Param>,
+    Dv<Dv<T, NS>, DOF>: Lift<S::Param>,
+    Dual<T>: Lift<S::Param>,
+    Dv<Dual<T>, NS>: Lift<S::Param>,
+    Dv<Dual<T>, DOF>: Lift<S::Param>,
 {
     let a = sys.connection(s);
     let at = a.transpose();
@@ -59,7 +91,7 @@ where
 
     let ls = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
     let ad = <S::Group<T> as LieGroup<DOF, DIM>>::ad(&xi);
-    let f = sys.forcing(s, v, u);
+    let f = sys.forcing(s, v, u) + f_ext;
     let r0 = p_dot - at * mu_dot + at * (ad.transpose() * mu) - ls - f;
     solve(&m, &(-r0))
 }

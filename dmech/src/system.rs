@@ -105,6 +105,31 @@ impl<const K: usize, const N: usize> Lift<DualSVec64<K>>
     }
 }
 
+impl<const K: usize> Lift<DualSVec64<K>> for num_dual::Dual<DualSVec64<K>> {
+    #[inline(always)]
+    fn lift(p: DualSVec64<K>) -> Self {
+        num_dual::Dual::from_re(p)
+    }
+}
+
+impl<const K: usize, const N: usize> Lift<DualSVec64<K>>
+    for DualVec<num_dual::Dual<DualSVec64<K>>, nalgebra::Const<N>>
+{
+    #[inline(always)]
+    fn lift(p: DualSVec64<K>) -> Self {
+        DualVec::from_re(num_dual::Dual::from_re(p))
+    }
+}
+
+impl<const K: usize, const N: usize, const M: usize> Lift<DualSVec64<K>>
+    for DualVec<DualVec<DualSVec64<K>, nalgebra::Const<N>>, nalgebra::Const<M>>
+{
+    #[inline(always)]
+    fn lift(p: DualSVec64<K>) -> Self {
+        DualVec::from_re(DualVec::from_re(p))
+    }
+}
+
 /// A principal-kinematic nonholonomic system on `G × M`: `DOF = dim G` constraints
 /// `ξ + A(s) v_s = 0`, an `NS`-dimensional vector shape space `M`, `NU` inputs.
 ///
