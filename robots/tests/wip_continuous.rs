@@ -180,7 +180,7 @@ fn derivatives_with_respect_to_parameters() {
     let base = WipParams::default();
     let mut pd = base.map(P::from);
     pd.m_b = P::from(base.m_b).derivative(0);
-    let wd = Wip { params: pd };
+    let wd = Wip::new(pd);
     let s0 = SVector::<f64, 5>::new(0.1, 0.3, -0.2, 0.01, 0.02);
     let v0 = SVector::<f64, 5>::new(0.4, 5.0, 3.0, 0.2, -0.1);
     let s1 = s0 + v0 * 0.005;

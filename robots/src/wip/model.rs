@@ -10,11 +10,24 @@ use nalgebra::{SMatrix, SVector};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Wip<P = f64> {
     pub params: WipParams<P>,
+    /// Offsets `(δ_R, δ_L)` of the two wheels' radii from `r` (zero in the paper's model;
+    /// the `wheel_radius_asymmetry` effect of `wip diagnose`). They enter the connection
+    /// only: the wheels' inertias stay those of the table.
+    pub wheel_radius_offsets: [P; 2],
+    /// `J_e`, a kinetic term `−½ J_e ((φ̇R − α̇)² + (φ̇L − α̇)²)`: zero in the full model.
+    /// When the current is eliminated (`i` algebraic), `J_e = (k_e n_wm)² L_m / R_m²` is
+    /// the first-order singular-perturbation correction of the current's lag: the lag
+    /// adds a torque `(k_e n_wm)² (L_m/R_m²) ẇ` on each wheel (`docs/diagnose.md`).
+    pub quasi_static_inertia: P,
 }
 
-impl Wip<f64> {
-    pub fn new(params: WipParams<f64>) -> Self {
-        Wip { params }
+impl<P: Real> Wip<P> {
+    pub fn new(params: WipParams<P>) -> Self {
+        Wip {
+            params,
+            wheel_radius_offsets: [P::zero(); 2],
+            quasi_static_inertia: P::zero(),
+        }
     }
 }
 
@@ -70,19 +83,26 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
             (0.5 * p.I_m) * (m * m) + (0.5 * p.I_g) * (g * g)
         };
         let t_gear = stage(vr) + stage(vl);
+        let (wr_rel, wl_rel) = (vr - va, vl - va);
+        let t_lag = (-0.5 * Param(self.quasi_static_inertia)) * (wr_rel * wr_rel + wl_rel * wl_rel);
         let t_motor = (0.5 * p.L_m) * (ir * ir + il * il);
 
         let v_grav = (p.m_b * p.g * p.l) * ca;
         let v_emf = (p.k_e * p.n_wm) * ((vr - va) * qr + (vl - va) * ql);
-        t_body + t_wheels + t_gear + t_motor - v_grav - v_emf
+        t_body + t_wheels + t_gear + t_lag + t_motor - v_grav - v_emf
     }
 
     fn connection<T: Lift<P>>(&self, _s: &SVector<T, 5>) -> SMatrix<T, 3, 5> {
         let p = self.params.map(Param);
         let z = T::zero();
-        let hr: T = (0.5 * p.r).lift();
-        let hrd: T = (0.5 * p.r / p.d).lift();
-        SMatrix::<T, 3, 5>::new(z, -hr, -hr, z, z, z, z, z, z, z, z, -hrd, hrd, z, z)
+        // Wheel radii r_R, r_L: ξ₁ = (r_R φ̇R + r_L φ̇L)/2, ω = (r_R φ̇R − r_L φ̇L)/(2d).
+        let r_r = p.r + Param(self.wheel_radius_offsets[0]);
+        let r_l = p.r + Param(self.wheel_radius_offsets[1]);
+        let (hr_r, hr_l): (T, T) = ((0.5 * r_r).lift(), (0.5 * r_l).lift());
+        let (hrd_r, hrd_l): (T, T) = ((0.5 * r_r / p.d).lift(), (0.5 * r_l / p.d).lift());
+        SMatrix::<T, 3, 5>::new(
+            z, -hr_r, -hr_l, z, z, z, z, z, z, z, z, -hrd_r, hrd_l, z, z,
+        )
     }
 
     fn forcing<T: Lift<P>>(
