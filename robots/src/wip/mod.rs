@@ -6,6 +6,7 @@
 
 pub mod benchmarks;
 pub mod closed_form;
+pub mod diagnose;
 pub mod invariants;
 pub mod model;
 pub mod params;

@@ -1,0 +1,10 @@
+//! `wip diagnose`: compare the model with a measured log, find which unmodelled effect
+//! explains the difference, refit, report the gain (method: `docs/diagnose.md`).
+
+pub mod effects;
+pub mod prediction;
+pub mod fit;
+pub mod generate;
+pub mod measured;
+pub mod selection;
+pub mod report;

@@ -1,0 +1,200 @@
+//! The prediction model of `wip diagnose`: the WIP's equations of motion from `dmech`
+//! (`acceleration_with_force`, the same `ℓ`, `A`, forcing as everywhere else), with a
+//! [`ModelExtension`], the current reduced to its steady state, and the sensors.
+//!
+//! The electrical time constant `τ_e = L_m/R_m` (0.27 ms) is far below the sample step, so
+//! the current is algebraic, `i = (u − k_e n_wm (φ̇ − α̇))/R_m`, and what the current's lag
+//! does to the motion is, to first order, an input delay of `τ_e`: the prediction applies
+//! over each step the mean of the zero-order-hold voltage delayed by `τ_e + delay`
+//! (`docs/diagnose.md`).
+
+use super::effects::ModelExtension;
+use crate::wip::Wip;
+use dmech::continuous::acceleration_with_force;
+use dmech::{Lift, PrincipalKinematicSystem};
+use dmech_lie::Real;
+use nalgebra::SVector;
+use num_dual::DualSVec64;
+
+/// `z = (x, y, θ, α, φR, φL, v_α, v_φR, v_φL)`.
+pub const NZ: usize = 9;
+/// Dual directions of a window's prediction: `θ, α, v_α, v_φR, v_φL` of the window's
+/// initial state (`x, y, φR, φL` enter the predictions additively and get their
+/// derivatives in closed form), then the effect parameters.
+pub const ND_STATE: usize = 5;
+/// Dual directions of the LQR design (four states, two inputs; `generate`).
+pub const ND: usize = 9;
+/// A dual scalar with `ND` directions.
+pub type D = DualSVec64<ND>;
+
+/// Indices of `z` seeded with dual directions 0..5.
+pub const DUAL_STATE: [usize; 5] = [2, 3, 6, 7, 8];
+
+/// Scalars in which the prediction model runs: `f64` (values) and [`D`] (values and
+/// derivatives with respect to the initial state and the effect parameters).
+pub trait FitScalar: Real + Lift<Self> {
+    fn shape_acceleration(
+        sys: &Wip<Self>,
+        s: &SVector<Self, 5>,
+        v: &SVector<Self, 5>,
+        u: &SVector<Self, 2>,
+        f_ext: &SVector<Self, 5>,
+    ) -> Option<SVector<Self, 5>>;
+}
+
+impl FitScalar for f64 {
+    fn shape_acceleration(
+        sys: &Wip<f64>,
+        s: &SVector<f64, 5>,
+        v: &SVector<f64, 5>,
+        u: &SVector<f64, 2>,
+        f_ext: &SVector<f64, 5>,
+    ) -> Option<SVector<f64, 5>> {
+        acceleration_with_force::<Wip<f64>, f64, 3, 2, 5, 2>(sys, s, v, u, f_ext)
+    }
+}
+
+impl<const N: usize> FitScalar for DualSVec64<N> {
+    fn shape_acceleration(
+        sys: &Wip<Self>,
+        s: &SVector<Self, 5>,
+        v: &SVector<Self, 5>,
+        u: &SVector<Self, 2>,
+        f_ext: &SVector<Self, 5>,
+    ) -> Option<SVector<Self, 5>> {
+        acceleration_with_force::<Wip<Self>, Self, 3, 2, 5, 2>(sys, s, v, u, f_ext)
+    }
+}
+
+/// The prediction model: a system with its extension.
+pub struct Predictor<T> {
+    pub ext: ModelExtension<T>,
+    pub sys: Wip<T>,
+    /// `τ_e = L_m / R_m`.
+    pub electrical_lag: f64,
+}
+
+impl<T: FitScalar> Predictor<T> {
+    pub fn new(ext: ModelExtension<T>, base: &crate::wip::WipParams) -> Self {
+        let mut sys = ext.system(base);
+        sys.quasi_static_inertia = T::from(lag_inertia(base));
+        Predictor {
+            sys,
+            ext,
+            electrical_lag: base.L_m / base.R_m,
+        }
+    }
+
+    /// The steady-state currents for applied voltages `u` at wheel rates relative to the
+    /// body `w = φ̇ − α̇`.
+    pub fn current(&self, u: [T; 2], w: [T; 2]) -> [T; 2] {
+        let p = &self.sys.params;
+        let ke = p.k_e * p.n_wm;
+        [(u[0] - ke * w[0]) / p.R_m, (u[1] - ke * w[1]) / p.R_m]
+    }
+
+    /// `ż` for applied voltages `u` (after the driver).
+    pub fn rate(&self, z: &SVector<T, NZ>, u: [T; 2]) -> Option<SVector<T, NZ>> {
+        let (va, vr, vl) = (z[6], z[7], z[8]);
+        let i = self.current(u, [vr - va, vl - va]);
+        let s = SVector::<T, 5>::new(z[3], z[4], z[5], T::zero(), T::zero());
+        let v = SVector::<T, 5>::new(va, vr, vl, i[0], i[1]);
+        let a_conn = self.sys.connection(&s);
+        let xi = -(a_conn * v);
+        let f_ext = self.ext.floor_force(&self.sys, &s, z[2]);
+        let uv = SVector::<T, 2>::new(u[0], u[1]);
+        let a = T::shape_acceleration(&self.sys, &s, &v, &uv, &f_ext)?;
+        let (st, ct) = z[2].sin_cos();
+        Some(SVector::<T, NZ>::from_column_slice(&[
+            xi[0] * ct - xi[1] * st,
+            xi[0] * st + xi[1] * ct,
+            xi[2],
+            va,
+            vr,
+            vl,
+            a[0],
+            a[1],
+            a[2],
+        ]))
+    }
+
+    /// One classical Runge–Kutta step of length `h` with the applied voltage `u` held;
+    /// also the relative wheel accelerations `ẇ` of the last stage (at the step's end,
+    /// to `O(h³)`), which the current reading needs.
+    pub fn step(&self, z: &SVector<T, NZ>, u: [T; 2], h: f64) -> Option<(SVector<T, NZ>, [T; 2])> {
+        let k1 = self.rate(z, u)?;
+        let k2 = self.rate(&(z + k1 * T::from(0.5 * h)), u)?;
+        let k3 = self.rate(&(z + k2 * T::from(0.5 * h)), u)?;
+        let k4 = self.rate(&(z + k3 * T::from(h)), u)?;
+        let out = z + (k1 + k2 * T::from(2.0) + k3 * T::from(2.0) + k4) * T::from(h / 6.0);
+        let wdot = [k4[7] - k4[6], k4[8] - k4[6]];
+        out.iter().all(|x| x.re().is_finite()).then_some((out, wdot))
+    }
+
+    /// `ẇ` at a state for applied voltages `u` (for the first reading of a window).
+    pub fn wheel_acceleration(&self, z: &SVector<T, NZ>, u: [T; 2]) -> Option<[T; 2]> {
+        let r = self.rate(z, u)?;
+        Some([r[7] - r[6], r[8] - r[6]])
+    }
+
+    /// The mean over `[t_k, t_{k+1})` of the applied voltage when the commands `cmd` (zero-
+    /// order hold, `cmd[j]` from `t_j`; before the log the first command) reach the
+    /// motors `τ = τ_e + delay` late: with `τ = m h + f`,
+    /// `(f/h) κ·dz(u_{k−m−1}) + (1 − f/h) κ·dz(u_{k−m})`.
+    pub fn mean_applied(&self, cmd: &[[f64; 2]], k: usize, h: f64) -> [T; 2] {
+        let tau = self.ext.delay + T::from(self.electrical_lag);
+        let (m, f) = split_delay(tau, h);
+        let at = |j: isize, c: usize| self.ext.driver(T::from(cmd[j.max(0) as usize][c]));
+        let w = f / h;
+        let k = k as isize;
+        [0, 1].map(|c| at(k - m - 1, c) * w + at(k - m, c) * (T::one() - w))
+    }
+
+    /// The voltage behind the current read at `t_k`: the driver's last switch before
+    /// `t_k` happened `h − f` earlier, and the current has relaxed from the previous level
+    /// with `exp(−(h − f)/τ_e)` since.
+    pub fn current_voltage(&self, cmd: &[[f64; 2]], k: usize, h: f64) -> [T; 2] {
+        let (m, f) = split_delay(self.ext.delay, h);
+        let at = |j: isize, c: usize| self.ext.driver(T::from(cmd[j.max(0) as usize][c]));
+        let decay = (-(T::from(h) - f) / self.electrical_lag).exp();
+        let k = k as isize;
+        [0, 1].map(|c| {
+            let (new, old) = (at(k - 1 - m, c), at(k - 2 - m, c));
+            new + (old - new) * decay
+        })
+    }
+
+    /// The sensor readings at state `z` with `u_i` the voltage behind the current and
+    /// `ẇ` the relative wheel accelerations:
+    /// `[x, y, θ, alpha, v_alpha, phiR_rel, phiL_rel, iR, iL]`. The current is the steady
+    /// state plus its first-order lag correction `(L_m k_e n_wm / R_m²) ẇ`.
+    pub fn readings(&self, z: &SVector<T, NZ>, u_i: [T; 2], wdot: [T; 2]) -> [T; 9] {
+        let (va, vr, vl) = (z[6], z[7], z[8]);
+        let i0 = self.current(u_i, [vr - va, vl - va]);
+        let p = &self.sys.params;
+        let c = p.L_m * p.k_e * p.n_wm / (p.R_m * p.R_m);
+        let i = [i0[0] + c * wdot[0], i0[1] + c * wdot[1]];
+        [
+            z[0],
+            z[1],
+            z[2],
+            self.ext.tilt_reading(z[3]),
+            va,
+            z[4] - z[3],
+            z[5] - z[3],
+            i[0],
+            i[1],
+        ]
+    }
+}
+
+/// `J_e = (k_e n_wm)² L_m / R_m²`, see [`Wip::quasi_static_inertia`].
+pub fn lag_inertia(p: &crate::wip::WipParams) -> f64 {
+    (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m)
+}
+
+/// `τ = m h + f` with `0 ≤ f < h` (on the real part; `f` keeps the derivative).
+fn split_delay<T: Real>(tau: T, h: f64) -> (isize, T) {
+    let m = (tau.re() / h).floor().max(0.0);
+    (m as isize, tau - T::from(m * h))
+}

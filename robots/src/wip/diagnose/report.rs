@@ -1,0 +1,228 @@
+//! `diagnose`'s output files: `diagnosis.json` (interfaces.md), `report.md` and residual
+//! plots before and after the refit, one per channel.
+
+use super::measured::{Channel, MeasuredLog};
+use super::selection::{Diagnosis, Scored};
+use crate::plot::{Plot, Series};
+use serde_json::{json, Map, Value};
+use std::fmt::Write as _;
+
+fn params_json(s: &Scored, values: &[f64]) -> Value {
+    let mut m = Map::new();
+    for (name, v) in s.fit.candidate.parameter_names().iter().zip(values) {
+        m.insert((*name).to_string(), json!(v));
+    }
+    Value::Object(m)
+}
+
+/// `diagnosis.json`.
+pub fn diagnosis_json(d: &Diagnosis) -> Value {
+    let named = d.cause != "none" && d.cause != "unexplained";
+    let (parameters, uncertainty) = if named {
+        (params_json(&d.chosen, &d.chosen.fit.theta), params_json(&d.chosen, &d.chosen.fit.std))
+    } else {
+        (json!({}), json!({}))
+    };
+    let candidates: Vec<Value> = d
+        .candidates
+        .iter()
+        .map(|c| {
+            json!({
+                "effect": c.fit.candidate.name(),
+                "score": c.score,
+                "parameters": params_json(c, &c.fit.theta),
+                "uncertainty": params_json(c, &c.fit.std),
+                "error": c.error,
+                "fitted": c.fitted,
+            })
+        })
+        .collect();
+    let mut noise = Map::new();
+    for c in Channel::ALL {
+        let s = d.sigma_final[c.index()];
+        if s.is_finite() {
+            noise.insert(c.name().into(), json!(s));
+        }
+    }
+    json!({
+        "cause": d.cause,
+        "effects": d.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "parameters": parameters,
+        "uncertainty": uncertainty,
+        "error_before": d.error_before,
+        "error_after": d.error_after,
+        "gain": d.gain,
+        "noise": Value::Object(noise),
+        "windows": d.windows.len(),
+        "elapsed_s": d.elapsed_s,
+        "candidates": candidates,
+    })
+}
+
+/// `report.md`.
+pub fn report_md(d: &Diagnosis, log: &MeasuredLog, source: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Model validation: {source}\n");
+    let _ = writeln!(s, "**Verdict.** {}\n", d.verdict);
+    let _ = writeln!(
+        s,
+        "Log: {} rows, step {} s ({:.1} s); {} prediction windows of {:.2} s; diagnosed in {:.1} s.\n",
+        log.len(),
+        log.h,
+        log.h * (log.len().saturating_sub(1)) as f64,
+        d.windows.len(),
+        d.windows.first().map_or(0.0, |w| w.1 as f64 * log.h),
+        d.elapsed_s
+    );
+    for w in &log.warnings {
+        let _ = writeln!(s, "- warning: {w}");
+    }
+    let _ = writeln!(s, "## The error measure\n");
+    let _ = writeln!(
+        s,
+        "The log is cut into windows; in each, the model is simulated from an initial state fitted to the readings (the robot is open-loop unstable: a replay of the whole log would diverge). \
+The residual of channel `c` is prediction − reading; its noise level `σ_c` is estimated from first differences of the residual within windows (`σ² = mean(Δr²)/2`: white noise passes, a slowly varying model error does not). \
+The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured channels: **1 is the noise floor**. `gain = 1 − E_after/E_before`.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| | error |\n|---|---|\n| nominal model (before) | {:.3} |\n| refitted model (after) | {:.3} |\n| gain | {:.3} |\n",
+        d.error_before, d.error_after, d.gain
+    );
+    let _ = writeln!(s, "## Where the nominal model disagrees\n");
+    let _ = writeln!(s, "| channel | σ (noise) | RMS/σ before | RMS/σ after | worst 1 s of the log (before) |\n|---|---|---|---|---|");
+    for c in Channel::ALL {
+        let i = c.index();
+        if !d.channel_before[i].is_finite() {
+            continue;
+        }
+        let worst = worst_second(&d.residuals_before.r, i, log.h, d.sigma_final[i]);
+        let _ = writeln!(
+            s,
+            "| {} | {:.3e} {} | {:.2} | {:.2} | {} |",
+            c.name(),
+            d.sigma_final[i],
+            c.unit(),
+            d.channel_before[i],
+            d.channel_after[i],
+            worst
+        );
+    }
+    let _ = writeln!(s, "\nResidual plots (before and after): `residual_<channel>.svg`.\n");
+    let _ = writeln!(s, "## Fitted parameters\n");
+    if d.effects.is_empty() {
+        let _ = writeln!(s, "None: no effect is named.\n");
+    } else {
+        let _ = writeln!(s, "| parameter | value | uncertainty (1σ) |\n|---|---|---|");
+        for ((n, v), u) in d
+            .chosen
+            .fit
+            .candidate
+            .parameter_names()
+            .iter()
+            .zip(&d.chosen.fit.theta)
+            .zip(&d.chosen.fit.std)
+        {
+            let _ = writeln!(s, "| `{n}` | {v:.6e} | {u:.2e} |");
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s, "## Candidates\n");
+    let _ = writeln!(
+        s,
+        "Selection by the Bayesian information criterion `m ln(RSS/m) + k ln m` over the `m` weighted residuals (`k` effect parameters; the window states are common to all candidates); lower is better. \
+Every effect is screened by one linearisation at the nominal model; the promising ones are fitted to convergence (`fitted`).\n"
+    );
+    let _ = writeln!(s, "| candidate | score | error | fitted | parameters |\n|---|---|---|---|---|");
+    for c in &d.candidates {
+        let ps: Vec<String> = c
+            .fit
+            .candidate
+            .parameter_names()
+            .iter()
+            .zip(&c.fit.theta)
+            .zip(&c.fit.std)
+            .map(|((n, v), u)| format!("{n} = {v:.4e} ± {u:.1e}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {} | {:.1} | {:.3} | {} | {} |",
+            c.fit.candidate.name(),
+            c.score,
+            c.error,
+            if c.fitted { "yes" } else { "screened" },
+            ps.join(", ")
+        );
+    }
+    s
+}
+
+/// The one-second stretch where `|r|/σ` is largest on average, as text.
+fn worst_second(r: &[[f64; 9]], c: usize, h: f64, sigma: f64) -> String {
+    let n = ((1.0 / h).round() as usize).max(1);
+    let mut best = (0.0, 0usize);
+    let mut k = 0;
+    while k + n <= r.len() {
+        let vals: Vec<f64> = r[k..k + n].iter().map(|x| x[c]).filter(|v| !v.is_nan()).collect();
+        if !vals.is_empty() {
+            let ms = (vals.iter().map(|v| v * v).sum::<f64>() / vals.len() as f64).sqrt() / sigma;
+            if ms > best.0 {
+                best = (ms, k);
+            }
+        }
+        k += n / 2;
+    }
+    format!("{:.1}–{:.1} s: RMS/σ {:.2}", best.1 as f64 * h, (best.1 + n) as f64 * h, best.0)
+}
+
+/// Residual plots, one per channel: before (nominal) and after (refitted).
+pub fn residual_plots(d: &Diagnosis, log: &MeasuredLog) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    for c in Channel::ALL {
+        let i = c.index();
+        if !d.channel_before[i].is_finite() {
+            continue;
+        }
+        let pick = |r: &[[f64; 9]]| -> (Vec<f64>, Vec<f64>) {
+            r.iter()
+                .enumerate()
+                .filter(|(_, x)| !x[i].is_nan())
+                .map(|(k, x)| (log.t[k], x[i]))
+                .unzip()
+        };
+        let (tb, yb) = pick(&d.residuals_before.r);
+        let (ta, ya) = pick(&d.residuals_after.r);
+        let title = format!(
+            "residual of {} (prediction − reading), noise σ = {:.2e} {}",
+            c.name(),
+            d.sigma_final[i],
+            c.unit()
+        );
+        let ylabel = format!("{} [{}]", c.name(), c.unit());
+        let s = d.sigma_final[i];
+        let plot = Plot {
+            title: &title,
+            xlabel: "t [s]",
+            ylabel: &ylabel,
+            series: vec![
+                Series {
+                    label: "before (nominal)",
+                    x: &tb,
+                    y: &yb,
+                    color: "#d62728",
+                },
+                Series {
+                    label: "after (refitted)",
+                    x: &ta,
+                    y: &ya,
+                    color: "#1f77b4",
+                },
+            ],
+            bounds: if s.is_finite() { vec![-3.0 * s, 3.0 * s] } else { vec![] },
+            markers: vec![],
+            equal_axes: false,
+        };
+        out.push((format!("residual_{}.svg", c.name()), plot.to_svg()));
+    }
+    out
+}
