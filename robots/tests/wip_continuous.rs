@@ -219,3 +219,58 @@ fn derivatives_with_respect_to_parameters() {
     println!("d residual / d m_b: dual {got:?} vs central differences {want:?}");
     assert!((got - want).amax() < 1e-6 * scale, "{got} vs {want}");
 }
+
+/// The closed form `wip diagnose` differentiates equals the generic path with every
+/// extension a `Wip` can carry (radius offsets, `J_e`, a changed payload) and an external
+/// shape force, at 500 random states; and its first derivatives (dual numbers through
+/// both) agree too. Tolerance as above: ε·κ with κ ≈ 1e4 (the negative `J_e` lowers the
+/// wheel inertia by under 1 %, so κ barely moves).
+#[test]
+fn closed_form_with_extensions_equals_generic_path() {
+    use dmech::continuous::acceleration_with_force;
+    use num_dual::{Derivative, DualSVec64};
+    use robots::wip::closed_form::shape_acceleration;
+    type D2 = DualSVec64<2>;
+    let mut rng = Lcg(23);
+    let mut worst: f64 = 0.0;
+    let mut worst_d: f64 = 0.0;
+    for _ in 0..500 {
+        let mut p = robots::wip::WipParams::default();
+        p.m_b *= rng.uniform(0.8, 1.3);
+        p.l *= rng.uniform(0.8, 1.3);
+        p.d_v *= rng.uniform(0.5, 4.0);
+        let je = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
+        let offsets = [rng.uniform(-2e-3, 2e-3), rng.uniform(-2e-3, 2e-3)];
+        let s = SVector::<f64, 5>::new(rng.uniform(-1.0, 1.0), rng.uniform(-9.0, 9.0), rng.uniform(-9.0, 9.0), 0.0, 0.0);
+        let v = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
+        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let f = SVector::<f64, 5>::new(rng.uniform(-0.05, 0.05), rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01), 0.0, 0.0);
+        // Two dual directions: the tilt and the payload mass.
+        let mut pd = p.map(D2::from);
+        pd.m_b = D2::from(p.m_b).derivative(1);
+        let mut w = Wip::new(pd);
+        w.wheel_radius_offsets = offsets.map(D2::from);
+        w.quasi_static_inertia = D2::from(je);
+        let sd = s.map(D2::from);
+        let mut sd = sd;
+        sd[0] = D2::from(s[0]).derivative(0);
+        let vd = v.map(D2::from);
+        let ud = u.map(D2::from);
+        let fd = f.map(D2::from);
+        let a = acceleration_with_force::<Wip<D2>, D2, 3, 2, 5, 2>(&w, &sd, &vd, &ud, &fd).unwrap();
+        let b = shape_acceleration(&w, sd[0], [vd[0], vd[1], vd[2]], [vd[3], vd[4]], [fd[0], fd[1], fd[2]]).unwrap();
+        for j in 0..3 {
+            let scale = 1.0 + a[j].re.abs();
+            worst = worst.max((a[j].re - b[j].re).abs() / scale);
+            let (da, db) = match (&a[j].eps, &b[j].eps) {
+                (Derivative(Some(x)), Derivative(Some(y))) => (*x, *y),
+                _ => panic!("both paths carry derivatives"),
+            };
+            for k in 0..2 {
+                worst_d = worst_d.max((da[k] - db[k]).abs() / (1.0 + da[k].abs()));
+            }
+        }
+    }
+    println!("worst relative difference: values {worst:.3e}, derivatives {worst_d:.3e}");
+    assert!(worst < 1e-10 && worst_d < 1e-10);
+}

@@ -15,6 +15,8 @@ subcommands:
   plan       constrained energy-optimal trajectory through waypoints (eight, zigzag, FILE.json)
   simulate   open-loop simulation from a state with given voltages
   bench      the paper's computation-time comparison rerun with our solver
+  diagnose   compare the model with a measured log, name the unmodelled effect, refit
+  generate   a synthetic measured log: closed-loop run of a model with hidden effects
 
 Run `wip <subcommand> --help` for its options.";
 
@@ -64,6 +66,40 @@ plan per problem and integrator, each alone, and prints a table of status, itera
 solve time and objective; writes DIR/bench.json (default DIR: out). The algebraic-current
 variant is not implemented yet and is listed as such. RK runs take minutes each.";
 
+const DIAGNOSE_HELP: &str = "\
+usage: wip diagnose <DATA.csv> [--params FILE] [--out DIR] [--window SECONDS]
+                    [--threads N] [--quiet]
+
+Compares the model with a measured log (format: interfaces.md), finds which unmodelled
+effect of the catalogue explains the difference (tilt_offset, floor_slope, input_delay,
+voltage_gain, friction, wheel_radius_asymmetry, payload, dead_zone; pairs of them when one
+is not enough), refits its parameters with their uncertainty and reports the gain.
+Writes DIR/diagnosis.json, DIR/report.md and DIR/residual_<channel>.svg (default DIR:
+out). Method: docs/diagnose.md.
+
+  --params   JSON parameter file of the nominal model (model.md's keys)
+  --window   length of the prediction windows in seconds (default 0.5)
+  --threads  worker threads (default: all cores)
+  --quiet    no progress on stderr
+
+Exit status: 0 diagnosed (whatever the verdict); 1 a malformed log (one line naming the
+line and column) or a fit that cannot start; 2 bad usage.";
+
+const GENERATE_HELP: &str = "\
+usage: wip generate [--effect NAME[+NAME]] [--seed N] [--duration SECONDS]
+                    [--params FILE] [--out DIR]
+
+Simulates a closed-loop run (LQR designed on the nominal model, sums of sinusoids as
+speed and turn references) of the model with hidden effects, with sensor noise (tilt
+0.003 rad, rate 0.02 rad/s, encoders 3600 counts/rev, currents 0.02 A, pose 1 mm /
+0.005 rad at 50 Hz), and writes it as a measured log DIR/log.csv that `wip diagnose`
+reads, and the hidden truth as DIR/truth.json (default DIR: out). The effects'
+magnitudes are drawn from the seed in the ranges of docs/diagnose.md.
+
+  --effect    an effect name of the catalogue, two joined by '+', or none (default)
+  --seed      random seed (default 1)
+  --duration  length of the log in seconds (default 30)";
+
 /// A failure: exit status and one line.
 enum Failure {
     Usage(String),
@@ -105,6 +141,8 @@ fn run() -> Result<(), Failure> {
         "simulate" => cmd_simulate(parser),
         "plan" => cmd_plan(parser),
         "bench" => cmd_bench(parser),
+        "diagnose" => cmd_diagnose(parser),
+        "generate" => cmd_generate(parser),
         other => Err(Failure::Usage(format!("unknown subcommand '{other}'"))),
     }
 }
@@ -386,5 +424,142 @@ fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
         .expect("JSON of numbers and strings");
     write_atomic(&out, "bench.json", (json + "\n").as_bytes()).map_err(Failure::Run)?;
     println!("wrote {}", out.join("bench.json").display());
+    Ok(())
+}
+
+fn cmd_diagnose(mut parser: lexopt::Parser) -> Result<(), Failure> {
+    use robots::wip::diagnose::measured::MeasuredLog;
+    use robots::wip::diagnose::report::{diagnosis_json, report_md, residual_plots};
+    use robots::wip::diagnose::selection::{diagnose, DiagnoseOptions};
+    let (mut data, mut params, mut out, mut quiet) = (None, None, PathBuf::from("out"), false);
+    let mut opts = DiagnoseOptions::default();
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Value(v) if data.is_none() => data = Some(PathBuf::from(v)),
+            Long("params") => params = Some(PathBuf::from(parser.value()?)),
+            Long("out") => out = PathBuf::from(parser.value()?),
+            Long("window") => opts.window_s = parse_f64(&parser.value()?.string()?, "--window")?,
+            Long("threads") => {
+                let v = parser.value()?.string()?;
+                opts.threads = v
+                    .parse()
+                    .ok()
+                    .filter(|&n| n > 0)
+                    .ok_or_else(|| Failure::Usage(format!("--threads: '{v}' is not a count")))?;
+            }
+            Long("quiet") => quiet = true,
+            Long("help") | Short('h') => {
+                println!("{DIAGNOSE_HELP}");
+                return Ok(());
+            }
+            other => return Err(Failure::Usage(other.unexpected().to_string())),
+        }
+    }
+    let data = data.ok_or_else(|| Failure::Usage("diagnose: which log? (DATA.csv)".into()))?;
+    let p = load_params(params)?;
+    let log = MeasuredLog::read(&data).map_err(Failure::Run)?;
+    if !quiet {
+        for w in &log.warnings {
+            eprintln!("wip: warning: {w}");
+        }
+    }
+    let progress = |line: &str| {
+        if !quiet {
+            eprintln!("{line}");
+        }
+    };
+    let d = diagnose(&log, &p, &opts, &progress).map_err(Failure::Run)?;
+    let write =
+        |name: &str, text: &str| write_atomic(&out, name, text.as_bytes()).map_err(Failure::Run);
+    let json = serde_json::to_string_pretty(&diagnosis_json(&d)).expect("JSON of numbers and strings");
+    write("diagnosis.json", &(json + "\n"))?;
+    write("report.md", &report_md(&d, &log, &data.display().to_string()))?;
+    for (name, svg) in residual_plots(&d, &log) {
+        write(&name, &svg)?;
+    }
+    println!(
+        "cause: {}; error {:.3} -> {:.3} (1 = noise floor), gain {:.3}; {:.1} s",
+        d.cause, d.error_before, d.error_after, d.gain, d.elapsed_s
+    );
+    if !d.effects.is_empty() {
+        let c = &d.chosen;
+        for ((n, v), u) in c.fit.candidate.parameter_names().iter().zip(&c.fit.theta).zip(&c.fit.std) {
+            println!("  {n} = {v:.6e} ± {u:.1e}");
+        }
+    }
+    println!("wrote {}/{{diagnosis.json, report.md, residual_*.svg}}", out.display());
+    Ok(())
+}
+
+fn cmd_generate(mut parser: lexopt::Parser) -> Result<(), Failure> {
+    use robots::wip::diagnose::effects::Effect;
+    use robots::wip::diagnose::generate::{draw_effect, generate, Rng, RunSettings};
+    let (mut effect, mut params, mut out) = ("none".to_string(), None, PathBuf::from("out"));
+    let (mut seed, mut duration) = (1u64, 30.0);
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("effect") => effect = parser.value()?.string()?,
+            Long("seed") => {
+                let v = parser.value()?.string()?;
+                seed = v
+                    .parse()
+                    .map_err(|_| Failure::Usage(format!("--seed: '{v}' is not a whole number")))?;
+            }
+            Long("duration") => duration = parse_f64(&parser.value()?.string()?, "--duration")?,
+            Long("params") => params = Some(PathBuf::from(parser.value()?)),
+            Long("out") => out = PathBuf::from(parser.value()?),
+            Long("help") | Short('h') => {
+                println!("{GENERATE_HELP}");
+                return Ok(());
+            }
+            other => return Err(Failure::Usage(other.unexpected().to_string())),
+        }
+    }
+    if !(1.0..=3600.0).contains(&duration) {
+        return Err(Failure::Run(format!("--duration must be in [1, 3600] s, got {duration}")));
+    }
+    let p = load_params(params)?;
+    let mut effects = Vec::new();
+    if effect != "none" {
+        // The magnitudes come from their own stream so that the run (reference, noise)
+        // does not change with the effect.
+        let mut rng = Rng::new(seed.wrapping_add(1000));
+        for name in effect.split('+') {
+            let e = Effect::from_name(name.trim()).ok_or_else(|| {
+                Failure::Usage(format!(
+                    "unknown effect '{name}' (expected one of: {})",
+                    Effect::ALL.map(|e| e.name()).join(", ")
+                ))
+            })?;
+            effects.push((e, draw_effect(e, &p, &mut rng)));
+        }
+    }
+    let settings = RunSettings {
+        duration,
+        ..Default::default()
+    };
+    let g = generate(&p, &effects, seed, &settings).map_err(Failure::Run)?;
+    write_atomic(&out, "log.csv", g.log.to_csv().as_bytes()).map_err(Failure::Run)?;
+    let truth: Vec<serde_json::Value> = effects
+        .iter()
+        .map(|(e, theta)| {
+            let mut m = serde_json::Map::new();
+            for (n, v) in e.parameter_names().iter().zip(theta) {
+                m.insert((*n).to_string(), serde_json::json!(v));
+            }
+            serde_json::json!({ "effect": e.name(), "parameters": m })
+        })
+        .collect();
+    let json = serde_json::to_string_pretty(&serde_json::json!({
+        "seed": seed, "duration_s": duration, "h": settings.h, "effects": truth
+    }))
+    .expect("JSON of numbers and strings");
+    write_atomic(&out, "truth.json", (json + "\n").as_bytes()).map_err(Failure::Run)?;
+    println!(
+        "generated {} rows ({duration} s) with {}; wrote {}/{{log.csv, truth.json}}",
+        g.log.len(),
+        if effects.is_empty() { "no hidden effect".to_string() } else { effect.clone() },
+        out.display()
+    );
     Ok(())
 }

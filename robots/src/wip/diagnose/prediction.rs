@@ -1,6 +1,8 @@
-//! The prediction model of `wip diagnose`: the WIP's equations of motion from `dmech`
-//! (`acceleration_with_force`, the same `ℓ`, `A`, forcing as everywhere else), with a
-//! [`ModelExtension`], the current reduced to its steady state, and the sensors.
+//! The prediction model of `wip diagnose`: the WIP with a [`ModelExtension`] (the same
+//! `Wip<T>` as everywhere else), the current reduced to its steady state, and the sensors.
+//! The accelerations come from the WIP's closed form (`closed_form::shape_acceleration`,
+//! checked against `dmech`'s generic equations of motion with every extension), because
+//! the fit differentiates them in up to 17 dual directions.
 //!
 //! The electrical time constant `τ_e = L_m/R_m` (0.27 ms) is far below the sample step, so
 //! the current is algebraic, `i = (u − k_e n_wm (φ̇ − α̇))/R_m`, and what the current's lag
@@ -10,7 +12,7 @@
 
 use super::effects::ModelExtension;
 use crate::wip::Wip;
-use dmech::continuous::acceleration_with_force;
+use crate::wip::closed_form::shape_acceleration;
 use dmech::{Lift, PrincipalKinematicSystem};
 use dmech_lie::Real;
 use nalgebra::SVector;
@@ -30,41 +32,10 @@ pub type D = DualSVec64<ND>;
 /// Indices of `z` seeded with dual directions 0..5.
 pub const DUAL_STATE: [usize; 5] = [2, 3, 6, 7, 8];
 
-/// Scalars in which the prediction model runs: `f64` (values) and [`D`] (values and
-/// derivatives with respect to the initial state and the effect parameters).
-pub trait FitScalar: Real + Lift<Self> {
-    fn shape_acceleration(
-        sys: &Wip<Self>,
-        s: &SVector<Self, 5>,
-        v: &SVector<Self, 5>,
-        u: &SVector<Self, 2>,
-        f_ext: &SVector<Self, 5>,
-    ) -> Option<SVector<Self, 5>>;
-}
-
-impl FitScalar for f64 {
-    fn shape_acceleration(
-        sys: &Wip<f64>,
-        s: &SVector<f64, 5>,
-        v: &SVector<f64, 5>,
-        u: &SVector<f64, 2>,
-        f_ext: &SVector<f64, 5>,
-    ) -> Option<SVector<f64, 5>> {
-        acceleration_with_force::<Wip<f64>, f64, 3, 2, 5, 2>(sys, s, v, u, f_ext)
-    }
-}
-
-impl<const N: usize> FitScalar for DualSVec64<N> {
-    fn shape_acceleration(
-        sys: &Wip<Self>,
-        s: &SVector<Self, 5>,
-        v: &SVector<Self, 5>,
-        u: &SVector<Self, 2>,
-        f_ext: &SVector<Self, 5>,
-    ) -> Option<SVector<Self, 5>> {
-        acceleration_with_force::<Wip<Self>, Self, 3, 2, 5, 2>(sys, s, v, u, f_ext)
-    }
-}
+/// Scalars in which the prediction model runs: `f64` (values) and dual vectors (values
+/// and derivatives with respect to the initial state and the effect parameters).
+pub trait FitScalar: Real + Lift<Self> {}
+impl<T: Real + Lift<T>> FitScalar for T {}
 
 /// The prediction model: a system with its extension.
 pub struct Predictor<T> {
@@ -102,8 +73,13 @@ impl<T: FitScalar> Predictor<T> {
         let a_conn = self.sys.connection(&s);
         let xi = -(a_conn * v);
         let f_ext = self.ext.floor_force(&self.sys, &s, z[2]);
-        let uv = SVector::<T, 2>::new(u[0], u[1]);
-        let a = T::shape_acceleration(&self.sys, &s, &v, &uv, &f_ext)?;
+        let a = shape_acceleration(
+            &self.sys,
+            z[3],
+            [va, vr, vl],
+            i,
+            [f_ext[0], f_ext[1], f_ext[2]],
+        )?;
         let (st, ct) = z[2].sin_cos();
         Some(SVector::<T, NZ>::from_column_slice(&[
             xi[0] * ct - xi[1] * st,
