@@ -131,7 +131,7 @@ fn predict_window<T: FitScalar>(
     for k in start..start + len {
         out.push(pred.readings(&z, pred.current_voltage(&log.cmd, k, h), wdot));
         if k + 1 < start + len {
-            (z, wdot) = pred.step(&z, pred.mean_applied(&log.cmd, k, h), h)?;
+            (z, wdot) = pred.advance(&z, &log.cmd, k, h)?;
         }
     }
     Some(out)
@@ -385,8 +385,8 @@ impl<'a> Fitter<'a> {
         let mut z: Vec<Z> = z0.to_vec();
         let mut lambda = 1e-3;
         let mut iterations = 0;
-        let mut last = None;
         let mut converged = false;
+        let mut std_last = vec![f64::INFINITY; np];
         'outer: for it in 0..self.setup.max_iterations {
             iterations = it + 1;
             let lins: Option<Vec<WindowLin>> =
@@ -395,9 +395,9 @@ impl<'a> Fitter<'a> {
                 break;
             };
             let rss: f64 = lins.iter().map(|l| l.rss).sum();
-            let m: usize = lins.iter().map(|l| l.m).sum();
-            // Undamped Schur complement for the covariance at the current point.
-            last = Some((rss, m, schur(&lins, np, 0.0)));
+            // The covariance of the candidates' table comes from the last linearisation;
+            // the chosen model's is recomputed at its final point (`final_std`).
+            std_last = if np > 0 { parameter_std(&lins, np) } else { vec![] };
             progress(&format!(
                 "  {:<28} it {:>2}  cost {:>12.3}  {}",
                 cand.name(),
@@ -442,17 +442,7 @@ impl<'a> Fitter<'a> {
             }
         }
         let (rss, m) = self.cost(cand, &theta, &z).unwrap_or((f64::INFINITY, 0));
-        let std = match &last {
-            Some((_, m_last, s)) if np > 0 => {
-                let dof = (*m_last as f64 - (NZ * self.windows.len() + np) as f64).max(1.0);
-                let s2 = rss / dof;
-                match s.clone().try_inverse() {
-                    Some(inv) => (0..np).map(|i| (inv[(i, i)].max(0.0) * s2).sqrt()).collect(),
-                    None => vec![f64::INFINITY; np],
-                }
-            }
-            _ => vec![],
-        };
+        let std = std_last;
         Fit {
             candidate: cand.clone(),
             theta,
@@ -463,6 +453,31 @@ impl<'a> Fitter<'a> {
             iterations,
             converged,
         }
+    }
+
+    /// The parameters' standard deviations at the fit's own point (one more linearisation;
+    /// `fit` reports those of the last iteration's, taken before its last step), with the
+    /// effect's systematic floor added in quadrature ([`Effect::systematic`]).
+    pub fn final_std(&self, fit: &Fit) -> Vec<f64> {
+        let np = fit.candidate.n_params();
+        if np == 0 {
+            return vec![];
+        }
+        let lins: Option<Vec<WindowLin>> = self
+            .map_windows(|wi| self.window_lin(&fit.candidate, &fit.theta, wi, &fit.z0[wi]))
+            .into_iter()
+            .collect();
+        let stat = match lins {
+            Some(l) => parameter_std(&l, np),
+            None => return vec![f64::INFINITY; np],
+        };
+        let sys: Vec<f64> = fit
+            .candidate
+            .effects
+            .iter()
+            .flat_map(|e| e.systematic(self.params))
+            .collect();
+        stat.iter().zip(sys).map(|(a, b)| a.hypot(b)).collect()
     }
 
     /// Screen the whole catalogue with one linearisation at the nominal model (window
@@ -601,6 +616,39 @@ fn damped(a: &SMatrix<f64, NZ, NZ>, lambda: f64) -> SMatrix<f64, NZ, NZ> {
 }
 
 /// Schur complement `Σ V − Σ Wᵀ A⁻¹ W` with damping `λ` on the window blocks.
+/// Standard deviations of the parameters at a linearisation, the larger per parameter of
+/// - the classical `s² S⁻¹` (`S` the Schur complement of the Gauss–Newton matrix onto the
+///   parameters, `s²` the residual variance per degree of freedom): right when the
+///   weighted residuals are white with a common variance;
+/// - the cluster-robust sandwich `S⁻¹ (G/(G−1) Σ_w g_w g_wᵀ) S⁻¹` over the `G` windows,
+///   `g_w = gp_w − W_wᵀ A_w⁻¹ gz_w` the window's score with its own state eliminated: the
+///   windows are independent, but within a window the residuals are not white (encoder
+///   quantisation, and the prediction model's own approximations, which shift each
+///   window's preferred parameters a little). Without such correlation both agree.
+fn parameter_std(lins: &[WindowLin], np: usize) -> Vec<f64> {
+    let s = schur(lins, np, 0.0);
+    let Some(inv) = s.try_inverse() else {
+        return vec![f64::INFINITY; np];
+    };
+    let g = lins.len() as f64;
+    let rss: f64 = lins.iter().map(|l| l.rss).sum();
+    let m: usize = lins.iter().map(|l| l.m).sum();
+    let dof = (m as f64 - (NZ * lins.len() + np) as f64).max(1.0);
+    let s2 = rss / dof;
+    let mut b = DMatrix::<f64>::zeros(np, np);
+    for l in lins {
+        let mut gw = l.gp.clone();
+        if let Some(ch) = damped(&l.a, 0.0).cholesky() {
+            gw -= l.w.transpose() * ch.solve(&l.gz);
+        }
+        b += &gw * gw.transpose();
+    }
+    let robust = &inv * b * &inv * (g / (g - 1.0).max(1.0));
+    (0..np)
+        .map(|i| (inv[(i, i)].max(0.0) * s2).max(robust[(i, i)].max(0.0)).sqrt())
+        .collect()
+}
+
 fn schur(lins: &[WindowLin], np: usize, lambda: f64) -> DMatrix<f64> {
     let mut s = DMatrix::<f64>::zeros(np, np);
     for l in lins {

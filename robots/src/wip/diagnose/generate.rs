@@ -61,7 +61,7 @@ impl Rng {
             spare: None,
         }
     }
-    fn next_u64(&mut self) -> u64 {
+    pub fn next_u64(&mut self) -> u64 {
         let r = self.s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
         let t = self.s[1] << 17;
         self.s[2] ^= self.s[0];
@@ -229,7 +229,7 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> SMatrix<f64, 2, 4> {
         z[i] = D::from(0.0).derivative(d);
     }
     let u = [D::from(0.0).derivative(4), D::from(0.0).derivative(5)];
-    let (next, _) = pred.step(&z, u, h).expect("the nominal model steps at rest");
+    let (next, _) = pred.step(&z, u, D::from(h)).expect("the nominal model steps at rest");
     let eps = |x: &D, j: usize| x.eps.unwrap_generic(nalgebra::Const::<ND>, nalgebra::Const::<1>)[j];
     let a = SMatrix::<f64, 4, 4>::from_fn(|r, c| eps(&next[idx[r]], c));
     let b = SMatrix::<f64, 4, 2>::from_fn(|r, c| eps(&next[idx[r]], 4 + c));

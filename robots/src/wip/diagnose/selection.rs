@@ -32,7 +32,7 @@ impl Default for DiagnoseOptions {
             max_iterations: 15,
             explained: 1.2,
             pairs: true,
-            max_full_fits: 3,
+            max_full_fits: Effect::ALL.len(),
         }
     }
 }
@@ -233,8 +233,9 @@ pub fn diagnose(
     fitter.setup.sigma = sigma.map(|s| if s.is_nan() { f64::INFINITY } else { s });
     let nominal_fit = fitter.fit(&none, &[], &first.z0, None, &quiet);
     let z_nom = nominal_fit.z0.clone();
+    // Scores and errors under the fitter's current weights.
     let score_of = |fit: Fit, fitter: &Fitter| {
-        let (_, error) = normalised_error(&fitter.residuals(&fit), &sigma);
+        let (_, error) = normalised_error(&fitter.residuals(&fit), &fitter.setup.sigma);
         Scored {
             score: bic(&fit),
             fit,
@@ -255,13 +256,13 @@ pub fn diagnose(
     // cost in the criterion) is abandoned early.
     let best_rss = std::cell::Cell::new(nominal.fit.rss);
     let m_res = nominal.fit.m.max(1) as f64;
-    let fit_candidate = |cand: Candidate, start: &[f64], z0: &[nalgebra::SVector<f64, 9>]| {
+    let fit_candidate = |fitter: &Fitter, cand: Candidate, start: &[f64], z0: &[nalgebra::SVector<f64, 9>]| {
         let bound = best_rss.get() * (1.0 + cand.n_params() as f64 * m_res.ln() / m_res) + 50.0;
         let f = fitter.fit(&cand, start, z0, Some(bound), &quiet);
         if f.rss < best_rss.get() {
             best_rss.set(f.rss);
         }
-        let s = score_of(f, &fitter);
+        let s = score_of(f, fitter);
         progress(&format!(
             "  {:<28} error {:>8.3}  score {:>14.1}  {} iterations  ({:.1} s)",
             cand.name(),
@@ -273,9 +274,10 @@ pub fn diagnose(
         s
     };
     let mut candidates = vec![nominal.clone()];
-    // Screen the catalogue with one linearisation; fit to convergence only the effects
-    // whose predicted reduction could pay for their parameters (with a margin of 4 for the
-    // linearisation), at most `opts.max_full_fits` of them.
+    // Screen the catalogue with one linearisation (the order of the fits, and the predicted
+    // reductions in the progress output); fit the `opts.max_full_fits` most promising to
+    // convergence (all of them by default: a linearisation misjudges the nonlinear effects,
+    // dead zone and delay, and a full fit costs a fraction of a second).
     let m = nominal.fit.m.max(1) as f64;
     let screened = fitter
         .screen(&nominal.fit.z0, nominal.fit.rss, nominal.fit.m)
@@ -292,13 +294,12 @@ pub fn diagnose(
             sc.reduction,
             m.ln()
         ));
-        let k = sc.effect.n_params() as f64;
         let cand = Candidate {
             effects: vec![sc.effect],
         };
-        if rank < opts.max_full_fits && sc.reduction >= 0.25 * k * m.ln() {
+        if rank < opts.max_full_fits {
             let start = cand.nominal(params);
-            candidates.push(fit_candidate(cand, &start, &z_nom));
+            candidates.push(fit_candidate(&fitter, cand, &start, &z_nom));
         } else {
             let rss = (nominal.fit.rss - sc.reduction).max(0.0);
             let fit = Fit {
@@ -326,42 +327,79 @@ pub fn diagnose(
         .expect("at least the nominal")
         .clone();
     let mut chosen = best_single.clone();
-    if opts.pairs && !best_single.fit.candidate.effects.is_empty() && best_single.error > opts.explained {
-        let e1 = best_single.fit.candidate.effects[0];
+    let mut nominal = nominal;
+    let mut sigma_used = sigma;
+    // The weights came from the nominal model's residuals, which a strong effect inflates.
+    // Re-estimate the noise from the chosen model's residuals; if it moved by more than
+    // 10 % in some channel, refit the chosen and the nominal model with it (so that the
+    // decisions below compare errors against the noise, not against the nominal misfit).
+    let reweigh = |fitter: &mut Fitter, chosen: &mut Scored, nominal: &mut Scored, sigma_used: &mut [f64; 9]| {
+        let fresh = residual_noise(log, &fitter.residuals(&chosen.fit), &fitter.windows);
+        let moved = Channel::ALL.iter().any(|c| {
+            let (a, b) = (sigma_used[c.index()], fresh[c.index()]);
+            a.is_finite() && b.is_finite() && (a / b - 1.0).abs() > 0.1
+        });
+        if !moved || chosen.fit.candidate.effects.is_empty() {
+            return;
+        }
+        progress(&format!(
+            "  noise re-estimated from the residuals of {}; refitting it and the nominal model",
+            chosen.fit.candidate.name()
+        ));
+        *sigma_used = fresh;
+        fitter.setup.sigma = fresh.map(|s| if s.is_nan() { f64::INFINITY } else { s });
+        let f = fitter.fit(&chosen.fit.candidate, &chosen.fit.theta, &chosen.fit.z0, None, &quiet);
+        *chosen = score_of(f, fitter);
+        let f = fitter.fit(&none, &[], &nominal.fit.z0, None, &quiet);
+        *nominal = score_of(f, fitter);
+    };
+    reweigh(&mut fitter, &mut chosen, &mut nominal, &mut sigma_used);
+    if opts.pairs && !chosen.fit.candidate.effects.is_empty() && chosen.error > opts.explained {
+        progress(&format!(
+            "  {} leaves the error at {:.3} times the noise: trying pairs",
+            chosen.fit.candidate.name(),
+            chosen.error
+        ));
+        let single = chosen.clone();
+        let e1 = single.fit.candidate.effects[0];
+        best_rss.set(single.fit.rss);
         for e in Effect::ALL {
             if e == e1 {
                 continue;
             }
             let cand = Candidate { effects: vec![e1, e] };
-            let mut start = best_single.fit.theta.clone();
+            let mut start = single.fit.theta.clone();
             start.extend(e.nominal(params));
-            let s = fit_candidate(cand, &start, &best_single.fit.z0);
+            let s = fit_candidate(&fitter, cand, &start, &single.fit.z0);
             if s.score < chosen.score {
                 chosen = s.clone();
             }
             candidates.push(s);
         }
+        if chosen.fit.candidate.effects.len() > 1 {
+            reweigh(&mut fitter, &mut chosen, &mut nominal, &mut sigma_used);
+        }
+        // The single effect under the same weights as the pairs, for the table.
+        candidates.retain(|c| c.fit.candidate.effects != single.fit.candidate.effects);
+        candidates.push(single);
+    } else if let Some(c) = candidates
+        .iter_mut()
+        .find(|c| c.fit.candidate.effects == chosen.fit.candidate.effects)
+    {
+        *c = chosen.clone();
+    }
+    if let Some(c) = candidates.iter_mut().find(|c| c.fit.candidate.effects.is_empty()) {
+        *c = nominal.clone();
     }
     candidates.sort_by(|a, b| a.score.total_cmp(&b.score));
-
-    // The weights came from the nominal model's residuals; a strong effect inflates them.
-    // Re-estimate the noise from the chosen model's residuals and, if it moved by more
-    // than 10 % in some channel, refit the chosen and the nominal model with it.
-    let mut sigma_final = residual_noise(log, &fitter.residuals(&chosen.fit), &fitter.windows);
-    let moved = Channel::ALL.iter().any(|c| {
-        let (a, b) = (sigma[c.index()], sigma_final[c.index()]);
-        a.is_finite() && b.is_finite() && (a / b - 1.0).abs() > 0.1
-    });
-    let mut nominal = nominal;
-    if moved && !chosen.fit.candidate.effects.is_empty() {
-        progress("  noise re-estimated from the chosen model's residuals; refitting");
-        fitter.setup.sigma = sigma_final.map(|s| if s.is_nan() { f64::INFINITY } else { s });
-        let f = fitter.fit(&chosen.fit.candidate, &chosen.fit.theta, &chosen.fit.z0, None, &quiet);
-        chosen = Scored { score: bic(&f), error: chosen.error, fit: f, fitted: true };
-        let f = fitter.fit(&none, &[], &nominal.fit.z0, None, &quiet);
-        nominal = Scored { score: bic(&f), error: nominal.error, fit: f, fitted: true };
-        sigma_final = residual_noise(log, &fitter.residuals(&chosen.fit), &fitter.windows);
+    chosen.fit.std = fitter.final_std(&chosen.fit);
+    if let Some(c) = candidates
+        .iter_mut()
+        .find(|c| c.fit.candidate.effects == chosen.fit.candidate.effects)
+    {
+        c.fit.std = chosen.fit.std.clone();
     }
+    let sigma_final = residual_noise(log, &fitter.residuals(&chosen.fit), &fitter.windows);
     // Error before and after, against the noise seen in the chosen model's residuals.
     let res_before = fitter.residuals(&nominal.fit);
     let res_after = fitter.residuals(&chosen.fit);
