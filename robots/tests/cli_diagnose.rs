@@ -35,7 +35,10 @@ fn diagnose_text(name: &str, text: &str) -> (i32, String) {
         .arg(dir.join("out"))
         .output()
         .unwrap();
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stderr).into_owned())
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
 
 #[test]
@@ -89,8 +92,15 @@ fn malformed_logs_exit_1_with_one_line() {
         let (code, err) = diagnose_text(name, &text);
         println!("{name}: exit {code}: {}", err.trim_end());
         assert_eq!(code, 1, "{name}: exit status");
-        assert_eq!(err.trim_end().lines().count(), 1, "{name}: one line, got {err:?}");
-        assert!(err.contains(must_name), "{name}: the message names '{must_name}': {err}");
+        assert_eq!(
+            err.trim_end().lines().count(),
+            1,
+            "{name}: one line, got {err:?}"
+        );
+        assert!(
+            err.contains(must_name),
+            "{name}: the message names '{must_name}': {err}"
+        );
         assert!(!err.contains("panicked"), "{name}: {err}");
     }
 }
@@ -112,11 +122,24 @@ fn text_in_a_number_names_line_and_column() {
 fn generate_then_diagnose_end_to_end() {
     let dir = scratch("e2e");
     let out = wip()
-        .args(["generate", "--effect", "tilt_offset", "--seed", "4", "--duration", "12", "--out"])
+        .args([
+            "generate",
+            "--effect",
+            "tilt_offset",
+            "--seed",
+            "4",
+            "--duration",
+            "12",
+            "--out",
+        ])
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let truth: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
     let b_true = truth["effects"][0]["parameters"]["b_rad"].as_f64().unwrap();
@@ -127,20 +150,30 @@ fn generate_then_diagnose_end_to_end() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    assert!(stderr.contains("tilt_offset"), "progress names the candidates: {stderr}");
+    assert!(
+        stderr.contains("tilt_offset"),
+        "progress names the candidates: {stderr}"
+    );
     let d: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("d/diagnosis.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.join("d/diagnosis.json")).unwrap())
+            .unwrap();
     assert_eq!(d["cause"], "tilt_offset");
     let b = d["parameters"]["b_rad"].as_f64().unwrap();
     let sd = d["uncertainty"]["b_rad"].as_f64().unwrap();
-    assert!((b - b_true).abs() <= 3.0 * sd, "b = {b} ± {sd}, true {b_true}");
+    assert!(
+        (b - b_true).abs() <= 3.0 * sd,
+        "b = {b} ± {sd}, true {b_true}"
+    );
     for key in ["error_before", "error_after", "gain"] {
         assert!(d[key].as_f64().is_some(), "{key}");
     }
     let gain = 1.0 - d["error_after"].as_f64().unwrap() / d["error_before"].as_f64().unwrap();
     assert!((gain - d["gain"].as_f64().unwrap()).abs() < 1e-12);
     let cands = d["candidates"].as_array().unwrap();
-    assert!(cands.len() >= 9, "every effect and the nominal model are listed");
+    assert!(
+        cands.len() >= 9,
+        "every effect and the nominal model are listed"
+    );
     assert_eq!(cands[0]["effect"], "tilt_offset", "best first");
     let report = std::fs::read_to_string(dir.join("d/report.md")).unwrap();
     assert!(report.contains("tilt_offset") && report.contains("noise floor"));

@@ -90,14 +90,14 @@ fn run_case(p: &WipParams, truth: &[(Effect, Vec<f64>)], seed: u64, threads: usi
     for e in &d.chosen.fit.candidate.effects {
         let k = e.n_params();
         if let Some((_, th)) = truth.iter().find(|(t, _)| t == e) {
-            for j in 0..k {
+            for (j, &truth_j) in th.iter().enumerate().take(k) {
                 let (est, sd) = (d.chosen.fit.theta[offset + j], d.chosen.fit.std[offset + j]);
-                let z = (est - th[j]).abs() / sd;
+                let z = (est - truth_j).abs() / sd;
                 z_max = z_max.max(z);
                 line += &format!(
                     "  {}: true {:.5e} est {:.5e} ± {:.1e} ({z:.1}σ)",
                     e.parameter_names()[j],
-                    th[j],
+                    truth_j,
                     est,
                     sd
                 );
@@ -118,17 +118,19 @@ fn run_case(p: &WipParams, truth: &[(Effect, Vec<f64>)], seed: u64, threads: usi
 }
 
 /// Runs `cases` on two worker threads (one diagnosis thread each).
-fn run_all(
-    p: &WipParams,
-    cases: Vec<(Vec<(Effect, Vec<f64>)>, u64)>,
-) -> Vec<Outcome> {
+/// A case: the hidden effects with their true parameters, and the run's seed.
+type Case = (Vec<(Effect, Vec<f64>)>, u64);
+
+fn run_all(p: &WipParams, cases: Vec<Case>) -> Vec<Outcome> {
     let cases = std::sync::Mutex::new(cases.into_iter().enumerate().collect::<Vec<_>>());
     let results = std::sync::Mutex::new(Vec::new());
     std::thread::scope(|sc| {
         for _ in 0..2 {
             sc.spawn(|| loop {
                 let next = cases.lock().unwrap().pop();
-                let Some((i, (truth, seed))) = next else { break };
+                let Some((i, (truth, seed))) = next else {
+                    break;
+                };
                 let o = run_case(p, &truth, seed, 1);
                 results.lock().unwrap().push((i, o));
             });
@@ -159,7 +161,11 @@ fn every_effect_and_none_is_named_and_recovered() {
             cases.push((hidden, seed));
         }
     }
-    println!("master seed {} ({} cases of {DURATION} s)", master_seed(), cases.len());
+    println!(
+        "master seed {} ({} cases of {DURATION} s)",
+        master_seed(),
+        cases.len()
+    );
     let outcomes = run_all(&p, cases);
 
     // Confusion table: rows the hidden effect, columns the named cause.
@@ -168,7 +174,10 @@ fn every_effect_and_none_is_named_and_recovered() {
     let mut table = vec![vec![0usize; cols.len()]; truths.len()];
     for o in &outcomes {
         let r = truths.iter().position(|t| *t == o.truth).unwrap();
-        let c = cols.iter().position(|c| *c == o.named).unwrap_or(cols.len() - 1);
+        let c = cols
+            .iter()
+            .position(|c| *c == o.named)
+            .unwrap_or(cols.len() - 1);
         table[r][c] += 1;
     }
     let short = |s: &str| s.chars().take(8).collect::<String>();
@@ -190,7 +199,11 @@ fn every_effect_and_none_is_named_and_recovered() {
             failures.push(format!("{}: named {}", label(o.truth), o.named));
         }
         if o.z_max > 3.0 {
-            failures.push(format!("{}: a parameter {:.1}σ off", label(o.truth), o.z_max));
+            failures.push(format!(
+                "{}: a parameter {:.1}σ off",
+                label(o.truth),
+                o.z_max
+            ));
         }
         if o.error_after > 1.2 * o.floor {
             failures.push(format!(
@@ -204,7 +217,10 @@ fn every_effect_and_none_is_named_and_recovered() {
             failures.push(format!("{}: named a pair {:?}", label(o.truth), o.effects));
         }
     }
-    let worst = outcomes.iter().map(|o| o.error_after / o.floor).fold(0.0, f64::max);
+    let worst = outcomes
+        .iter()
+        .map(|o| o.error_after / o.floor)
+        .fold(0.0, f64::max);
     println!("worst error_after / floor: {worst:.3}");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -219,15 +235,22 @@ fn two_effects_at_once() {
     for _ in 0..2 {
         let seed = rng.next_u64();
         let hidden = vec![
-            (Effect::FloorSlope, draw_effect(Effect::FloorSlope, &p, &mut rng)),
-            (Effect::InputDelay, draw_effect(Effect::InputDelay, &p, &mut rng)),
+            (
+                Effect::FloorSlope,
+                draw_effect(Effect::FloorSlope, &p, &mut rng),
+            ),
+            (
+                Effect::InputDelay,
+                draw_effect(Effect::InputDelay, &p, &mut rng),
+            ),
         ];
         cases.push((hidden, seed));
     }
     let outcomes = run_all(&p, cases);
     for o in &outcomes {
         println!("{}  effects {:?}", o.line, o.effects);
-        let both = o.effects.contains(&Effect::FloorSlope) && o.effects.contains(&Effect::InputDelay);
+        let both =
+            o.effects.contains(&Effect::FloorSlope) && o.effects.contains(&Effect::InputDelay);
         let stronger_and_above_noise = (o.named == "floor_slope" || o.named == "input_delay")
             && o.error_after > DiagnoseOptions::default().explained;
         assert!(both || stronger_and_above_noise, "{}", o.line);

@@ -241,10 +241,22 @@ fn closed_form_with_extensions_equals_generic_path() {
         p.d_v *= rng.uniform(0.5, 4.0);
         let je = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
         let offsets = [rng.uniform(-2e-3, 2e-3), rng.uniform(-2e-3, 2e-3)];
-        let s = SVector::<f64, 5>::new(rng.uniform(-1.0, 1.0), rng.uniform(-9.0, 9.0), rng.uniform(-9.0, 9.0), 0.0, 0.0);
+        let s = SVector::<f64, 5>::new(
+            rng.uniform(-1.0, 1.0),
+            rng.uniform(-9.0, 9.0),
+            rng.uniform(-9.0, 9.0),
+            0.0,
+            0.0,
+        );
         let v = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
         let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
-        let f = SVector::<f64, 5>::new(rng.uniform(-0.05, 0.05), rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01), 0.0, 0.0);
+        let f = SVector::<f64, 5>::new(
+            rng.uniform(-0.05, 0.05),
+            rng.uniform(-0.01, 0.01),
+            rng.uniform(-0.01, 0.01),
+            0.0,
+            0.0,
+        );
         // Two dual directions: the tilt and the payload mass.
         let mut pd = p.map(D2::from);
         pd.m_b = D2::from(p.m_b).derivative(1);
@@ -258,7 +270,14 @@ fn closed_form_with_extensions_equals_generic_path() {
         let ud = u.map(D2::from);
         let fd = f.map(D2::from);
         let a = acceleration_with_force::<Wip<D2>, D2, 3, 2, 5, 2>(&w, &sd, &vd, &ud, &fd).unwrap();
-        let b = shape_acceleration(&w, sd[0], [vd[0], vd[1], vd[2]], [vd[3], vd[4]], [fd[0], fd[1], fd[2]]).unwrap();
+        let b = shape_acceleration(
+            &w,
+            sd[0],
+            [vd[0], vd[1], vd[2]],
+            [vd[3], vd[4]],
+            [fd[0], fd[1], fd[2]],
+        )
+        .unwrap();
         for j in 0..3 {
             let scale = 1.0 + a[j].re.abs();
             worst = worst.max((a[j].re - b[j].re).abs() / scale);

@@ -441,11 +441,10 @@ fn cmd_diagnose(mut parser: lexopt::Parser) -> Result<(), Failure> {
             Long("window") => opts.window_s = parse_f64(&parser.value()?.string()?, "--window")?,
             Long("threads") => {
                 let v = parser.value()?.string()?;
-                opts.threads = v
-                    .parse()
-                    .ok()
-                    .filter(|&n| n > 0)
-                    .ok_or_else(|| Failure::Usage(format!("--threads: '{v}' is not a count")))?;
+                opts.threads =
+                    v.parse().ok().filter(|&n| n > 0).ok_or_else(|| {
+                        Failure::Usage(format!("--threads: '{v}' is not a count"))
+                    })?;
             }
             Long("quiet") => quiet = true,
             Long("help") | Short('h') => {
@@ -471,9 +470,13 @@ fn cmd_diagnose(mut parser: lexopt::Parser) -> Result<(), Failure> {
     let d = diagnose(&log, &p, &opts, &progress).map_err(Failure::Run)?;
     let write =
         |name: &str, text: &str| write_atomic(&out, name, text.as_bytes()).map_err(Failure::Run);
-    let json = serde_json::to_string_pretty(&diagnosis_json(&d)).expect("JSON of numbers and strings");
+    let json =
+        serde_json::to_string_pretty(&diagnosis_json(&d)).expect("JSON of numbers and strings");
     write("diagnosis.json", &(json + "\n"))?;
-    write("report.md", &report_md(&d, &log, &data.display().to_string()))?;
+    write(
+        "report.md",
+        &report_md(&d, &log, &data.display().to_string()),
+    )?;
     for (name, svg) in residual_plots(&d, &log) {
         write(&name, &svg)?;
     }
@@ -483,11 +486,21 @@ fn cmd_diagnose(mut parser: lexopt::Parser) -> Result<(), Failure> {
     );
     if !d.effects.is_empty() {
         let c = &d.chosen;
-        for ((n, v), u) in c.fit.candidate.parameter_names().iter().zip(&c.fit.theta).zip(&c.fit.std) {
+        for ((n, v), u) in c
+            .fit
+            .candidate
+            .parameter_names()
+            .iter()
+            .zip(&c.fit.theta)
+            .zip(&c.fit.std)
+        {
             println!("  {n} = {v:.6e} ± {u:.1e}");
         }
     }
-    println!("wrote {}/{{diagnosis.json, report.md, residual_*.svg}}", out.display());
+    println!(
+        "wrote {}/{{diagnosis.json, report.md, residual_*.svg}}",
+        out.display()
+    );
     Ok(())
 }
 
@@ -516,7 +529,9 @@ fn cmd_generate(mut parser: lexopt::Parser) -> Result<(), Failure> {
         }
     }
     if !(1.0..=3600.0).contains(&duration) {
-        return Err(Failure::Run(format!("--duration must be in [1, 3600] s, got {duration}")));
+        return Err(Failure::Run(format!(
+            "--duration must be in [1, 3600] s, got {duration}"
+        )));
     }
     let p = load_params(params)?;
     let mut effects = Vec::new();
@@ -558,7 +573,11 @@ fn cmd_generate(mut parser: lexopt::Parser) -> Result<(), Failure> {
     println!(
         "generated {} rows ({duration} s) with {}; wrote {}/{{log.csv, truth.json}}",
         g.log.len(),
-        if effects.is_empty() { "no hidden effect".to_string() } else { effect.clone() },
+        if effects.is_empty() {
+            "no hidden effect".to_string()
+        } else {
+            effect.clone()
+        },
         out.display()
     );
     Ok(())

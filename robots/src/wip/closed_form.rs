@@ -5,9 +5,9 @@
 //! derivation is in `docs/wip-model.md`.
 
 use super::model::{friction, Wip};
-use dmech_lie::Real;
 use super::params::WipParams;
 use dmech::Param;
+use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 
 type M8 = SMatrix<f64, 8, 8>;

@@ -100,9 +100,7 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
         let r_l = p.r + Param(self.wheel_radius_offsets[1]);
         let (hr_r, hr_l): (T, T) = ((0.5 * r_r).lift(), (0.5 * r_l).lift());
         let (hrd_r, hrd_l): (T, T) = ((0.5 * r_r / p.d).lift(), (0.5 * r_l / p.d).lift());
-        SMatrix::<T, 3, 5>::new(
-            z, -hr_r, -hr_l, z, z, z, z, z, z, z, z, -hrd_r, hrd_l, z, z,
-        )
+        SMatrix::<T, 3, 5>::new(z, -hr_r, -hr_l, z, z, z, z, z, z, z, z, -hrd_r, hrd_l, z, z)
     }
 
     fn forcing<T: Lift<P>>(

@@ -8,9 +8,9 @@
 use super::effects::{Effect, ModelExtension};
 use super::measured::{Channel, MeasuredLog};
 use super::prediction::{FitScalar, Predictor, DUAL_STATE, NZ};
-use num_dual::DualSVec64;
 use crate::wip::WipParams;
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
+use num_dual::DualSVec64;
 
 /// Number of effect parameters a full fit can carry (two effects of up to two parameters).
 pub const MAX_PARAMS: usize = 4;
@@ -127,7 +127,8 @@ fn predict_window<T: FitScalar>(
     let h = log.h;
     let mut z = z0;
     let mut out = Vec::with_capacity(len);
-    let mut wdot = pred.wheel_acceleration(&z, pred.mean_applied(&log.cmd, start.saturating_sub(1), h))?;
+    let mut wdot =
+        pred.wheel_acceleration(&z, pred.mean_applied(&log.cmd, start.saturating_sub(1), h))?;
     for k in start..start + len {
         out.push(pred.readings(&z, pred.current_voltage(&log.cmd, k, h), wdot));
         if k + 1 < start + len {
@@ -230,7 +231,13 @@ impl<'a> Fitter<'a> {
 
     /// Weighted residual sum of squares and count of one window (f64 pass); `None` if the
     /// simulation fails.
-    fn window_cost(&self, cand: &Candidate, theta: &[f64], wi: usize, z0: &Z) -> Option<(f64, usize)> {
+    fn window_cost(
+        &self,
+        cand: &Candidate,
+        theta: &[f64],
+        wi: usize,
+        z0: &Z,
+    ) -> Option<(f64, usize)> {
         let pred = Predictor::<f64>::new(cand.extension(self.params, theta), self.params);
         let (start, _) = self.windows[wi];
         let y = predict_window(&pred, self.log, self.windows[wi], *z0)?;
@@ -295,7 +302,9 @@ impl<'a> Fitter<'a> {
                 };
                 let yc = yk[c.index()];
                 let r = residual(c, yc.re, meas) * wgt;
-                let g = yc.eps.unwrap_generic(nalgebra::Const::<N>, nalgebra::Const::<1>);
+                let g = yc
+                    .eps
+                    .unwrap_generic(nalgebra::Const::<N>, nalgebra::Const::<1>);
                 // Row of the Jacobian: z₀ columns (dual or additive) and parameter columns.
                 let mut jz = Z::zeros();
                 for (d, &i) in DUAL_STATE.iter().enumerate() {
@@ -318,7 +327,11 @@ impl<'a> Fitter<'a> {
                 m += 1;
             }
         }
-        let finite = a.iter().chain(w.iter()).chain(v.iter()).all(|x| x.is_finite())
+        let finite = a
+            .iter()
+            .chain(w.iter())
+            .chain(v.iter())
+            .all(|x| x.is_finite())
             && rss.is_finite();
         finite.then_some(WindowLin {
             a,
@@ -338,7 +351,9 @@ impl<'a> Fitter<'a> {
             2 => self.window_lin_n::<7>(cand, theta, wi, z0),
             3 => self.window_lin_n::<8>(cand, theta, wi, z0),
             4 => self.window_lin_n::<9>(cand, theta, wi, z0),
-            n if n <= SCREEN_PARAMS => self.window_lin_n::<{ 5 + SCREEN_PARAMS }>(cand, theta, wi, z0),
+            n if n <= SCREEN_PARAMS => {
+                self.window_lin_n::<{ 5 + SCREEN_PARAMS }>(cand, theta, wi, z0)
+            }
             n => panic!("{n} effect parameters: more than the catalogue has"),
         }
     }
@@ -351,7 +366,13 @@ impl<'a> Fitter<'a> {
         let f = &f;
         std::thread::scope(|sc| {
             let handles: Vec<_> = (0..threads)
-                .map(|t| sc.spawn(move || (t * chunk..((t + 1) * chunk).min(n)).map(f).collect::<Vec<R>>()))
+                .map(|t| {
+                    sc.spawn(move || {
+                        (t * chunk..((t + 1) * chunk).min(n))
+                            .map(f)
+                            .collect::<Vec<R>>()
+                    })
+                })
                 .collect();
             handles
                 .into_iter()
@@ -363,7 +384,9 @@ impl<'a> Fitter<'a> {
     /// Total weighted cost; `None` if some window's simulation fails.
     pub fn cost(&self, cand: &Candidate, theta: &[f64], z0: &[Z]) -> Option<(f64, usize)> {
         let parts = self.map_windows(|wi| self.window_cost(cand, theta, wi, &z0[wi]));
-        parts.into_iter().try_fold((0.0, 0), |(r, m), p| p.map(|(a, b)| (r + a, m + b)))
+        parts
+            .into_iter()
+            .try_fold((0.0, 0), |(r, m), p| p.map(|(a, b)| (r + a, m + b)))
     }
 
     /// Levenberg–Marquardt from `(theta0, z0)`.
@@ -389,15 +412,21 @@ impl<'a> Fitter<'a> {
         let mut std_last = vec![f64::INFINITY; np];
         'outer: for it in 0..self.setup.max_iterations {
             iterations = it + 1;
-            let lins: Option<Vec<WindowLin>> =
-                self.map_windows(|wi| self.window_lin(cand, &theta, wi, &z[wi])).into_iter().collect();
+            let lins: Option<Vec<WindowLin>> = self
+                .map_windows(|wi| self.window_lin(cand, &theta, wi, &z[wi]))
+                .into_iter()
+                .collect();
             let Some(lins) = lins else {
                 break;
             };
             let rss: f64 = lins.iter().map(|l| l.rss).sum();
             // The covariance of the candidates' table comes from the last linearisation;
             // the chosen model's is recomputed at its final point (`final_std`).
-            std_last = if np > 0 { parameter_std(&lins, np) } else { vec![] };
+            std_last = if np > 0 {
+                parameter_std(&lins, np)
+            } else {
+                vec![]
+            };
             progress(&format!(
                 "  {:<28} it {:>2}  cost {:>12.3}  {}",
                 cand.name(),
@@ -413,7 +442,8 @@ impl<'a> Fitter<'a> {
                         break 'outer;
                     }
                 }
-                let mut theta_new: Vec<f64> = theta.iter().zip(dp.iter()).map(|(t, d)| t + d).collect();
+                let mut theta_new: Vec<f64> =
+                    theta.iter().zip(dp.iter()).map(|(t, d)| t + d).collect();
                 cand.project(&mut theta_new, self.params);
                 let z_new: Vec<Z> = z.iter().zip(&dz).map(|(a, b)| a + b).collect();
                 match self.cost(cand, &theta_new, &z_new) {
@@ -533,11 +563,16 @@ impl<'a> Fitter<'a> {
                 }
                 None => (DVector::zeros(k), 0.0, vec![f64::INFINITY; k]),
             };
-            let reduction = if reduction.is_finite() { reduction.max(0.0) } else { 0.0 };
-            let _ = match () {
-                () => (),
+            let reduction = if reduction.is_finite() {
+                reduction.max(0.0)
+            } else {
+                0.0
             };
-            let mut theta: Vec<f64> = idx.iter().zip(delta.iter()).map(|(&i, d)| theta0[i] + d).collect();
+            let mut theta: Vec<f64> = idx
+                .iter()
+                .zip(delta.iter())
+                .map(|(&i, d)| theta0[i] + d)
+                .collect();
             e.project(&mut theta, self.params);
             out.push(Screened {
                 effect: e,
@@ -552,7 +587,10 @@ impl<'a> Fitter<'a> {
     /// Unweighted residuals (prediction − reading) of a fitted model, per row and channel.
     pub fn residuals(&self, fit: &Fit) -> Residuals {
         let mut r = vec![[f64::NAN; 9]; self.log.len()];
-        let pred = Predictor::<f64>::new(fit.candidate.extension(self.params, &fit.theta), self.params);
+        let pred = Predictor::<f64>::new(
+            fit.candidate.extension(self.params, &fit.theta),
+            self.params,
+        );
         for (wi, &(start, len)) in self.windows.iter().enumerate() {
             if let Some(y) = predict_window(&pred, self.log, (start, len), fit.z0[wi]) {
                 for (j, yk) in y.iter().enumerate() {
@@ -569,7 +607,11 @@ impl<'a> Fitter<'a> {
 }
 
 fn fmt_theta(theta: &[f64]) -> String {
-    theta.iter().map(|t| format!("{t:.5e}")).collect::<Vec<_>>().join(" ")
+    theta
+        .iter()
+        .map(|t| format!("{t:.5e}"))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// The fit stops when a Gauss–Newton step promises less than this reduction of the
@@ -645,7 +687,11 @@ fn parameter_std(lins: &[WindowLin], np: usize) -> Vec<f64> {
     }
     let robust = &inv * b * &inv * (g / (g - 1.0).max(1.0));
     (0..np)
-        .map(|i| (inv[(i, i)].max(0.0) * s2).max(robust[(i, i)].max(0.0)).sqrt())
+        .map(|i| {
+            (inv[(i, i)].max(0.0) * s2)
+                .max(robust[(i, i)].max(0.0))
+                .sqrt()
+        })
         .collect()
 }
 
@@ -669,7 +715,12 @@ fn schur(lins: &[WindowLin], np: usize, lambda: f64) -> DMatrix<f64> {
 }
 
 /// One damped Gauss–Newton step: `(Δz per window, Δϑ)`.
-fn step(lins: &[WindowLin], np: usize, lambda: f64, scale: &DVector<f64>) -> (Vec<Z>, DVector<f64>) {
+fn step(
+    lins: &[WindowLin],
+    np: usize,
+    lambda: f64,
+    scale: &DVector<f64>,
+) -> (Vec<Z>, DVector<f64>) {
     let mut s = DMatrix::<f64>::zeros(np, np);
     let mut rhs = DVector::<f64>::zeros(np);
     let chols: Vec<_> = lins

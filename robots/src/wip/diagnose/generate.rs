@@ -108,7 +108,10 @@ pub fn draw_effect(effect: Effect, p: &WipParams, rng: &mut Rng) -> Vec<f64> {
     let nominal = effect.nominal(p);
     match effect {
         Effect::TiltOffset => vec![rng.sign() * rng.range(0.01, 0.05)],
-        Effect::FloorSlope => vec![rng.sign() * rng.range(0.02, 0.06), rng.sign() * rng.range(0.02, 0.06)],
+        Effect::FloorSlope => vec![
+            rng.sign() * rng.range(0.02, 0.06),
+            rng.sign() * rng.range(0.02, 0.06),
+        ],
         Effect::InputDelay => vec![rng.range(0.003, 0.012)],
         Effect::VoltageGain => vec![1.0 + rng.sign() * rng.range(0.1, 0.25)],
         Effect::Friction => vec![
@@ -182,11 +185,7 @@ fn true_rate(
     let uv = SVector::<f64, 2>::new(u[0], u[1]);
     let a = acceleration_with_force::<Wip<f64>, f64, 3, 2, 5, 2>(sys, &x.s, &x.v, &uv, &f_ext)
         .ok_or("singular mass matrix in the true model")?;
-    let pose_dot = SVector::<f64, 3>::new(
-        xi[0] * ct - xi[1] * st,
-        xi[0] * st + xi[1] * ct,
-        xi[2],
-    );
+    let pose_dot = SVector::<f64, 3>::new(xi[0] * ct - xi[1] * st, xi[0] * st + xi[1] * ct, xi[2]);
     Ok((pose_dot, x.v, a))
 }
 
@@ -229,8 +228,13 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> SMatrix<f64, 2, 4> {
         z[i] = D::from(0.0).derivative(d);
     }
     let u = [D::from(0.0).derivative(4), D::from(0.0).derivative(5)];
-    let (next, _) = pred.step(&z, u, D::from(h)).expect("the nominal model steps at rest");
-    let eps = |x: &D, j: usize| x.eps.unwrap_generic(nalgebra::Const::<ND>, nalgebra::Const::<1>)[j];
+    let (next, _) = pred
+        .step(&z, u, D::from(h))
+        .expect("the nominal model steps at rest");
+    let eps = |x: &D, j: usize| {
+        x.eps
+            .unwrap_generic(nalgebra::Const::<ND>, nalgebra::Const::<1>)[j]
+    };
     let a = SMatrix::<f64, 4, 4>::from_fn(|r, c| eps(&next[idx[r]], c));
     let b = SMatrix::<f64, 4, 2>::from_fn(|r, c| eps(&next[idx[r]], 4 + c));
     // Weights: tilt 0.05 rad, tilt rate 0.5 rad/s, wheel rates 20 rad/s, voltage 1 V.
@@ -245,10 +249,8 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> SMatrix<f64, 2, 4> {
     let mut k = SMatrix::<f64, 2, 4>::zeros();
     for _ in 0..20000 {
         let btsb = r + b.transpose() * s * b;
-        let k_new = btsb
-            .try_inverse()
-            .expect("R + BᵀSB is positive definite")
-            * (b.transpose() * s * a);
+        let k_new =
+            btsb.try_inverse().expect("R + BᵀSB is positive definite") * (b.transpose() * s * a);
         let s_new = q + a.transpose() * s * (a - b * k_new);
         let done = (k_new - k).norm() < 1e-12 * k_new.norm().max(1.0);
         k = k_new;
@@ -286,7 +288,11 @@ impl Reference {
     }
     fn at(&self, t: f64) -> (f64, f64) {
         let ramp = (t / 1.0).min(1.0);
-        let f = |c: &[(f64, f64, f64)]| c.iter().map(|(a, w, ph)| a * (w * t + ph).sin()).sum::<f64>();
+        let f = |c: &[(f64, f64, f64)]| {
+            c.iter()
+                .map(|(a, w, ph)| a * (w * t + ph).sin())
+                .sum::<f64>()
+        };
         (ramp * f(&self.speed), ramp * f(&self.turn))
     }
 }
@@ -359,7 +365,7 @@ pub fn generate(
             truth[7] + noise.current * rng.normal(),
             truth[8] + noise.current * rng.normal(),
         ];
-        let pose_now = k >= pre_roll && (k - pre_roll) % noise.pose_every == 0;
+        let pose_now = k >= pre_roll && (k - pre_roll).is_multiple_of(noise.pose_every);
         let meas_pose = [
             truth[0] + noise.position * rng.normal(),
             truth[1] + noise.position * rng.normal(),

@@ -31,7 +31,9 @@ impl Channel {
     ];
     /// The CSV column name.
     pub fn name(self) -> &'static str {
-        ["x", "y", "theta", "alpha", "v_alpha", "phiR_rel", "phiL_rel", "iR", "iL"][self.index()]
+        [
+            "x", "y", "theta", "alpha", "v_alpha", "phiR_rel", "phiL_rel", "iR", "iL",
+        ][self.index()]
     }
     pub fn unit(self) -> &'static str {
         ["m", "m", "rad", "rad", "rad/s", "rad", "rad", "A", "A"][self.index()]
@@ -104,7 +106,11 @@ impl MeasuredLog {
         }
         s.push('\n');
         for k in 0..self.len() {
-            let _ = write!(s, "{:.6},{:.6},{:.6}", self.t[k], self.cmd[k][0], self.cmd[k][1]);
+            let _ = write!(
+                s,
+                "{:.6},{:.6},{:.6}",
+                self.t[k], self.cmd[k][0], self.cmd[k][1]
+            );
             for c in &cols {
                 match self.value(k, *c) {
                     Some(v) => {
@@ -137,7 +143,10 @@ impl MeasuredLog {
             }
         }
         if csv.rows.len() < 2 {
-            return Err(format!("{what}: needs at least two data rows, found {}", csv.rows.len()));
+            return Err(format!(
+                "{what}: needs at least two data rows, found {}",
+                csv.rows.len()
+            ));
         }
         let chan_cols: Vec<(Channel, usize)> = Channel::ALL
             .into_iter()
@@ -154,7 +163,9 @@ impl MeasuredLog {
         for (row, &line) in csv.rows.iter().zip(&csv.lines) {
             for (c, name) in [(ct, "t"), (cr, "uR"), (cl, "uL")] {
                 if row[c].is_nan() {
-                    return Err(format!("{what}: line {line}, column '{name}': missing value"));
+                    return Err(format!(
+                        "{what}: line {line}, column '{name}': missing value"
+                    ));
                 }
             }
             let t = row[ct];

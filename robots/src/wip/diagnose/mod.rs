@@ -2,9 +2,9 @@
 //! explains the difference, refit, report the gain (method: `docs/diagnose.md`).
 
 pub mod effects;
-pub mod prediction;
 pub mod fit;
 pub mod generate;
 pub mod measured;
-pub mod selection;
+pub mod prediction;
 pub mod report;
+pub mod selection;

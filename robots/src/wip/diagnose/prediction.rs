@@ -11,8 +11,8 @@
 //! (`docs/diagnose.md`).
 
 use super::effects::ModelExtension;
-use crate::wip::Wip;
 use crate::wip::closed_form::shape_acceleration;
+use crate::wip::Wip;
 use dmech::{Lift, PrincipalKinematicSystem};
 use dmech_lie::Real;
 use nalgebra::SVector;
@@ -105,7 +105,9 @@ impl<T: FitScalar> Predictor<T> {
         let k4 = self.rate(&(z + k3 * dt), u)?;
         let out = z + (k1 + k2 * T::from(2.0) + k3 * T::from(2.0) + k4) * (dt / 6.0);
         let wdot = [k4[7] - k4[6], k4[8] - k4[6]];
-        out.iter().all(|x| x.re().is_finite()).then_some((out, wdot))
+        out.iter()
+            .all(|x| x.re().is_finite())
+            .then_some((out, wdot))
     }
 
     /// Advance from `t_k` to `t_{k+1}`. The commands reach the motors `τ = τ_e + delay`
@@ -114,12 +116,21 @@ impl<T: FitScalar> Predictor<T> {
     /// integrated on its own (a Runge–Kutta step across the switch would be first order)
     /// in steps of at most `MAX_SUBSTEP · h`; `f` carries the derivative with respect to
     /// the delay.
-    pub fn advance(&self, z: &SVector<T, NZ>, cmd: &[[f64; 2]], k: usize, h: f64) -> Option<(SVector<T, NZ>, [T; 2])> {
+    pub fn advance(
+        &self,
+        z: &SVector<T, NZ>,
+        cmd: &[[f64; 2]],
+        k: usize,
+        h: f64,
+    ) -> Option<(SVector<T, NZ>, [T; 2])> {
         let tau = self.ext.delay + T::from(self.electrical_lag);
         let (m, f) = split_delay(tau, h);
         let at = |j: isize| {
             let c = cmd[j.max(0) as usize];
-            [self.ext.driver(T::from(c[0])), self.ext.driver(T::from(c[1]))]
+            [
+                self.ext.driver(T::from(c[0])),
+                self.ext.driver(T::from(c[1])),
+            ]
         };
         let k = k as isize;
         let (old, new) = (at(k - m - 1), at(k - m));

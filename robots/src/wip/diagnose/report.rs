@@ -19,7 +19,10 @@ fn params_json(s: &Scored, values: &[f64]) -> Value {
 pub fn diagnosis_json(d: &Diagnosis) -> Value {
     let named = d.cause != "none" && d.cause != "unexplained";
     let (parameters, uncertainty) = if named {
-        (params_json(&d.chosen, &d.chosen.fit.theta), params_json(&d.chosen, &d.chosen.fit.std))
+        (
+            params_json(&d.chosen, &d.chosen.fit.theta),
+            params_json(&d.chosen, &d.chosen.fit.std),
+        )
     } else {
         (json!({}), json!({}))
     };
@@ -108,7 +111,10 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
             worst
         );
     }
-    let _ = writeln!(s, "\nResidual plots (before and after): `residual_<channel>.svg`.\n");
+    let _ = writeln!(
+        s,
+        "\nResidual plots (before and after): `residual_<channel>.svg`.\n"
+    );
     let _ = writeln!(s, "## Fitted parameters\n");
     if d.effects.is_empty() {
         let _ = writeln!(s, "None: no effect is named.\n");
@@ -133,7 +139,10 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
         "Selection by the Bayesian information criterion `m ln(RSS/m) + k ln m` over the `m` weighted residuals (`k` effect parameters; the window states are common to all candidates); lower is better. \
 Every effect is screened by one linearisation at the nominal model; the promising ones are fitted to convergence (`fitted`).\n"
     );
-    let _ = writeln!(s, "| candidate | score | error | fitted | parameters |\n|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| candidate | score | error | fitted | parameters |\n|---|---|---|---|---|"
+    );
     for c in &d.candidates {
         let ps: Vec<String> = c
             .fit
@@ -163,7 +172,11 @@ fn worst_second(r: &[[f64; 9]], c: usize, h: f64, sigma: f64) -> String {
     let mut best = (0.0, 0usize);
     let mut k = 0;
     while k + n <= r.len() {
-        let vals: Vec<f64> = r[k..k + n].iter().map(|x| x[c]).filter(|v| !v.is_nan()).collect();
+        let vals: Vec<f64> = r[k..k + n]
+            .iter()
+            .map(|x| x[c])
+            .filter(|v| !v.is_nan())
+            .collect();
         if !vals.is_empty() {
             let ms = (vals.iter().map(|v| v * v).sum::<f64>() / vals.len() as f64).sqrt() / sigma;
             if ms > best.0 {
@@ -172,7 +185,12 @@ fn worst_second(r: &[[f64; 9]], c: usize, h: f64, sigma: f64) -> String {
         }
         k += n / 2;
     }
-    format!("{:.1}–{:.1} s: RMS/σ {:.2}", best.1 as f64 * h, (best.1 + n) as f64 * h, best.0)
+    format!(
+        "{:.1}–{:.1} s: RMS/σ {:.2}",
+        best.1 as f64 * h,
+        (best.1 + n) as f64 * h,
+        best.0
+    )
 }
 
 /// Residual plots, one per channel: before (nominal) and after (refitted).
@@ -218,7 +236,11 @@ pub fn residual_plots(d: &Diagnosis, log: &MeasuredLog) -> Vec<(String, String)>
                     color: "#1f77b4",
                 },
             ],
-            bounds: if s.is_finite() { vec![-3.0 * s, 3.0 * s] } else { vec![] },
+            bounds: if s.is_finite() {
+                vec![-3.0 * s, 3.0 * s]
+            } else {
+                vec![]
+            },
             markers: vec![],
             equal_axes: false,
         };

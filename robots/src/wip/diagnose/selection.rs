@@ -107,7 +107,9 @@ pub fn difference_noise(r: impl Iterator<Item = (usize, f64)>, max_gap: usize) -
 /// Noise from second differences of the readings themselves (`σ² = mean(Δ²y)/6`), used
 /// only to weight the first nominal fit.
 fn raw_noise(log: &MeasuredLog, c: Channel) -> f64 {
-    let pts: Vec<(usize, f64)> = (0..log.len()).filter_map(|k| log.value(k, c).map(|v| (k, v))).collect();
+    let pts: Vec<(usize, f64)> = (0..log.len())
+        .filter_map(|k| log.value(k, c).map(|v| (k, v)))
+        .collect();
     let (mut s, mut n) = (0.0, 0usize);
     for w in pts.windows(3) {
         let d = w[2].1 - 2.0 * w[1].1 + w[0].1;
@@ -123,7 +125,9 @@ fn raw_noise(log: &MeasuredLog, c: Channel) -> f64 {
 
 /// The pose channels come every few rows: the largest gap between samples of a channel.
 fn sample_gap(log: &MeasuredLog, c: Channel) -> usize {
-    let ks: Vec<usize> = (0..log.len()).filter(|&k| log.value(k, c).is_some()).collect();
+    let ks: Vec<usize> = (0..log.len())
+        .filter(|&k| log.value(k, c).is_some())
+        .collect();
     ks.windows(2).map(|w| w[1] - w[0]).min().unwrap_or(1)
 }
 
@@ -140,7 +144,9 @@ fn residual_noise(log: &MeasuredLog, res: &Residuals, windows: &[(usize, usize)]
         let mut n = 0.0;
         for &(start, len) in windows {
             let sd = difference_noise((start..start + len).map(|k| (k, res.r[k][c.index()])), gap);
-            let cnt = (start..start + len).filter(|&k| !res.r[k][c.index()].is_nan()).count() as f64;
+            let cnt = (start..start + len)
+                .filter(|&k| !res.r[k][c.index()].is_nan())
+                .count() as f64;
             if sd.is_finite() && cnt > 1.0 {
                 s2 += sd * sd * (cnt - 1.0);
                 n += cnt - 1.0;
@@ -162,7 +168,12 @@ pub fn normalised_error(res: &Residuals, sigma: &[f64; 9]) -> ([f64; 9], f64) {
         if !s.is_finite() {
             continue;
         }
-        let vals: Vec<f64> = res.r.iter().map(|r| r[c.index()]).filter(|v| !v.is_nan()).collect();
+        let vals: Vec<f64> = res
+            .r
+            .iter()
+            .map(|r| r[c.index()])
+            .filter(|v| !v.is_nan())
+            .collect();
         if vals.is_empty() {
             continue;
         }
@@ -171,7 +182,14 @@ pub fn normalised_error(res: &Residuals, sigma: &[f64; 9]) -> ([f64; 9], f64) {
         sum += (rms / s).powi(2);
         n += 1;
     }
-    (per, if n > 0 { (sum / n as f64).sqrt() } else { f64::NAN })
+    (
+        per,
+        if n > 0 {
+            (sum / n as f64).sqrt()
+        } else {
+            f64::NAN
+        },
+    )
 }
 
 fn bic(fit: &Fit) -> f64 {
@@ -256,23 +274,24 @@ pub fn diagnose(
     // cost in the criterion) is abandoned early.
     let best_rss = std::cell::Cell::new(nominal.fit.rss);
     let m_res = nominal.fit.m.max(1) as f64;
-    let fit_candidate = |fitter: &Fitter, cand: Candidate, start: &[f64], z0: &[nalgebra::SVector<f64, 9>]| {
-        let bound = best_rss.get() * (1.0 + cand.n_params() as f64 * m_res.ln() / m_res) + 50.0;
-        let f = fitter.fit(&cand, start, z0, Some(bound), &quiet);
-        if f.rss < best_rss.get() {
-            best_rss.set(f.rss);
-        }
-        let s = score_of(f, fitter);
-        progress(&format!(
-            "  {:<28} error {:>8.3}  score {:>14.1}  {} iterations  ({:.1} s)",
-            cand.name(),
-            s.error,
-            s.score,
-            s.fit.iterations,
-            t0.elapsed().as_secs_f64()
-        ));
-        s
-    };
+    let fit_candidate =
+        |fitter: &Fitter, cand: Candidate, start: &[f64], z0: &[nalgebra::SVector<f64, 9>]| {
+            let bound = best_rss.get() * (1.0 + cand.n_params() as f64 * m_res.ln() / m_res) + 50.0;
+            let f = fitter.fit(&cand, start, z0, Some(bound), &quiet);
+            if f.rss < best_rss.get() {
+                best_rss.set(f.rss);
+            }
+            let s = score_of(f, fitter);
+            progress(&format!(
+                "  {:<28} error {:>8.3}  score {:>14.1}  {} iterations  ({:.1} s)",
+                cand.name(),
+                s.error,
+                s.score,
+                s.fit.iterations,
+                t0.elapsed().as_secs_f64()
+            ));
+            s
+        };
     let mut candidates = vec![nominal.clone()];
     // Screen the catalogue with one linearisation (the order of the fits, and the predicted
     // reductions in the progress output); fit the `opts.max_full_fits` most promising to
@@ -333,7 +352,10 @@ pub fn diagnose(
     // Re-estimate the noise from the chosen model's residuals; if it moved by more than
     // 10 % in some channel, refit the chosen and the nominal model with it (so that the
     // decisions below compare errors against the noise, not against the nominal misfit).
-    let reweigh = |fitter: &mut Fitter, chosen: &mut Scored, nominal: &mut Scored, sigma_used: &mut [f64; 9]| {
+    let reweigh = |fitter: &mut Fitter,
+                   chosen: &mut Scored,
+                   nominal: &mut Scored,
+                   sigma_used: &mut [f64; 9]| {
         let fresh = residual_noise(log, &fitter.residuals(&chosen.fit), &fitter.windows);
         let moved = Channel::ALL.iter().any(|c| {
             let (a, b) = (sigma_used[c.index()], fresh[c.index()]);
@@ -348,7 +370,13 @@ pub fn diagnose(
         ));
         *sigma_used = fresh;
         fitter.setup.sigma = fresh.map(|s| if s.is_nan() { f64::INFINITY } else { s });
-        let f = fitter.fit(&chosen.fit.candidate, &chosen.fit.theta, &chosen.fit.z0, None, &quiet);
+        let f = fitter.fit(
+            &chosen.fit.candidate,
+            &chosen.fit.theta,
+            &chosen.fit.z0,
+            None,
+            &quiet,
+        );
         *chosen = score_of(f, fitter);
         let f = fitter.fit(&none, &[], &nominal.fit.z0, None, &quiet);
         *nominal = score_of(f, fitter);
@@ -367,7 +395,9 @@ pub fn diagnose(
             if e == e1 {
                 continue;
             }
-            let cand = Candidate { effects: vec![e1, e] };
+            let cand = Candidate {
+                effects: vec![e1, e],
+            };
             let mut start = single.fit.theta.clone();
             start.extend(e.nominal(params));
             let s = fit_candidate(&fitter, cand, &start, &single.fit.z0);
@@ -388,7 +418,10 @@ pub fn diagnose(
     {
         *c = chosen.clone();
     }
-    if let Some(c) = candidates.iter_mut().find(|c| c.fit.candidate.effects.is_empty()) {
+    if let Some(c) = candidates
+        .iter_mut()
+        .find(|c| c.fit.candidate.effects.is_empty())
+    {
         *c = nominal.clone();
     }
     candidates.sort_by(|a, b| a.score.total_cmp(&b.score));
@@ -435,7 +468,9 @@ pub fn diagnose(
     } else {
         let names = chosen.fit.candidate.name();
         let tail = if explained {
-            format!("the refitted model's error is {error_after:.3} times the noise floor (explained).")
+            format!(
+                "the refitted model's error is {error_after:.3} times the noise floor (explained)."
+            )
         } else {
             format!("the residual is still above the noise ({error_after:.3} times the noise floor): a further effect, outside the catalogue or weaker, remains.")
         };
