@@ -259,3 +259,31 @@ fn two_effects_at_once() {
         }
     }
 }
+
+/// An effect outside the catalogue (the rate gyro reads 0.1 rad/s high: five times its
+/// noise, and in contradiction with the tilt's own derivative) is not forced onto a
+/// catalogue effect: the verdict is "unexplained", and the error stays above the noise.
+#[test]
+fn an_effect_outside_the_catalogue_is_unexplained() {
+    let p = WipParams::default();
+    let mut rng = Rng::new(master_seed() ^ 0x0ff);
+    let seed = rng.next_u64();
+    let settings = RunSettings {
+        duration: DURATION,
+        ..Default::default()
+    };
+    let mut g = generate(&p, &[], seed, &settings).expect("the nominal LQR keeps the robot up");
+    for row in &mut g.log.data {
+        row[Channel::VAlpha.index()] += 0.1;
+    }
+    let d = diagnose(&g.log, &p, &DiagnoseOptions::default(), &|_| {}).unwrap();
+    println!(
+        "seed {seed}: cause {} ({}), E {:.3} -> {:.3}",
+        d.cause,
+        d.chosen.fit.candidate.name(),
+        d.error_before,
+        d.error_after
+    );
+    assert_eq!(d.cause, "unexplained", "{}", d.verdict);
+    assert!(d.error_after > DiagnoseOptions::default().explained);
+}
