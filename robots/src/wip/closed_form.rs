@@ -4,7 +4,7 @@
 //! `shape_acceleration` is the fast evaluation `wip diagnose` differentiates. The
 //! derivation is in `docs/wip-model.md`.
 
-use super::model::{friction, Wip};
+use super::model::{friction, tanh_saturating, Wip};
 use super::params::WipParams;
 use dmech::Param;
 use dmech_lie::Real;
@@ -199,7 +199,7 @@ pub fn shape_acceleration<T: Real>(
     rhs[3] += ken * (i[0] + i[1]) - p.m_b * p.g * p.l * sa;
     rhs[4] -= ken * i[0];
     rhs[5] -= ken * i[1];
-    let fric = |wrel: T| p.d_v * wrel + p.d_c * (p.d_0 * wrel).tanh();
+    let fric = |wrel: T| p.d_v * wrel + p.d_c * tanh_saturating(p.d_0 * wrel);
     let (fr, fl) = (fric(vr - va), fric(vl - va));
     rhs[3] -= fr + fl + f_shape[0];
     rhs[4] -= -fr + f_shape[1];

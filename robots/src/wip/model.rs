@@ -39,7 +39,19 @@ impl Default for Wip<f64> {
 
 /// Gear/bearing friction torque at relative wheel speed `w = φ̇ − α̇`.
 pub fn friction<P: Real, T: Lift<P>>(d_v: Param<P>, d_c: Param<P>, d_0: Param<P>, w: T) -> T {
-    d_v * w + d_c * (d_0 * w).tanh()
+    d_v * w + d_c * tanh_saturating(d_0 * w)
+}
+
+/// `tanh` that stays finite in dual numbers at any argument. num-dual evaluates
+/// `sinh/cosh`, which overflow to `inf/inf = NaN` beyond `|x| ≈ 710` (a wheel 90 rad/s
+/// faster than the body, reachable while a fit explores); beyond `|x| = 20` the value is
+/// `±1` and the derivative `4e-17`, both exact in double precision.
+pub fn tanh_saturating<T: Real>(x: T) -> T {
+    if x.re().abs() > 20.0 {
+        T::from(x.re().signum())
+    } else {
+        x.tanh()
+    }
 }
 
 impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {

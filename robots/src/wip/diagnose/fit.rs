@@ -235,12 +235,12 @@ impl<'a> Fitter<'a> {
         &self,
         cand: &Candidate,
         theta: &[f64],
-        wi: usize,
+        win: (usize, usize),
         z0: &Z,
     ) -> Option<(f64, usize)> {
         let pred = Predictor::<f64>::new(cand.extension(self.params, theta), self.params);
-        let (start, _) = self.windows[wi];
-        let y = predict_window(&pred, self.log, self.windows[wi], *z0)?;
+        let (start, _) = win;
+        let y = predict_window(&pred, self.log, win, *z0)?;
         let mut rss = 0.0;
         let mut m = 0;
         for (j, yk) in y.iter().enumerate() {
@@ -265,7 +265,7 @@ impl<'a> Fitter<'a> {
         &self,
         cand: &Candidate,
         theta: &[f64],
-        wi: usize,
+        win: (usize, usize),
         z0: &Z,
     ) -> Option<WindowLin> {
         type Dn<const N: usize> = DualSVec64<N>;
@@ -282,8 +282,8 @@ impl<'a> Fitter<'a> {
         for (d, &i) in DUAL_STATE.iter().enumerate() {
             zd[i] = Dn::<N>::from(z0[i]).derivative(d);
         }
-        let (start, _) = self.windows[wi];
-        let y = predict_window(&pred, self.log, self.windows[wi], zd)?;
+        let (start, _) = win;
+        let y = predict_window(&pred, self.log, win, zd)?;
         let mut a = SMatrix::<f64, NZ, NZ>::zeros();
         let mut w = DMatrix::<f64>::zeros(NZ, np);
         let mut v = DMatrix::<f64>::zeros(np, np);
@@ -344,15 +344,21 @@ impl<'a> Fitter<'a> {
         })
     }
 
-    fn window_lin(&self, cand: &Candidate, theta: &[f64], wi: usize, z0: &Z) -> Option<WindowLin> {
+    fn window_lin(
+        &self,
+        cand: &Candidate,
+        theta: &[f64],
+        win: (usize, usize),
+        z0: &Z,
+    ) -> Option<WindowLin> {
         match cand.n_params() {
-            0 => self.window_lin_n::<5>(cand, theta, wi, z0),
-            1 => self.window_lin_n::<6>(cand, theta, wi, z0),
-            2 => self.window_lin_n::<7>(cand, theta, wi, z0),
-            3 => self.window_lin_n::<8>(cand, theta, wi, z0),
-            4 => self.window_lin_n::<9>(cand, theta, wi, z0),
+            0 => self.window_lin_n::<5>(cand, theta, win, z0),
+            1 => self.window_lin_n::<6>(cand, theta, win, z0),
+            2 => self.window_lin_n::<7>(cand, theta, win, z0),
+            3 => self.window_lin_n::<8>(cand, theta, win, z0),
+            4 => self.window_lin_n::<9>(cand, theta, win, z0),
             n if n <= SCREEN_PARAMS => {
-                self.window_lin_n::<{ 5 + SCREEN_PARAMS }>(cand, theta, wi, z0)
+                self.window_lin_n::<{ 5 + SCREEN_PARAMS }>(cand, theta, win, z0)
             }
             n => panic!("{n} effect parameters: more than the catalogue has"),
         }
@@ -383,7 +389,7 @@ impl<'a> Fitter<'a> {
 
     /// Total weighted cost; `None` if some window's simulation fails.
     pub fn cost(&self, cand: &Candidate, theta: &[f64], z0: &[Z]) -> Option<(f64, usize)> {
-        let parts = self.map_windows(|wi| self.window_cost(cand, theta, wi, &z0[wi]));
+        let parts = self.map_windows(|wi| self.window_cost(cand, theta, self.windows[wi], &z0[wi]));
         parts
             .into_iter()
             .try_fold((0.0, 0), |(r, m), p| p.map(|(a, b)| (r + a, m + b)))
@@ -413,7 +419,7 @@ impl<'a> Fitter<'a> {
         'outer: for it in 0..self.setup.max_iterations {
             iterations = it + 1;
             let lins: Option<Vec<WindowLin>> = self
-                .map_windows(|wi| self.window_lin(cand, &theta, wi, &z[wi]))
+                .map_windows(|wi| self.window_lin(cand, &theta, self.windows[wi], &z[wi]))
                 .into_iter()
                 .collect();
             let Some(lins) = lins else {
@@ -494,7 +500,9 @@ impl<'a> Fitter<'a> {
             return vec![];
         }
         let lins: Option<Vec<WindowLin>> = self
-            .map_windows(|wi| self.window_lin(&fit.candidate, &fit.theta, wi, &fit.z0[wi]))
+            .map_windows(|wi| {
+                self.window_lin(&fit.candidate, &fit.theta, self.windows[wi], &fit.z0[wi])
+            })
             .into_iter()
             .collect();
         let stat = match lins {
@@ -521,7 +529,7 @@ impl<'a> Fitter<'a> {
         // Windows whose linearisation is not finite (a prediction far off the data) are
         // left out of the screening; the full fits see every window.
         let lins: Vec<WindowLin> = self
-            .map_windows(|wi| self.window_lin(&all, &theta0, wi, &z0[wi]))
+            .map_windows(|wi| self.window_lin(&all, &theta0, self.windows[wi], &z0[wi]))
             .into_iter()
             .flatten()
             .collect();
