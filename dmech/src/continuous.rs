@@ -148,9 +148,30 @@ impl ContinuousModel {
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
+        Self::derivative_with_force::<S, DOF, DIM, NS, NU>(sys, x, u, &|_| SVector::zeros())
+    }
+
+    /// The same with an external generalised force on the shape that depends on the state
+    /// (e.g. gravity along an inclined floor), added to the system's forcing as in
+    /// [`acceleration_with_force`].
+    pub fn derivative_with_force<
+        S,
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+    >(
+        sys: &S,
+        x: &ContinuousState<S::Group<f64>, NS>,
+        u: &SVector<f64, NU>,
+        f_ext: &dyn Fn(&ContinuousState<S::Group<f64>, NS>) -> SVector<f64, NS>,
+    ) -> Result<Deriv<NS>, StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
         let xi = -(sys.connection(&x.s) * x.v);
         let gdot = coordinate_rate::<_, f64, DOF, DIM>(&x.g, &xi);
-        let a = acceleration::<S, f64, DOF, DIM, NS, NU>(sys, &x.s, &x.v, u)
+        let a = acceleration_with_force::<S, f64, DOF, DIM, NS, NU>(sys, &x.s, &x.v, u, &f_ext(x))
             .ok_or(StepError::Singular)?;
         if !a.iter().all(|z| z.is_finite()) {
             return Err(StepError::NonFinite);
@@ -190,8 +211,30 @@ impl ContinuousModel {
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
+        Self::step_with_force::<S, DOF, DIM, NS, NU>(sys, method, h, x, u, &|_| SVector::zeros())
+    }
+
+    /// One explicit Runge–Kutta step with a state-dependent external shape force
+    /// ([`ContinuousModel::derivative_with_force`]).
+    pub fn step_with_force<
+        S,
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+    >(
+        sys: &S,
+        method: RungeKutta,
+        h: f64,
+        x: &ContinuousState<S::Group<f64>, NS>,
+        u: &SVector<f64, NU>,
+        f_ext: &dyn Fn(&ContinuousState<S::Group<f64>, NS>) -> SVector<f64, NS>,
+    ) -> Result<ContinuousState<S::Group<f64>, NS>, StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
         let f = |y: &ContinuousState<S::Group<f64>, NS>| {
-            Self::derivative::<S, DOF, DIM, NS, NU>(sys, y, u)
+            Self::derivative_with_force::<S, DOF, DIM, NS, NU>(sys, y, u, f_ext)
         };
         let adv = Self::advance::<S::Group<f64>, DOF, DIM, NS>;
         let out = match method {

@@ -95,13 +95,18 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
             (0.5 * p.I_m) * (m * m) + (0.5 * p.I_g) * (g * g)
         };
         let t_gear = stage(vr) + stage(vl);
-        let (wr_rel, wl_rel) = (vr - va, vl - va);
-        let t_lag = (-0.5 * Param(self.quasi_static_inertia)) * (wr_rel * wr_rel + wl_rel * wl_rel);
         let t_motor = (0.5 * p.L_m) * (ir * ir + il * il);
 
         let v_grav = (p.m_b * p.g * p.l) * ca;
         let v_emf = (p.k_e * p.n_wm) * ((vr - va) * qr + (vl - va) * ql);
-        t_body + t_wheels + t_gear + t_lag + t_motor - v_grav - v_emf
+        let l = t_body + t_wheels + t_gear + t_motor - v_grav - v_emf;
+        // `J_e` is a constant of the reduced model, zero in the full one: the planner's
+        // and the integrators' ℓ (evaluated in nested duals at every step) skip the term.
+        if self.quasi_static_inertia.re() == 0.0 {
+            return l;
+        }
+        let (wr_rel, wl_rel) = (vr - va, vl - va);
+        l - (0.5 * Param(self.quasi_static_inertia)) * (wr_rel * wr_rel + wl_rel * wl_rel)
     }
 
     fn connection<T: Lift<P>>(&self, _s: &SVector<T, 5>) -> SMatrix<T, 3, 5> {

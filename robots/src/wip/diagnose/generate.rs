@@ -4,11 +4,11 @@
 //! encoders quantised at 3600 counts/rev, currents 0.02 A, pose 1 mm / 0.005 rad at 50 Hz).
 
 use super::effects::{Effect, ModelExtension};
-use super::measured::{Channel, MeasuredLog};
+use super::measured::MeasuredLog;
 use super::prediction::{Predictor, D, ND};
 use crate::wip::{Wip, WipParams};
-use dmech::continuous::acceleration_with_force;
-use dmech::PrincipalKinematicSystem;
+use dmech::continuous::{ContinuousModel, ContinuousState, RungeKutta};
+use dmech_lie::Se2;
 use nalgebra::{SMatrix, SVector};
 
 /// Sensor noise of the generated logs (standard deviations; encoders are quantised).
@@ -130,13 +130,6 @@ pub fn draw_effect(effect: Effect, p: &WipParams, rng: &mut Rng) -> Vec<f64> {
     }
 }
 
-/// What the generator hid in a log.
-#[derive(Clone, Debug)]
-pub struct HiddenEffects {
-    pub effects: Vec<(Effect, Vec<f64>)>,
-    pub seed: u64,
-}
-
 /// Noise of the controller's wheel-rate estimate (rad/s).
 const WHEEL_RATE_NOISE: f64 = 0.05;
 
@@ -162,33 +155,11 @@ impl Default for RunSettings {
     }
 }
 
-/// Full state of the true model: pose, shape `(α, φR, φL, qR, qL)`, shape velocity
+/// The true model's state: pose in SE(2), shape `(α, φR, φL, qR, qL)`, shape velocity
 /// `(v_α, φ̇R, φ̇L, iR, iL)`.
-#[derive(Clone, Copy, Debug)]
-struct TrueState {
-    pose: SVector<f64, 3>,
-    s: SVector<f64, 5>,
-    v: SVector<f64, 5>,
-}
+type TrueState = ContinuousState<Se2<f64>, 5>;
 
-type Rate = (SVector<f64, 3>, SVector<f64, 5>, SVector<f64, 5>);
-
-fn true_rate(
-    ext: &ModelExtension<f64>,
-    sys: &Wip<f64>,
-    x: &TrueState,
-    u: [f64; 2],
-) -> Result<Rate, String> {
-    let xi = -(sys.connection(&x.s) * x.v);
-    let (st, ct) = x.pose[2].sin_cos();
-    let f_ext = ext.floor_force(sys, &x.s, x.pose[2]);
-    let uv = SVector::<f64, 2>::new(u[0], u[1]);
-    let a = acceleration_with_force::<Wip<f64>, f64, 3, 2, 5, 2>(sys, &x.s, &x.v, &uv, &f_ext)
-        .ok_or("singular mass matrix in the true model")?;
-    let pose_dot = SVector::<f64, 3>::new(xi[0] * ct - xi[1] * st, xi[0] * st + xi[1] * ct, xi[2]);
-    Ok((pose_dot, x.v, a))
-}
-
+/// One RK4 step of the true model (dmech's continuous model with the floor's force).
 fn true_rk4(
     ext: &ModelExtension<f64>,
     sys: &Wip<f64>,
@@ -196,26 +167,16 @@ fn true_rk4(
     u: [f64; 2],
     dt: f64,
 ) -> Result<TrueState, String> {
-    let adv = |x: &TrueState, k: &Rate, c: f64| TrueState {
-        pose: x.pose + k.0 * c,
-        s: x.s + k.1 * c,
-        v: x.v + k.2 * c,
-    };
-    let k1 = true_rate(ext, sys, x, u)?;
-    let k2 = true_rate(ext, sys, &adv(x, &k1, 0.5 * dt), u)?;
-    let k3 = true_rate(ext, sys, &adv(x, &k2, 0.5 * dt), u)?;
-    let k4 = true_rate(ext, sys, &adv(x, &k3, dt), u)?;
-    let k = (
-        (k1.0 + k2.0 * 2.0 + k3.0 * 2.0 + k4.0) / 6.0,
-        (k1.1 + k2.1 * 2.0 + k3.1 * 2.0 + k4.1) / 6.0,
-        (k1.2 + k2.2 * 2.0 + k3.2 * 2.0 + k4.2) / 6.0,
-    );
-    let out = adv(x, &k, dt);
-    if out.s.iter().chain(out.v.iter()).all(|z| z.is_finite()) {
-        Ok(out)
-    } else {
-        Err("the true model's state became non-finite".into())
-    }
+    let floor = |y: &TrueState| ext.floor_force(sys, &y.s, y.g.theta);
+    ContinuousModel::step_with_force::<Wip<f64>, 3, 2, 5, 2>(
+        sys,
+        RungeKutta::Rk4,
+        dt,
+        x,
+        &SVector::<f64, 2>::new(u[0], u[1]),
+        &floor,
+    )
+    .map_err(|e| format!("the true model failed: {e:?}"))
 }
 
 /// A discrete LQR on the NOMINAL prediction model, linearised at rest upright: state
@@ -301,9 +262,6 @@ impl Reference {
 pub struct GeneratedLog {
     pub log: MeasuredLog,
     pub clean: Vec<[f64; 9]>,
-    /// The true state `z = (x, y, θ, α, φR, φL, v_α, φ̇R, φ̇L)` at each row.
-    pub states: Vec<SVector<f64, 9>>,
-    pub hidden: HiddenEffects,
 }
 
 /// Simulate a closed-loop run of the true model with the hidden `effects` and record it as
@@ -329,14 +287,13 @@ pub fn generate(
     let n = (settings.duration / h).round() as usize + 1;
 
     let mut x = TrueState {
-        pose: SVector::zeros(),
+        g: Se2::new(0.0, 0.0, 0.0),
         s: SVector::zeros(),
         v: SVector::zeros(),
     };
     let mut cmd_hist: Vec<[f64; 2]> = Vec::with_capacity(pre_roll + n);
     let mut log = MeasuredLog::empty(h);
     let mut clean = Vec::with_capacity(n);
-    let mut states = Vec::with_capacity(n);
     let (m_delay, f_delay) = {
         let tau = ext.delay;
         let m = (tau / h).floor();
@@ -347,9 +304,9 @@ pub fn generate(
         // Sensors at t_k.
         let alpha = x.s[0];
         let truth = [
-            x.pose[0],
-            x.pose[1],
-            x.pose[2],
+            x.g.x,
+            x.g.y,
+            x.g.theta,
             ext.tilt_reading(alpha),
             x.v[0],
             x.s[1] - alpha,
@@ -403,9 +360,6 @@ pub fn generate(
             row[8] = meas_i[1];
             log.push_row(t, cmd, &row);
             clean.push(truth);
-            states.push(SVector::<f64, 9>::from_column_slice(&[
-                x.pose[0], x.pose[1], x.pose[2], x.s[0], x.s[1], x.s[2], x.v[0], x.v[1], x.v[2],
-            ]));
         }
         if k + 1 == pre_roll + n {
             break;
@@ -434,18 +388,5 @@ pub fn generate(
         }
     }
     log.channels_present_from_data();
-    Ok(GeneratedLog {
-        log,
-        clean,
-        states,
-        hidden: HiddenEffects {
-            effects: effects.to_vec(),
-            seed,
-        },
-    })
-}
-
-/// The clean value of a channel in a generated log's `clean` rows.
-pub fn clean_value(row: &[f64; 9], c: Channel) -> f64 {
-    row[c.index()]
+    Ok(GeneratedLog { log, clean })
 }

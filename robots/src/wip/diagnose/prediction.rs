@@ -20,10 +20,6 @@ use num_dual::DualSVec64;
 
 /// `z = (x, y, θ, α, φR, φL, v_α, v_φR, v_φL)`.
 pub const NZ: usize = 9;
-/// Dual directions of a window's prediction: `θ, α, v_α, v_φR, v_φL` of the window's
-/// initial state (`x, y, φR, φL` enter the predictions additively and get their
-/// derivatives in closed form), then the effect parameters.
-pub const ND_STATE: usize = 5;
 /// Dual directions of the LQR design (four states, two inputs; `generate`).
 pub const ND: usize = 9;
 /// A dual scalar with `ND` directions.
@@ -124,16 +120,7 @@ impl<T: FitScalar> Predictor<T> {
         h: f64,
     ) -> Option<(SVector<T, NZ>, [T; 2])> {
         let tau = self.ext.delay + T::from(self.electrical_lag);
-        let (m, f) = split_delay(tau, h);
-        let at = |j: isize| {
-            let c = cmd[j.max(0) as usize];
-            [
-                self.ext.driver(T::from(c[0])),
-                self.ext.driver(T::from(c[1])),
-            ]
-        };
-        let k = k as isize;
-        let (old, new) = (at(k - m - 1), at(k - m));
+        let (f, old, new) = self.delayed(cmd, k as isize, h, tau);
         let mut state = (*z, [T::zero(); 2]);
         let rest = T::from(h) - f;
         for (len, u) in [(f, old), (rest, new)] {
@@ -155,31 +142,38 @@ impl<T: FitScalar> Predictor<T> {
         Some([r[7] - r[6], r[8] - r[6]])
     }
 
-    /// The mean over `[t_k, t_{k+1})` of the applied voltage when the commands `cmd` (zero-
-    /// order hold, `cmd[j]` from `t_j`; before the log the first command) reach the
-    /// motors `τ = τ_e + delay` late: with `τ = m h + f`,
-    /// `(f/h) κ·dz(u_{k−m−1}) + (1 − f/h) κ·dz(u_{k−m})`.
+    /// The driver's output over `[t_k, t_{k+1})` when the commands `cmd` (zero-order
+    /// hold, `cmd[j]` from `t_j`; before the log the first command) arrive `τ` late: with
+    /// `τ = m h + f`, `(f, κ·dz(u_{k−m−1}), κ·dz(u_{k−m}))`, the first voltage applied
+    /// until `t_k + f`, the second after. `f` carries the derivative with respect to `τ`.
+    fn delayed(&self, cmd: &[[f64; 2]], k: isize, h: f64, tau: T) -> (T, [T; 2], [T; 2]) {
+        let (m, f) = split_delay(tau, h);
+        let at = |j: isize| {
+            let c = cmd[j.max(0) as usize];
+            [
+                self.ext.driver(T::from(c[0])),
+                self.ext.driver(T::from(c[1])),
+            ]
+        };
+        (f, at(k - m - 1), at(k - m))
+    }
+
+    /// The mean of the applied voltage over `[t_k, t_{k+1})` (delay `τ_e + delay`):
+    /// `(f/h) old + (1 − f/h) new`.
     pub fn mean_applied(&self, cmd: &[[f64; 2]], k: usize, h: f64) -> [T; 2] {
         let tau = self.ext.delay + T::from(self.electrical_lag);
-        let (m, f) = split_delay(tau, h);
-        let at = |j: isize, c: usize| self.ext.driver(T::from(cmd[j.max(0) as usize][c]));
+        let (f, old, new) = self.delayed(cmd, k as isize, h, tau);
         let w = f / h;
-        let k = k as isize;
-        [0, 1].map(|c| at(k - m - 1, c) * w + at(k - m, c) * (T::one() - w))
+        [0, 1].map(|c| old[c] * w + new[c] * (T::one() - w))
     }
 
     /// The voltage behind the current read at `t_k`: the driver's last switch before
-    /// `t_k` happened `h − f` earlier, and the current has relaxed from the previous level
-    /// with `exp(−(h − f)/τ_e)` since.
+    /// `t_k` (the step before, delayed by `delay` alone) happened `h − f` earlier, and the
+    /// current has relaxed from the previous level with `exp(−(h − f)/τ_e)` since.
     pub fn current_voltage(&self, cmd: &[[f64; 2]], k: usize, h: f64) -> [T; 2] {
-        let (m, f) = split_delay(self.ext.delay, h);
-        let at = |j: isize, c: usize| self.ext.driver(T::from(cmd[j.max(0) as usize][c]));
+        let (f, old, new) = self.delayed(cmd, k as isize - 1, h, self.ext.delay);
         let decay = (-(T::from(h) - f) / self.electrical_lag).exp();
-        let k = k as isize;
-        [0, 1].map(|c| {
-            let (new, old) = (at(k - 1 - m, c), at(k - 2 - m, c));
-            new + (old - new) * decay
-        })
+        [0, 1].map(|c| new[c] + (old[c] - new[c]) * decay)
     }
 
     /// The sensor readings at state `z` with `u_i` the voltage behind the current and
