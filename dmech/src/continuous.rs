@@ -133,6 +133,10 @@ pub enum RungeKutta {
 /// type as the integrator's state).
 pub type ContinuousState<G, const NS: usize> = crate::variational::ViState<G, NS>;
 
+/// An external generalised force on the shape as a function of the state.
+pub type ShapeForce<'a, G, const NS: usize> =
+    dyn Fn(&ContinuousState<G, NS>) -> SVector<f64, NS> + 'a;
+
 /// The continuous model of a system, with its Runge–Kutta steps.
 pub struct ContinuousModel;
 
@@ -164,7 +168,7 @@ impl ContinuousModel {
         sys: &S,
         x: &ContinuousState<S::Group<f64>, NS>,
         u: &SVector<f64, NU>,
-        f_ext: &dyn Fn(&ContinuousState<S::Group<f64>, NS>) -> SVector<f64, NS>,
+        f_ext: &ShapeForce<'_, S::Group<f64>, NS>,
     ) -> Result<Deriv<NS>, StepError>
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
@@ -228,7 +232,7 @@ impl ContinuousModel {
         h: f64,
         x: &ContinuousState<S::Group<f64>, NS>,
         u: &SVector<f64, NU>,
-        f_ext: &dyn Fn(&ContinuousState<S::Group<f64>, NS>) -> SVector<f64, NS>,
+        f_ext: &ShapeForce<'_, S::Group<f64>, NS>,
     ) -> Result<ContinuousState<S::Group<f64>, NS>, StepError>
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
