@@ -139,14 +139,21 @@ where
     let xd = seed(x);
     let wc = w.map(DualSVec64::<NX>::from_re);
     let f_d = p.dynamics(k, &xd, &wc);
-    let e_d = p.equality(k, &xd, &wc);
+    let e_own = p.equality_jacobian(k, x, w);
+    let e_d = match e_own {
+        Some(_) => SVector::zeros(),
+        None => p.equality(k, &xd, &wc),
+    };
     let l_d = p.cost(k, &xd, &wc);
     let c_d = p.constraints(k, &xd, &wc);
     // Pass seeded in w.
     let xc = x.map(DualSVec64::<NW>::from_re);
     let wd = seed(w);
     let f_w = p.dynamics(k, &xc, &wd);
-    let e_w = p.equality(k, &xc, &wd);
+    let e_w = match e_own {
+        Some(_) => SVector::zeros(),
+        None => p.equality(k, &xc, &wd),
+    };
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
 
@@ -167,6 +174,9 @@ where
         hxw: SMatrix::zeros(),
         hww: SMatrix::zeros(),
     };
+    if let Some((e, ex, ew)) = e_own {
+        (d.e, d.ex, d.ew) = (e, ex, ew);
+    }
     let mult: Multipliers<NX, NE> = lambda.map(|lam| {
         (
             lam,
@@ -174,15 +184,8 @@ where
                 .unwrap_or_else(SVector::zeros),
         )
     });
-    // Second order of the Lagrangian (or of ℓ + ζᵀc only).
-    let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
-        p,
-        k,
-        zeta,
-        &mult,
-        &seed2(x),
-        &w.map(Dual2SVec64::<NX>::from_re),
-    ));
+    // Second order of the Lagrangian (or of ℓ + ζᵀc only, whose `xx` and `xw` blocks vanish
+    // when the problem declares it affine in the state).
     let hww = hess2(&phi::<P, _, NX, NW, NE, NC>(
         p,
         k,
@@ -190,6 +193,18 @@ where
         &mult,
         &x.map(Dual2SVec64::<NW>::from_re),
         &seed2(w),
+    ));
+    d.hww = hww;
+    if mult.is_none() && p.affine_in_state() {
+        return d;
+    }
+    let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
+        p,
+        k,
+        zeta,
+        &mult,
+        &seed2(x),
+        &w.map(Dual2SVec64::<NX>::from_re),
     ));
     let xh: SVector<HyperDualSVec64<NX, NW>, NX> = SVector::from_fn(|i, _| {
         let mut e = SVector::<f64, NX>::zeros();
@@ -212,8 +227,49 @@ where
 
     d.hxx = hxx;
     d.hxw = hxw;
-    d.hww = hww;
     d
+}
+
+/// The `xx` and `xw` blocks of the Hessian of `ℓ_k + ζᵀc_k` at `(x, w)`, by the generic
+/// passes: what [`StageProblem::affine_in_state`] declares to be zero.
+pub fn state_curvature<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    zeta: &SVector<f64, NC>,
+) -> (SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>)
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let none: Multipliers<NX, NE> = None;
+    let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
+        p,
+        k,
+        zeta,
+        &none,
+        &seed2(x),
+        &w.map(Dual2SVec64::<NX>::from_re),
+    ));
+    let xh: SVector<HyperDualSVec64<NX, NW>, NX> = SVector::from_fn(|i, _| {
+        let mut e = SVector::<f64, NX>::zeros();
+        e[i] = 1.0;
+        let mut h = HyperDualSVec64::<NX, NW>::from_re(x[i]);
+        h.eps1 = Derivative::some(e);
+        h
+    });
+    let wh: SVector<HyperDualSVec64<NX, NW>, NW> = SVector::from_fn(|i, _| {
+        let mut e = SMatrix::<f64, 1, NW>::zeros();
+        e[i] = 1.0;
+        let mut h = HyperDualSVec64::<NX, NW>::from_re(w[i]);
+        h.eps2 = Derivative::some(e);
+        h
+    });
+    let hxw = phi::<P, _, NX, NW, NE, NC>(p, k, zeta, &none, &xh, &wh)
+        .eps1eps2
+        .0
+        .unwrap_or_else(SMatrix::zeros);
+    (hxx, hxw)
 }
 
 /// Stage values only (for the line search).

@@ -18,7 +18,7 @@
 //! dual numbers. Nothing here knows about a particular robot.
 
 use dmech_lie::Real;
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 /// `x_k[index] = value` at stage `k` (`k = N` is the end state).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,4 +51,23 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>);
     /// The state equalities, any order.
     fn state_equalities(&self) -> Vec<StateEquality>;
+    /// `true` if the cost and the inequalities are affine in `x` (the `xx` and `xw` blocks of
+    /// their Hessian vanish), which saves the solver two of its three second-order passes.
+    /// A declaration, checked by the solver at its start point (it stops with an error if
+    /// those blocks are not zero there). Default `false`.
+    fn affine_in_state(&self) -> bool {
+        false
+    }
+    /// `(e, E_x, E_w)` of the stage equality by an exact route cheaper than seeding all of
+    /// `(x, w)` (e.g. [`crate::varint::VarIntStages::equality_jacobian`]). `None`, the
+    /// default: the solver differentiates [`StageProblem::equality`] itself.
+    #[allow(clippy::type_complexity)]
+    fn equality_jacobian(
+        &self,
+        _k: usize,
+        _x: &SVector<f64, NX>,
+        _w: &SVector<f64, NW>,
+    ) -> Option<(SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>)> {
+        None
+    }
 }

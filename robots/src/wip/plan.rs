@@ -15,7 +15,7 @@ use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult, Solver};
 use dmech_ocp::problem::{StageProblem, StateEquality};
 use dmech_ocp::runge_kutta::RkStages;
 use dmech_ocp::varint::VarIntStages;
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 pub const NX: usize = 15;
 /// Inequalities per stage: uR, uL, ΔuR, ΔuL, iR, iL, α, v_θ.
@@ -158,6 +158,18 @@ impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
     }
     fn equality<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 7>) -> SVector<T, 5> {
         self.stages.equality::<T, 3, 2, 5, 2, NX, 7>(x, w)
+    }
+    fn affine_in_state(&self) -> bool {
+        // The cost reads w only; the inequalities read α and u_{k−1} linearly.
+        true
+    }
+    fn equality_jacobian(
+        &self,
+        _k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, 7>,
+    ) -> Option<(SVector<f64, 5>, SMatrix<f64, 5, NX>, SMatrix<f64, 5, 7>)> {
+        Some(self.stages.equality_jacobian::<3, 2, 5, 2, NX, 7>(x, w))
     }
     fn cost<T: Real>(&self, _k: usize, _x: &SVector<T, NX>, w: &SVector<T, 7>) -> T {
         (w[5] * w[3] + w[6] * w[4]) * 0.5
@@ -549,6 +561,8 @@ fn merge<const NW: usize>(
     r.timings.derivatives += r0.timings.derivatives;
     r.timings.kkt += r0.timings.kkt;
     r.timings.line_search += r0.timings.line_search;
+    r.timings.riccati += r0.timings.riccati;
+    r.timings.factorizations += r0.timings.factorizations;
     r.timings.total += r0.timings.total;
     r
 }

@@ -103,6 +103,8 @@ pub fn summary_json(
         "time_breakdown_s": {
             "derivatives": o.timings.derivatives,
             "kkt": o.timings.kkt,
+            "kkt_riccati": o.timings.riccati,
+            "kkt_factorizations": o.timings.factorizations,
             "line_search": o.timings.line_search
         }
     });

@@ -1,0 +1,50 @@
+//! One stage of the planner's VI transcription of the WIP (the eight's start, stage 700):
+//! values; the stage equality's Jacobian by the structured route (each block seeded alone,
+//! only the terms that read it) and by the generic one (all of `x`, then all of `w`
+//! seeded); and everything the solver takes per stage and iteration.
+use criterion::{criterion_group, criterion_main, Criterion};
+use dmech::partials::seeded;
+use dmech_ocp::derivatives::{stage_derivatives, stage_values};
+use nalgebra::SVector;
+use num_dual::DualSVec64;
+use robots::wip::benchmarks::eight;
+use robots::wip::plan::{varint_start, PlanBounds, VarIntPlan};
+use robots::wip::Wip;
+use std::hint::black_box;
+
+fn bench(c: &mut Criterion) {
+    let wip = Wip::default();
+    let p = eight(0.005);
+    let (xs, ws) = varint_start(&wip, &p);
+    let plan = VarIntPlan::new(&wip, &p, PlanBounds::default());
+    let (x, w) = (xs[700], ws[700]);
+    let zeta = SVector::<f64, 8>::repeat(0.1);
+    let st = &plan.stages;
+    let mut g = c.benchmark_group("plan_stage");
+    g.bench_function("values", |b| {
+        b.iter(|| stage_values(&plan, 700, black_box(&x), &w))
+    });
+    g.bench_function("equality_jacobian_structured", |b| {
+        b.iter(|| st.equality_jacobian::<3, 2, 5, 2, 15, 7>(black_box(&x), &w))
+    });
+    g.bench_function("equality_jacobian_generic", |b| {
+        b.iter(|| {
+            let ex = st.equality::<DualSVec64<15>, 3, 2, 5, 2, 15, 7>(
+                &seeded(black_box(&x)),
+                &w.map(DualSVec64::<15>::from_re),
+            );
+            let ew = st.equality::<DualSVec64<7>, 3, 2, 5, 2, 15, 7>(
+                &x.map(DualSVec64::<7>::from_re),
+                &seeded(&w),
+            );
+            (ex, ew)
+        })
+    });
+    g.bench_function("stage_derivatives", |b| {
+        b.iter(|| stage_derivatives(&plan, 700, black_box(&x), &w, &zeta, None))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,65 @@
+//! The VI transcription's structured equality Jacobian (each block seeded alone, only the
+//! terms that read it) against the generic path (all of `x` and `w` seeded through
+//! `VarIntStages::equality`), for the three force quadratures, at the eight's start and
+//! at perturbed points.
+
+use dmech::partials::{grad_part, seeded};
+use dmech::ForcingQuadrature;
+use dmech_ocp::varint::VarIntStages;
+use nalgebra::{SMatrix, SVector};
+use num_dual::DualSVec64;
+use robots::wip::benchmarks::eight;
+use robots::wip::plan::varint_start;
+use robots::wip::Wip;
+
+/// Both are exact derivatives evaluated in double precision along different operation
+/// orders: they may differ by round-off, a few hundred ulps of the largest entry.
+const ROUND_OFF: f64 = 512.0 * f64::EPSILON;
+
+#[test]
+fn structured_equality_jacobian_equals_generic() {
+    let wip = Wip::default();
+    let p = eight(0.005);
+    let (xs, ws) = varint_start(&wip, &p);
+    let mut seed = 12345u64;
+    let mut rand = move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    };
+    for q in [
+        ForcingQuadrature::Left,
+        ForcingQuadrature::Right,
+        ForcingQuadrature::Midpoint,
+    ] {
+        let st = VarIntStages::new::<3, 2, 5, 2>(&wip, p.h, q);
+        for k in [0, 1, 700, 2100, 4234] {
+            for perturb in [0.0, 0.3] {
+                let x: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
+                let w: SVector<f64, 7> = ws[k].map(|v| v + perturb * rand());
+                let (e, ex, ew) = st.equality_jacobian::<3, 2, 5, 2, 15, 7>(&x, &w);
+                let gx = st.equality::<DualSVec64<15>, 3, 2, 5, 2, 15, 7>(
+                    &seeded(&x),
+                    &w.map(DualSVec64::<15>::from_re),
+                );
+                let gw = st.equality::<DualSVec64<7>, 3, 2, 5, 2, 15, 7>(
+                    &x.map(DualSVec64::<7>::from_re),
+                    &seeded(&w),
+                );
+                let ex_ref = SMatrix::<f64, 5, 15>::from_fn(|i, j| grad_part(&gx[i])[j]);
+                let ew_ref = SMatrix::<f64, 5, 7>::from_fn(|i, j| grad_part(&gw[i])[j]);
+                let e_ref = gx.map(|d| d.re);
+                let scale = ex_ref.amax().max(ew_ref.amax()).max(1.0);
+                let err = (ex - ex_ref)
+                    .amax()
+                    .max((ew - ew_ref).amax())
+                    .max((e - e_ref).amax());
+                assert!(
+                    err <= ROUND_OFF * scale,
+                    "{q:?}, stage {k}, perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
+                );
+            }
+        }
+    }
+}
