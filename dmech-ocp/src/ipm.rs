@@ -112,6 +112,8 @@ pub struct Timings {
     pub kkt: f64,
     pub riccati: f64,
     pub factorizations: usize,
+    /// Second-order correction steps tried.
+    pub second_order_corrections: usize,
     pub line_search: f64,
     pub total: f64,
 }
@@ -904,34 +906,12 @@ where
             if delta > 0.0 {
                 delta_last = delta;
             }
-            let step = self.recover(&it, &ders, &elim, sol, mu, dc);
+            let mut step = self.recover(&it, &ders, &elim, sol, mu, dc);
             tm.kkt += t1.elapsed().as_secs_f64();
 
             // Fraction to the boundary.
             let tau = (1.0 - mu).max(0.99);
-            let mut amax_p: f64 = 1.0;
-            let mut amax_d: f64 = 1.0;
-            for k in 0..n {
-                let b = &self.bounds[k];
-                for i in 0..NC {
-                    if b.has_lo[i] > 0.0 {
-                        if step.dt_lo[k][i] < 0.0 {
-                            amax_p = amax_p.min(-tau * it.t_lo[k][i] / step.dt_lo[k][i]);
-                        }
-                        if step.dz_lo[k][i] < 0.0 {
-                            amax_d = amax_d.min(-tau * it.z_lo[k][i] / step.dz_lo[k][i]);
-                        }
-                    }
-                    if b.has_hi[i] > 0.0 {
-                        if step.dt_hi[k][i] < 0.0 {
-                            amax_p = amax_p.min(-tau * it.t_hi[k][i] / step.dt_hi[k][i]);
-                        }
-                        if step.dz_hi[k][i] < 0.0 {
-                            amax_d = amax_d.min(-tau * it.z_hi[k][i] / step.dz_hi[k][i]);
-                        }
-                    }
-                }
-            }
+            let (amax_p, mut amax_d) = self.max_step(&it, &step, tau);
 
             // Filter line search.
             let t2 = Instant::now();
@@ -984,29 +964,80 @@ where
                 let trial = self.trial(&it, &step, alpha);
                 let tv = self.values(&trial);
                 let tmz = self.measures(&trial, &tv, mu);
-                let ok_val =
-                    tmz.theta.is_finite() && tmz.barrier.is_finite() && tmz.theta <= theta_max_f;
-                let in_filter = filter
-                    .iter()
-                    .any(|&(ft, fp)| tmz.theta >= ft && tmz.barrier >= fp);
-                let mut accept = false;
-                let mut augment = false;
-                if ok_val && !in_filter {
+                // IPOPT's acceptance test of a trial point (filter, switching condition,
+                // Armijo on the barrier function); `alpha` is the step along `step`.
+                let acceptable = |tmz: &Measures, alpha: f64| {
+                    let ok_val = tmz.theta.is_finite()
+                        && tmz.barrier.is_finite()
+                        && tmz.theta <= theta_max_f;
+                    let in_filter = filter
+                        .iter()
+                        .any(|&(ft, fp)| tmz.theta >= ft && tmz.barrier >= fp);
+                    if !ok_val || in_filter {
+                        return (false, false);
+                    }
                     let switching =
                         dphi < 0.0 && alpha * (-dphi).powf(s_ph) > dl * m.theta.powf(s_th);
                     if m.theta <= theta_min_f && switching {
-                        accept = tmz.barrier <= m.barrier + eta * alpha * dphi;
+                        (tmz.barrier <= m.barrier + eta * alpha * dphi, false)
                     } else {
-                        accept = tmz.theta <= (1.0 - gth) * m.theta
-                            || tmz.barrier <= m.barrier - gph * m.theta;
-                        augment = true;
+                        (
+                            tmz.theta <= (1.0 - gth) * m.theta
+                                || tmz.barrier <= m.barrier - gph * m.theta,
+                            true,
+                        )
                     }
-                }
+                };
+                let (accept, augment) = acceptable(&tmz, alpha);
                 if accept {
                     if augment {
                         filter.push(((1.0 - gth) * m.theta, m.barrier - gph * m.theta));
                     }
                     break Some((trial, tv, tmz));
+                }
+                // Second-order correction (IPOPT's): the full step was rejected and made
+                // the constraint violation worse, the mark of the constraints' curvature
+                // (Maratos effect). Re-solve the same KKT system with the residuals
+                // `α c(x) + c(x + α d)` and try the corrected step, up to 4 times while it
+                // reduces the violation by 1 %.
+                if ls_count == 1 && tmz.theta >= m.theta {
+                    let (mut soc_trial, mut soc_vals, mut soc_alpha) = (trial, tv, alpha);
+                    let mut theta_trial = tmz.theta;
+                    let mut found = None;
+                    for _ in 0..4 {
+                        let t_soc = Instant::now();
+                        let Some(sstep) = self.second_order_correction(
+                            &it, &ders, &qn, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
+                        ) else {
+                            break;
+                        };
+                        tm.kkt += t_soc.elapsed().as_secs_f64();
+                        let (ap, ad) = self.max_step(&it, &sstep, tau);
+                        let ct = self.trial(&it, &sstep, ap);
+                        let cv = self.values(&ct);
+                        let cm = self.measures(&ct, &cv, mu);
+                        let (ok, aug) = acceptable(&cm, alpha);
+                        tm.second_order_corrections += 1;
+                        if ok {
+                            found = Some((ct, cv, cm, sstep, ap, ad, aug));
+                            break;
+                        }
+                        let theta_soc_old = theta_trial;
+                        theta_trial = cm.theta;
+                        if theta_trial > 0.99 * theta_soc_old {
+                            break;
+                        }
+                        (soc_trial, soc_vals, soc_alpha) = (ct, cv, ap);
+                    }
+                    if let Some((ct, cv, cm, sstep, ap, ad, aug)) = found {
+                        if aug {
+                            filter.push(((1.0 - gth) * m.theta, m.barrier - gph * m.theta));
+                        }
+                        step = sstep;
+                        amax_d = ad;
+                        alpha = ap;
+                        break Some((ct, cv, cm));
+                    }
                 }
                 alpha *= 0.5;
                 if alpha < alpha_min {
@@ -1080,6 +1111,73 @@ where
             iter += 1;
         }
         self.finish(status, it, iter, tm, t_start)
+    }
+
+    /// The largest steps `(α_p, α_d)` in `(0, 1]` that keep the slacks and the bound
+    /// multipliers a fraction `τ` away from zero.
+    fn max_step(&self, it: &Iterate<NX, NW, NC>, step: &Step<NX, NW, NC>, tau: f64) -> (f64, f64) {
+        let mut amax_p: f64 = 1.0;
+        let mut amax_d: f64 = 1.0;
+        for k in 0..self.n {
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    if step.dt_lo[k][i] < 0.0 {
+                        amax_p = amax_p.min(-tau * it.t_lo[k][i] / step.dt_lo[k][i]);
+                    }
+                    if step.dz_lo[k][i] < 0.0 {
+                        amax_d = amax_d.min(-tau * it.z_lo[k][i] / step.dz_lo[k][i]);
+                    }
+                }
+                if b.has_hi[i] > 0.0 {
+                    if step.dt_hi[k][i] < 0.0 {
+                        amax_p = amax_p.min(-tau * it.t_hi[k][i] / step.dt_hi[k][i]);
+                    }
+                    if step.dz_hi[k][i] < 0.0 {
+                        amax_d = amax_d.min(-tau * it.z_hi[k][i] / step.dz_hi[k][i]);
+                    }
+                }
+            }
+        }
+        (amax_p, amax_d)
+    }
+
+    /// The second-order correction step: the KKT system of the iterate (same curvature,
+    /// same inertia shift `delta`) with the residuals of the dynamics and the stage
+    /// equalities replaced by `α r(x) + r(x_trial)`. `None` if it cannot be solved.
+    #[allow(clippy::too_many_arguments)]
+    fn second_order_correction(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ders: &[StageDerivatives<NX, NW, NE, NC>],
+        qn: &[QuasiNewton<NX, NW, NE>],
+        trial_vals: &[StageValues<NX, NE, NC>],
+        trial: &Iterate<NX, NW, NC>,
+        alpha: f64,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+    ) -> Option<Step<NX, NW, NC>> {
+        let n = self.n;
+        let mut condensed: Vec<Result<_, String>> = (0..n).map(|_| Err(String::new())).collect();
+        par_fill(&mut condensed, self.opts.threads, |k| {
+            let mut d = ders[k].clone();
+            let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
+            d.f = it.x[k + 1] + r;
+            d.e = d.e * alpha + trial_vals[k].e;
+            self.condense(k, it, &d, qn.get(k), mu, dc)
+        });
+        let mut lq = Vec::with_capacity(n);
+        let mut elim = Vec::with_capacity(n);
+        for c in condensed {
+            let (stage, e) = c.ok()?;
+            lq.push(stage);
+            elim.push(e);
+        }
+        let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
+        self.add_state_equalities(n, it, dc, &mut q_n, &mut q_vec_n);
+        let sol = solve_lq(&lq, &q_n, &q_vec_n, &SVector::zeros(), delta).ok()?;
+        Some(self.recover(it, ders, &elim, sol, mu, dc))
     }
 
     /// If the problem declares its cost and inequalities affine in the state, check it at

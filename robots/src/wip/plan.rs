@@ -538,7 +538,17 @@ where
     P: StageProblem<NX, NW, NE, NC>,
 {
     let first = if second.is_some() { smoothed } else { exact };
-    let s0: Solver<_, NX, NW, NE, NU, NC> = Solver::new(first, opts);
+    // Phase one only has to bring phase two a start: phase two begins at μ = μ₀/100, so
+    // solving phase one far below that barrier is work thrown away (measured on the eight:
+    // 60 of its 137 iterations). It stops at tolerance 10 μ₀/100.
+    let phase_one = match &second {
+        Some(o) => IpOptions {
+            tol: (10.0 * o.warm_mu_init()).max(o.tol),
+            ..opts.clone()
+        },
+        None => opts.clone(),
+    };
+    let s0: Solver<_, NX, NW, NE, NU, NC> = Solver::new(first, phase_one);
     let r0 = s0.solve(s0.initial_iterate(xs, ws));
     let Some(o) = second.filter(|_| r0.status == dmech_ocp::ipm::Status::Solved) else {
         return outcome(r0, h, velocity_in_w);
@@ -563,6 +573,7 @@ fn merge<const NW: usize>(
     r.timings.line_search += r0.timings.line_search;
     r.timings.riccati += r0.timings.riccati;
     r.timings.factorizations += r0.timings.factorizations;
+    r.timings.second_order_corrections += r0.timings.second_order_corrections;
     r.timings.total += r0.timings.total;
     r
 }

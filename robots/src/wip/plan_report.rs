@@ -105,6 +105,7 @@ pub fn summary_json(
             "kkt": o.timings.kkt,
             "kkt_riccati": o.timings.riccati,
             "kkt_factorizations": o.timings.factorizations,
+            "second_order_corrections": o.timings.second_order_corrections,
             "line_search": o.timings.line_search
         }
     });
