@@ -11,8 +11,9 @@
 //! by a dual number in time along `(ṡ, v̇) = (v, 0)`.
 
 use crate::linalg::solve;
-use crate::partials::{dl_ds, dl_dv, dl_dxi, value_and_jacobian};
+use crate::partials::{dl_ds, dl_dxi, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
+use crate::variational::pulled_back_gradient;
 use crate::variational::StepError;
 use dmech_lie::{LieGroup, Real};
 use nalgebra::SVector;
@@ -67,32 +68,33 @@ where
     let at = a.transpose();
     let xi = -(a * v);
 
-    // 𝕄 = ∂/∂v [P(s, v, −A v) − Aᵀ μ(s, v, −A v)] at fixed s.
+    // 𝕄 = ∂/∂v [P(s, v, −A v) − Aᵀ μ(s, v, −A v)] at fixed s. `P − Aᵀμ` is the momentum
+    // paired with a shape variation ν along the constraint, the ν-gradient of
+    // ℓ(s, v + ν, ξ − Aν): one evaluation of ℓ, not one per partial.
     let sd = s.map(Dv::<T, NS>::from_re);
     let ad_ = a.map(Dv::<T, NS>::from_re);
-    let atd = at.map(Dv::<T, NS>::from_re);
     let (_, m) = value_and_jacobian(
         |vd: &SVector<Dv<T, NS>, NS>| {
             let xid = -(ad_ * vd);
-            dl_dv::<S, _, DOF, DIM, NS, NU>(sys, &sd, vd, &xid)
-                - atd * dl_dxi::<S, _, DOF, DIM, NS, NU>(sys, &sd, vd, &xid)
+            pulled_back_gradient::<S, _, DOF, DIM, NS, NU>(sys, &sd, 0.0, vd, &xid, &(-ad_))
         },
         v,
     );
 
-    // Time derivatives of P and μ along (ṡ, v̇) = (v, 0), by a dual number in time.
+    // Time derivative of P − A(s₀)ᵀμ along (ṡ, v̇) = (v, 0), by a dual number in time.
     let st = SVector::<Dual<T>, NS>::from_fn(|i, _| Dual::new(s[i], v[i]));
     let vt = v.map(Dual::from_re);
     let xit = -(sys.connection(&st) * vt);
-    let p_dot = dl_dv::<S, _, DOF, DIM, NS, NU>(sys, &st, &vt, &xit).map(|z| z.eps);
-    let mu_t = dl_dxi::<S, _, DOF, DIM, NS, NU>(sys, &st, &vt, &xit);
-    let mu_dot = mu_t.map(|z| z.eps);
-    let mu = mu_t.map(|z| z.re);
+    let a0 = a.map(Dual::from_re);
+    let momentum_dot =
+        pulled_back_gradient::<S, _, DOF, DIM, NS, NU>(sys, &st, 0.0, &vt, &xit, &(-a0))
+            .map(|z| z.eps);
+    let mu = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
 
     let ls = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
     let ad = <S::Group<T> as LieGroup<DOF, DIM>>::ad(&xi);
     let f = sys.forcing(s, v, u) + f_ext;
-    let r0 = p_dot - at * mu_dot + at * (ad.transpose() * mu) - ls - f;
+    let r0 = momentum_dot + at * (ad.transpose() * mu) - ls - f;
     solve(&m, &(-r0))
 }
 

@@ -53,7 +53,7 @@ impl std::str::FromStr for ForcingQuadrature {
 
 /// `∇_ν ℓ(s + c ν, v + ν, ξ + D ν)` at `ν = 0`: the momentum paired with a shape variation
 /// `ν`, one vector-dual evaluation of `ℓ` (not one per partial). `c = 0` leaves `s` fixed.
-fn pulled_back_gradient<
+pub(crate) fn pulled_back_gradient<
     S,
     T,
     const DOF: usize,

@@ -1,14 +1,16 @@
 //! One stage of the planner's VI transcription of the WIP (the eight's start, stage 700):
 //! values; the stage equality's Jacobian by the structured route (each block seeded alone,
 //! only the terms that read it) and by the generic one (all of `x`, then all of `w`
-//! seeded); and everything the solver takes per stage and iteration.
+//! seeded); and everything the solver takes per stage and iteration, for the VI and for
+//! RK1.
 use criterion::{criterion_group, criterion_main, Criterion};
+use dmech::continuous::RungeKutta;
 use dmech::partials::seeded;
 use dmech_ocp::derivatives::{stage_derivatives, stage_values};
 use nalgebra::SVector;
 use num_dual::DualSVec64;
 use robots::wip::benchmarks::eight;
-use robots::wip::plan::{varint_start, PlanBounds, VarIntPlan};
+use robots::wip::plan::{rk_start, varint_start, PlanBounds, RkPlan, VarIntPlan};
 use robots::wip::Wip;
 use std::hint::black_box;
 
@@ -42,6 +44,12 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("stage_derivatives", |b| {
         b.iter(|| stage_derivatives(&plan, 700, black_box(&x), &w, &zeta, None))
+    });
+    let rk1 = RkPlan::new(&wip, &p, PlanBounds::default(), RungeKutta::Rk1);
+    let (xr, wr) = rk_start(&wip, &p);
+    let (x1, w1) = (xr[700], wr[700]);
+    g.bench_function("stage_derivatives_rk1", |b| {
+        b.iter(|| stage_derivatives(&rk1, 700, black_box(&x1), &w1, &zeta, None))
     });
     g.finish();
 }
