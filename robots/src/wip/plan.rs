@@ -396,7 +396,17 @@ pub fn varint_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<S
 
 /// The RK start: [`start_states`] with `v_k` in the state, `u = 0`.
 pub fn rk_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 2>>) {
-    let (xs, _) = start_states(wip, p, 0);
+    let (mut xs, _) = start_states(wip, p, 0);
+    // The currents on their slow manifold for u = 0, i = −k_e n_wm (φ̇ − α̇)/R_m. The current
+    // is stiff (h R_m/L_m = 18.75 at h = 5 ms): an explicit step from i = 0 amplifies the
+    // mismatch by |R(−hR/L)| (4,200 for RK4), which left RK4 a start violation of 1e4.
+    let q = &wip.params;
+    let gain = q.k_e * q.n_wm / q.R_m;
+    for x in xs.iter_mut() {
+        let va = x[V_AT];
+        x[V_AT + 3] = -gain * (x[V_AT + 1] - va);
+        x[V_AT + 4] = -gain * (x[V_AT + 2] - va);
+    }
     let n = p.n;
     (xs, vec![SVector::zeros(); n])
 }
