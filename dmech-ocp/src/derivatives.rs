@@ -139,21 +139,13 @@ where
     let xd = seed(x);
     let wc = w.map(DualSVec64::<NX>::from_re);
     let f_d = p.dynamics(k, &xd, &wc);
-    let e_own = p.equality_jacobian(k, x, w);
-    let e_d = match e_own {
-        Some(_) => SVector::zeros(),
-        None => p.equality(k, &xd, &wc),
-    };
+    let (e, ex, ew) = p.equality_jacobian(k, x, w);
     let l_d = p.cost(k, &xd, &wc);
     let c_d = p.constraints(k, &xd, &wc);
     // Pass seeded in w.
     let xc = x.map(DualSVec64::<NW>::from_re);
     let wd = seed(w);
     let f_w = p.dynamics(k, &xc, &wd);
-    let e_w = match e_own {
-        Some(_) => SVector::zeros(),
-        None => p.equality(k, &xc, &wd),
-    };
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
 
@@ -161,9 +153,9 @@ where
         f: f_d.map(|d| d.re),
         fx: SMatrix::from_fn(|i, j| grad(&f_d[i])[j]),
         fw: SMatrix::from_fn(|i, j| grad(&f_w[i])[j]),
-        e: e_d.map(|d| d.re),
-        ex: SMatrix::from_fn(|i, j| grad(&e_d[i])[j]),
-        ew: SMatrix::from_fn(|i, j| grad(&e_w[i])[j]),
+        e,
+        ex,
+        ew,
         cost: l_d.re,
         gx: grad(&l_d),
         gw: grad(&l_w),
@@ -174,9 +166,6 @@ where
         hxw: SMatrix::zeros(),
         hww: SMatrix::zeros(),
     };
-    if let Some((e, ex, ew)) = e_own {
-        (d.e, d.ex, d.ew) = (e, ex, ew);
-    }
     let mult: Multipliers<NX, NE> = lambda.map(|lam| {
         (
             lam,
@@ -198,40 +187,12 @@ where
     if mult.is_none() && p.affine_in_state() {
         return d;
     }
-    let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
-        p,
-        k,
-        zeta,
-        &mult,
-        &seed2(x),
-        &w.map(Dual2SVec64::<NX>::from_re),
-    ));
-    let xh: SVector<HyperDualSVec64<NX, NW>, NX> = SVector::from_fn(|i, _| {
-        let mut e = SVector::<f64, NX>::zeros();
-        e[i] = 1.0;
-        let mut h = HyperDualSVec64::<NX, NW>::from_re(x[i]);
-        h.eps1 = Derivative::some(e);
-        h
-    });
-    let wh: SVector<HyperDualSVec64<NX, NW>, NW> = SVector::from_fn(|i, _| {
-        let mut e = SMatrix::<f64, 1, NW>::zeros();
-        e[i] = 1.0;
-        let mut h = HyperDualSVec64::<NX, NW>::from_re(w[i]);
-        h.eps2 = Derivative::some(e);
-        h
-    });
-    let hxw = phi::<P, _, NX, NW, NE, NC>(p, k, zeta, &mult, &xh, &wh)
-        .eps1eps2
-        .0
-        .unwrap_or_else(SMatrix::zeros);
-
-    d.hxx = hxx;
-    d.hxw = hxw;
+    (d.hxx, d.hxw) = state_blocks(p, k, zeta, &mult, x, w);
     d
 }
 
-/// The `xx` and `xw` blocks of the Hessian of `ℓ_k + ζᵀc_k` at `(x, w)`, by the generic
-/// passes: what [`StageProblem::affine_in_state`] declares to be zero.
+/// The `xx` and `xw` blocks of the Hessian of `ℓ_k + ζᵀc_k` at `(x, w)`: what
+/// [`StageProblem::affine_in_state`] declares to be zero.
 pub fn state_curvature<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
     p: &P,
     k: usize,
@@ -242,12 +203,26 @@ pub fn state_curvature<P, const NX: usize, const NW: usize, const NE: usize, con
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
-    let none: Multipliers<NX, NE> = None;
+    state_blocks(p, k, zeta, &None, x, w)
+}
+
+/// The `xx` (by `Dual2`) and `xw` (by hyper-duals) blocks of the Hessian of [`phi`].
+fn state_blocks<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+    p: &P,
+    k: usize,
+    zeta: &SVector<f64, NC>,
+    mult: &Multipliers<NX, NE>,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+) -> (SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>)
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
     let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
         p,
         k,
         zeta,
-        &none,
+        mult,
         &seed2(x),
         &w.map(Dual2SVec64::<NX>::from_re),
     ));
@@ -265,7 +240,7 @@ where
         h.eps2 = Derivative::some(e);
         h
     });
-    let hxw = phi::<P, _, NX, NW, NE, NC>(p, k, zeta, &none, &xh, &wh)
+    let hxw = phi::<P, _, NX, NW, NE, NC>(p, k, zeta, mult, &xh, &wh)
         .eps1eps2
         .0
         .unwrap_or_else(SMatrix::zeros);

@@ -147,18 +147,7 @@ pub struct SolveResult<const NX: usize, const NW: usize, const NC: usize> {
 
 /// Split `0..n` over `threads` workers and fill `out[k] = f(k)`.
 fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads: usize, f: F) {
-    let n = out.len();
-    let chunk = n.div_ceil(threads.max(1)).max(1);
-    std::thread::scope(|sc| {
-        for (ci, part) in out.chunks_mut(chunk).enumerate() {
-            let f = &f;
-            sc.spawn(move || {
-                for (j, slot) in part.iter_mut().enumerate() {
-                    *slot = f(ci * chunk + j);
-                }
-            });
-        }
-    });
+    par_update(out, threads, |k, slot| *slot = f(k));
 }
 
 /// `f(k, &mut items[k])` for every `k`, on `threads` scoped threads.
@@ -848,24 +837,11 @@ where
 
             // KKT solve.
             let t1 = Instant::now();
-            let mut condensed: Vec<Result<_, String>> =
-                (0..n).map(|_| Err(String::new())).collect();
-            par_fill(&mut condensed, o.threads, |k| {
-                self.condense(k, &it, &ders[k], qn.get(k), mu, dc)
-            });
-            let mut lq = Vec::with_capacity(n);
-            let mut elim = Vec::with_capacity(n);
-            for c in condensed {
-                match c {
-                    Ok((stage, e)) => {
-                        lq.push(stage);
-                        elim.push(e);
-                    }
-                    Err(e) => {
-                        return self.finish(Status::Failed(e), it, iter, tm, t_start);
-                    }
-                }
-            }
+            let (lq, elim) =
+                match self.condense_all(|k| self.condense(k, &it, &ders[k], qn.get(k), mu, dc)) {
+                    Ok(c) => c,
+                    Err(e) => return self.finish(Status::Failed(e), it, iter, tm, t_start),
+                };
             let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
             self.add_state_equalities(n, &it, dc, &mut q_n, &mut q_vec_n);
             let mut delta = 0.0;
@@ -1142,6 +1118,24 @@ where
         (amax_p, amax_d)
     }
 
+    /// Every stage condensed by `stage(k)`, in parallel; the first error if any.
+    #[allow(clippy::type_complexity)]
+    fn condense_all<F>(
+        &self,
+        stage: F,
+    ) -> Result<(Vec<LqStage<NX, NU>>, Vec<Elimination<NX, NW, NU>>), String>
+    where
+        F: Fn(usize) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> + Sync,
+    {
+        let mut condensed: Vec<Result<_, String>> =
+            (0..self.n).map(|_| Err(String::new())).collect();
+        par_fill(&mut condensed, self.opts.threads, stage);
+        condensed
+            .into_iter()
+            .collect::<Result<Vec<_>, _>>()
+            .map(|v| v.into_iter().unzip())
+    }
+
     /// The second-order correction step: the KKT system of the iterate (same curvature,
     /// same inertia shift `delta`) with the residuals of the dynamics and the stage
     /// equalities replaced by `α r(x) + r(x_trial)`. `None` if it cannot be solved.
@@ -1159,21 +1153,15 @@ where
         delta: f64,
     ) -> Option<Step<NX, NW, NC>> {
         let n = self.n;
-        let mut condensed: Vec<Result<_, String>> = (0..n).map(|_| Err(String::new())).collect();
-        par_fill(&mut condensed, self.opts.threads, |k| {
-            let mut d = ders[k].clone();
-            let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
-            d.f = it.x[k + 1] + r;
-            d.e = d.e * alpha + trial_vals[k].e;
-            self.condense(k, it, &d, qn.get(k), mu, dc)
-        });
-        let mut lq = Vec::with_capacity(n);
-        let mut elim = Vec::with_capacity(n);
-        for c in condensed {
-            let (stage, e) = c.ok()?;
-            lq.push(stage);
-            elim.push(e);
-        }
+        let (lq, elim) = self
+            .condense_all(|k| {
+                let mut d = ders[k].clone();
+                let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
+                d.f = it.x[k + 1] + r;
+                d.e = d.e * alpha + trial_vals[k].e;
+                self.condense(k, it, &d, qn.get(k), mu, dc)
+            })
+            .ok()?;
         let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
         self.add_state_equalities(n, it, dc, &mut q_n, &mut q_vec_n);
         let sol = solve_lq(&lq, &q_n, &q_vec_n, &SVector::zeros(), delta).ok()?;

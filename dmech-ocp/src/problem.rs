@@ -17,6 +17,7 @@
 //! Every function is generic over the scalar: the solver takes exact derivatives with
 //! dual numbers. Nothing here knows about a particular robot.
 
+use dmech::partials::{grad_part, lift_vec, seeded};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 
@@ -58,16 +59,23 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     fn affine_in_state(&self) -> bool {
         false
     }
-    /// `(e, E_x, E_w)` of the stage equality by an exact route cheaper than seeding all of
-    /// `(x, w)` (e.g. [`crate::varint::VarIntStages::equality_jacobian`]). `None`, the
-    /// default: the solver differentiates [`StageProblem::equality`] itself.
+    /// `(e, E_x, E_w)` of the stage equality, exact. The default differentiates
+    /// [`StageProblem::equality`] by two vector-dual passes (seeded in `x`, then in `w`); a
+    /// problem with a cheaper exact route overrides it (e.g.
+    /// [`crate::varint::VarIntStages::equality_jacobian`]).
     #[allow(clippy::type_complexity)]
     fn equality_jacobian(
         &self,
-        _k: usize,
-        _x: &SVector<f64, NX>,
-        _w: &SVector<f64, NW>,
-    ) -> Option<(SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>)> {
-        None
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
+        let ex = self.equality(k, &seeded(x), &lift_vec::<f64, NX, NW>(w));
+        let ew = self.equality(k, &lift_vec::<f64, NW, NX>(x), &seeded(w));
+        (
+            ex.map(|d| d.re),
+            SMatrix::from_fn(|i, j| grad_part(&ex[i])[j]),
+            SMatrix::from_fn(|i, j| grad_part(&ew[i])[j]),
+        )
     }
 }

@@ -9,7 +9,7 @@
 //! At `k = 0`, `v_{−1} = 0`, `u_{−1} = 0` says the robot was at rest before the start.
 
 use crate::layout::{segment, Layout};
-use dmech::partials::{grad_part, seeded};
+use dmech::partials::{grad_part, lift_vec, seeded};
 use dmech::variational::{
     discrete_force, incoming_momentum, momentum_matching_residual, outgoing_momentum,
 };
@@ -211,7 +211,6 @@ impl<'a, S> VarIntStages<'a, S> {
         let u_prev: SVector<f64, NU> = segment(x, l.u_at());
         let v: SVector<f64, NS> = segment(w, 0);
         let u: SVector<f64, NU> = segment(w, NS);
-        let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
         let mut ex = SMatrix::<f64, NS, NX>::zeros();
         let mut ew = SMatrix::<f64, NS, NW>::zeros();
         let (left, right) = match self.quadrature {
@@ -219,101 +218,83 @@ impl<'a, S> VarIntStages<'a, S> {
             ForcingQuadrature::Right => (false, true),
             ForcingQuadrature::Midpoint => (true, true),
         };
-        type Ds<const N: usize> = DualSVec64<N>;
-        let c_ns = |z: &SVector<f64, NS>| z.map(Ds::<NS>::from_re);
-        let c_nu = |z: &SVector<f64, NU>| z.map(Ds::<NU>::from_re);
-        let c_ns_u = |z: &SVector<f64, NS>| z.map(Ds::<NU>::from_re);
-        let mut put = |col: usize, in_x: bool, r: &SVector<Ds<NS>, NS>| {
-            for i in 0..NS {
-                let g = grad_part(&r[i]);
-                for j in 0..NS {
-                    if in_x {
-                        ex[(i, col + j)] = g[j];
-                    } else {
-                        ew[(i, col + j)] = g[j];
-                    }
-                }
-            }
+        let terms = |outgoing, incoming, force| Terms {
+            outgoing,
+            incoming,
+            force,
         };
+        // The value as the line search measures it (`equality` in f64): the residual the
+        // Newton step removes must be the one the filter sees, to the last bit (the s-pass's
+        // real parts differ by round-off, and the iteration count is sensitive to it).
+        let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
         // s_k: every term.
-        let all = Terms {
-            outgoing: true,
-            incoming: true,
-            force: true,
-        };
         let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
-            all,
+            terms(true, true, true),
             &seeded(&s),
-            &c_ns(&v_prev),
-            &u_prev.map(Ds::<NS>::from_re),
-            &c_ns(&v),
-            &u.map(Ds::<NS>::from_re),
+            &lift_vec(&v_prev),
+            &lift_vec(&u_prev),
+            &lift_vec(&v),
+            &lift_vec(&u),
         );
-        put(l.s_at(), true, &r);
+        put_columns(&mut ex, l.s_at(), &r);
         // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
-        let terms = Terms {
-            outgoing: false,
-            incoming: true,
-            force: left,
-        };
         let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
-            terms,
-            &c_ns(&s),
+            terms(false, true, left),
+            &lift_vec(&s),
             &seeded(&v_prev),
-            &u_prev.map(Ds::<NS>::from_re),
-            &c_ns(&v),
-            &u.map(Ds::<NS>::from_re),
+            &lift_vec(&u_prev),
+            &lift_vec(&v),
+            &lift_vec(&u),
         );
-        put(l.v_at(), true, &r);
+        put_columns(&mut ex, l.v_at(), &r);
         // v_k: the outgoing momentum, and the force if it reads the current interval.
-        let terms = Terms {
-            outgoing: true,
-            incoming: false,
-            force: right,
-        };
         let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
-            terms,
-            &c_ns(&s),
-            &c_ns(&v_prev),
-            &u_prev.map(Ds::<NS>::from_re),
+            terms(true, false, right),
+            &lift_vec(&s),
+            &lift_vec(&v_prev),
+            &lift_vec(&u_prev),
             &seeded(&v),
-            &u.map(Ds::<NS>::from_re),
+            &lift_vec(&u),
         );
-        put(0, false, &r);
+        put_columns(&mut ew, 0, &r);
         // The inputs enter through the force only.
-        let force = Terms {
-            outgoing: false,
-            incoming: false,
-            force: true,
-        };
-        for (seed_prev, at, in_x) in [(true, l.u_at(), true), (false, NS, false)] {
-            if (seed_prev && !left) || (!seed_prev && !right) {
-                continue;
-            }
-            let (up, uk) = if seed_prev {
-                (seeded(&u_prev), c_nu(&u))
-            } else {
-                (c_nu(&u_prev), seeded(&u))
-            };
+        if left {
             let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
-                force,
-                &c_ns_u(&s),
-                &c_ns_u(&v_prev),
-                &up,
-                &c_ns_u(&v),
-                &uk,
+                terms(false, false, true),
+                &lift_vec(&s),
+                &lift_vec(&v_prev),
+                &seeded(&u_prev),
+                &lift_vec(&v),
+                &lift_vec(&u),
             );
-            for i in 0..NS {
-                let g = grad_part(&r[i]);
-                for j in 0..NU {
-                    if in_x {
-                        ex[(i, at + j)] = g[j];
-                    } else {
-                        ew[(i, at + j)] = g[j];
-                    }
-                }
-            }
+            put_columns(&mut ex, l.u_at(), &r);
+        }
+        if right {
+            let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
+                terms(false, false, true),
+                &lift_vec(&s),
+                &lift_vec(&v_prev),
+                &lift_vec(&u_prev),
+                &lift_vec(&v),
+                &seeded(&u),
+            );
+            put_columns(&mut ew, NS, &r);
         }
         (e, ex, ew)
+    }
+}
+
+/// Writes the gradients of `r` (a pass seeded in `N` variables) into columns
+/// `col .. col + N` of `m`.
+fn put_columns<const R: usize, const C: usize, const N: usize>(
+    m: &mut SMatrix<f64, R, C>,
+    col: usize,
+    r: &SVector<DualSVec64<N>, R>,
+) {
+    for i in 0..R {
+        let g = grad_part(&r[i]);
+        for j in 0..N {
+            m[(i, col + j)] = g[j];
+        }
     }
 }

@@ -11,9 +11,8 @@
 //! by a dual number in time along `(ṡ, v̇) = (v, 0)`.
 
 use crate::linalg::solve;
-use crate::partials::{dl_ds, dl_dxi, value_and_jacobian};
+use crate::partials::{dl_ds, dl_dxi, pulled_back_gradient, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
-use crate::variational::pulled_back_gradient;
 use crate::variational::StepError;
 use dmech_lie::{LieGroup, Real};
 use nalgebra::SVector;
@@ -59,10 +58,8 @@ where
     Dv<T, NS>: Lift<S::Param>,
     Dv<T, DOF>: Lift<S::Param>,
     Dv<Dv<T, NS>, NS>: Lift<S::Param>,
-    Dv<Dv<T, NS>, DOF>: Lift<S::Param>,
     Dual<T>: Lift<S::Param>,
     Dv<Dual<T>, NS>: Lift<S::Param>,
-    Dv<Dual<T>, DOF>: Lift<S::Param>,
 {
     let a = sys.connection(s);
     let at = a.transpose();

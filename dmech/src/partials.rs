@@ -7,12 +7,15 @@
 
 use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::Real;
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, DualVec};
 
 type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 
-fn lift_vec<T: Real, const N: usize, const M: usize>(x: &SVector<T, M>) -> SVector<Dv<T, N>, M> {
+/// `x` as vector duals with no derivative part (constants of a gradient pass).
+pub fn lift_vec<T: Real, const N: usize, const M: usize>(
+    x: &SVector<T, M>,
+) -> SVector<Dv<T, N>, M> {
     x.map(Dv::<T, N>::from_re)
 }
 
@@ -39,6 +42,51 @@ pub fn value_and_jacobian<T: Real, const N: usize, const M: usize>(
     let val = y.map(|z| z.re);
     let jac = nalgebra::SMatrix::<T, M, N>::from_fn(|i, j| grad_part(&y[i])[j]);
     (val, jac)
+}
+
+/// `∇_ν ℓ(s + c ν, v + ν, ξ + D ν)` at `ν = 0`: the momentum paired with a shape variation
+/// `ν`, one vector-dual evaluation of `ℓ` (not one per partial). `c = 0` leaves `s` fixed.
+/// With `c = −h`, `D = −dexp⁻¹(hξ)A` it is the discrete momentum leaving a node; with
+/// `c = 0`, `D = −A` the continuous `P − Aᵀμ`.
+pub fn pulled_back_gradient<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    s: &SVector<T, NS>,
+    c: f64,
+    v: &SVector<T, NS>,
+    xi: &SVector<T, DOF>,
+    d: &SMatrix<T, DOF, NS>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+{
+    // The inputs as vector duals in ν, built directly (their ν-derivatives are `c eᵢ`,
+    // `eᵢ` and the rows of `D`): no dual arithmetic before ℓ itself.
+    let unit = |i: usize, scale: T| {
+        let mut e = SVector::<T, NS>::zeros();
+        e[i] = scale;
+        Derivative::some(e)
+    };
+    let sd = SVector::<Dv<T, NS>, NS>::from_fn(|i, _| {
+        if c == 0.0 {
+            Dv::<T, NS>::from_re(s[i])
+        } else {
+            DualVec::new(s[i], unit(i, T::from(c)))
+        }
+    });
+    let vd = SVector::<Dv<T, NS>, NS>::from_fn(|i, _| DualVec::new(v[i], unit(i, T::one())));
+    let xid = SVector::<Dv<T, NS>, DOF>::from_fn(|i, _| {
+        DualVec::new(xi[i], Derivative::some(d.row(i).transpose()))
+    });
+    grad_part(&sys.reduced_lagrangian(&sd, &vd, &xid))
 }
 
 /// `∂ℓ/∂s` at `(s, v, ξ)`.

@@ -13,11 +13,11 @@
 //! `dmech-lie`, and `F̄_k` the discrete force of the chosen [`ForcingQuadrature`].
 
 use crate::linalg::Lu;
-use crate::partials::{grad_part, momenta_and_jacobians, value_and_jacobian};
+use crate::partials::{momenta_and_jacobians, pulled_back_gradient, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
-use dmech_lie::{LieGroup, Real};
+use dmech_lie::LieGroup;
 use nalgebra::{SMatrix, SVector};
-use num_dual::{Derivative, DualSVec64, DualVec};
+use num_dual::{DualSVec64, DualVec};
 use std::fmt;
 
 type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
@@ -51,49 +51,6 @@ impl std::str::FromStr for ForcingQuadrature {
     }
 }
 
-/// `∇_ν ℓ(s + c ν, v + ν, ξ + D ν)` at `ν = 0`: the momentum paired with a shape variation
-/// `ν`, one vector-dual evaluation of `ℓ` (not one per partial). `c = 0` leaves `s` fixed.
-pub(crate) fn pulled_back_gradient<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
-    sys: &S,
-    s: &SVector<T, NS>,
-    c: f64,
-    v: &SVector<T, NS>,
-    xi: &SVector<T, DOF>,
-    d: &SMatrix<T, DOF, NS>,
-) -> SVector<T, NS>
-where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
-    T: Lift<S::Param>,
-    Dv<T, NS>: Lift<S::Param>,
-{
-    // The inputs as vector duals in ν, built directly (their ν-derivatives are `c eᵢ`,
-    // `eᵢ` and the rows of `D`): no dual arithmetic before ℓ itself.
-    let unit = |i: usize, scale: T| {
-        let mut e = SVector::<T, NS>::zeros();
-        e[i] = scale;
-        Derivative::some(e)
-    };
-    let sd = SVector::<Dv<T, NS>, NS>::from_fn(|i, _| {
-        if c == 0.0 {
-            Dv::<T, NS>::from_re(s[i])
-        } else {
-            DualVec::new(s[i], unit(i, T::from(c)))
-        }
-    });
-    let vd = SVector::<Dv<T, NS>, NS>::from_fn(|i, _| DualVec::new(v[i], unit(i, T::one())));
-    let xid = SVector::<Dv<T, NS>, DOF>::from_fn(|i, _| {
-        DualVec::new(xi[i], Derivative::some(d.row(i).transpose()))
-    });
-    grad_part(&sys.reduced_lagrangian(&sd, &vd, &xid))
-}
-
 /// The terms of the momentum-matching equation at node `k` that belong to the interval
 /// *before* it: `∂ℓ_{k−1}/∂v − A(s_k)ᵀ dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}` (the discrete momentum
 /// arriving at node `k`). `a_k = A(s_k)`. One evaluation of `ℓ` along the variation
@@ -117,42 +74,16 @@ where
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    let (xi_prev, d) = incoming_variation::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, a_k);
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
-}
-
-/// `ξ_{k−1}` and the `ξ`-part `−dexp⁻¹(−hξ_{k−1}) A(s_k)` of the incoming variation.
-fn incoming_variation<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
-    sys: &S,
-    h: f64,
-    s_prev: &SVector<T, NS>,
-    v_prev: &SVector<T, NS>,
-    a_k: &SMatrix<T, DOF, NS>,
-) -> (SVector<T, DOF>, SMatrix<T, DOF, NS>)
-where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
-    T: Lift<S::Param>,
-{
     let xi_prev = -(sys.connection(s_prev) * v_prev);
     let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * T::from(-h)));
-    (xi_prev, -(dinv * a_k))
-}
-
-/// `ξ_k = −A(s_k) v_k` and the `ξ`-part `−dexp⁻¹(hξ_k) A(s_k)` of the outgoing variation.
-fn outgoing_variation<
-    T: Real,
-    G: LieGroup<DOF, DIM, Scalar = T>,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
->(
-    h: f64,
-    v_k: &SVector<T, NS>,
-    a_k: &SMatrix<T, DOF, NS>,
-) -> (SVector<T, DOF>, SMatrix<T, DOF, NS>) {
-    let xi_k = -(a_k * v_k);
-    let dinv = G::dexp_inv(&(xi_k * T::from(h)));
-    (xi_k, -(dinv * a_k))
+    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(
+        sys,
+        s_prev,
+        0.0,
+        v_prev,
+        &xi_prev,
+        &(-(dinv * a_k)),
+    )
 }
 
 /// The terms of the momentum-matching equation at node `k` that belong to the interval
@@ -178,8 +109,9 @@ where
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    let (xi_k, d) = outgoing_variation::<T, S::Group<T>, DOF, DIM, NS>(h, v_k, a_k);
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_k, -h, v_k, &xi_k, &d)
+    let xi_k = -(a_k * v_k);
+    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * T::from(h)));
+    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_k, -h, v_k, &xi_k, &(-(dinv * a_k)))
 }
 
 /// The discrete force at node `k` for the chosen quadrature.
@@ -242,7 +174,6 @@ where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
-    Dv<T, DOF>: Lift<S::Param>,
 {
     let a_k = sys.connection(s_k);
     let inc = incoming_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, &a_k);

@@ -90,6 +90,14 @@ impl<P: Copy> WipParams<P> {
     }
 }
 
+impl<P: dmech_lie::Real> WipParams<P> {
+    /// The motor current at steady state, `L_m i̇ = u − R_m i − k_e n_wm w` with `i̇ = 0`, for
+    /// the voltage `u` at the wheel's rate relative to the body `w = φ̇ − α̇`.
+    pub fn steady_current(&self, u: P, w: P) -> P {
+        (u - self.k_e * self.n_wm * w) / self.R_m
+    }
+}
+
 impl WipParams<f64> {
     /// The parameters with their file keys.
     pub fn named_mut(&mut self) -> [(&'static str, &mut f64); 22] {

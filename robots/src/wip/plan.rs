@@ -168,8 +168,8 @@ impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
         _k: usize,
         x: &SVector<f64, NX>,
         w: &SVector<f64, 7>,
-    ) -> Option<(SVector<f64, 5>, SMatrix<f64, 5, NX>, SMatrix<f64, 5, 7>)> {
-        Some(self.stages.equality_jacobian::<3, 2, 5, 2, NX, 7>(x, w))
+    ) -> (SVector<f64, 5>, SMatrix<f64, 5, NX>, SMatrix<f64, 5, 7>) {
+        self.stages.equality_jacobian::<3, 2, 5, 2, NX, 7>(x, w)
     }
     fn cost<T: Real>(&self, _k: usize, _x: &SVector<T, NX>, w: &SVector<T, 7>) -> T {
         (w[5] * w[3] + w[6] * w[4]) * 0.5
@@ -397,15 +397,14 @@ pub fn varint_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<S
 /// The RK start: [`start_states`] with `v_k` in the state, `u = 0`.
 pub fn rk_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 2>>) {
     let (mut xs, _) = start_states(wip, p, 0);
-    // The currents on their slow manifold for u = 0, i = −k_e n_wm (φ̇ − α̇)/R_m. The current
-    // is stiff (h R_m/L_m = 18.75 at h = 5 ms): an explicit step from i = 0 amplifies the
-    // mismatch by |R(−hR/L)| (4,200 for RK4), which left RK4 a start violation of 1e4.
+    // The currents on their slow manifold for u = 0 (steady state). The current is stiff
+    // (h R_m/L_m = 18.75 at h = 5 ms): an explicit step from i = 0 amplifies the mismatch by
+    // |R(−hR/L)| (4,200 for RK4), which left RK4 a start violation of 1e4.
     let q = &wip.params;
-    let gain = q.k_e * q.n_wm / q.R_m;
     for x in xs.iter_mut() {
         let va = x[V_AT];
-        x[V_AT + 3] = -gain * (x[V_AT + 1] - va);
-        x[V_AT + 4] = -gain * (x[V_AT + 2] - va);
+        x[V_AT + 3] = q.steady_current(0.0, x[V_AT + 1] - va);
+        x[V_AT + 4] = q.steady_current(0.0, x[V_AT + 2] - va);
     }
     let n = p.n;
     (xs, vec![SVector::zeros(); n])

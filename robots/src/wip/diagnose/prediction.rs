@@ -56,8 +56,7 @@ impl<T: FitScalar> Predictor<T> {
     /// body `w = φ̇ − α̇`.
     pub fn current(&self, u: [T; 2], w: [T; 2]) -> [T; 2] {
         let p = &self.sys.params;
-        let ke = p.k_e * p.n_wm;
-        [(u[0] - ke * w[0]) / p.R_m, (u[1] - ke * w[1]) / p.R_m]
+        [p.steady_current(u[0], w[0]), p.steady_current(u[1], w[1])]
     }
 
     /// `ż` for applied voltages `u` (after the driver).
