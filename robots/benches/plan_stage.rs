@@ -9,6 +9,7 @@ use dmech::partials::seeded;
 use dmech_ocp::derivatives::{stage_derivatives, stage_values};
 use nalgebra::SVector;
 use num_dual::DualSVec64;
+use robots::wip::algebraic_current::WipAlgebraicCurrent;
 use robots::wip::benchmarks::eight;
 use robots::wip::plan::{rk_start, varint_start, PlanBounds, RkPlan, VarIntPlan};
 use robots::wip::Wip;
@@ -17,8 +18,8 @@ use std::hint::black_box;
 fn bench(c: &mut Criterion) {
     let wip = Wip::default();
     let p = eight(0.005);
-    let (xs, ws) = varint_start(&wip, &p);
-    let plan = VarIntPlan::new(&wip, &p, PlanBounds::default());
+    let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
+    let plan = VarIntPlan::<_, 5>::new(&wip, &p, PlanBounds::default());
     let (x, w) = (xs[700], ws[700]);
     let zeta = SVector::<f64, 8>::repeat(0.1);
     let st = &plan.stages;
@@ -45,11 +46,19 @@ fn bench(c: &mut Criterion) {
     g.bench_function("stage_derivatives", |b| {
         b.iter(|| stage_derivatives(&plan, 700, black_box(&x), &w, &zeta, None))
     });
-    let rk1 = RkPlan::new(&wip, &p, PlanBounds::default(), RungeKutta::Rk1);
-    let (xr, wr) = rk_start(&wip, &p);
+    let rk1 = RkPlan::<_, 5>::new(&wip, &p, PlanBounds::default(), RungeKutta::Rk1);
+    let (xr, wr) = rk_start::<Wip, 5, 15>(&wip, &p);
     let (x1, w1) = (xr[700], wr[700]);
     g.bench_function("stage_derivatives_rk1", |b| {
         b.iter(|| stage_derivatives(&rk1, 700, black_box(&x1), &w1, &zeta, None))
+    });
+    // The algebraic-current model (NS = 3, NX = 11): the VI stage.
+    let alg = WipAlgebraicCurrent::new(wip);
+    let (xa, wa) = varint_start::<_, 3, 11, 5>(&alg, &p);
+    let plan_a = VarIntPlan::<_, 3>::new(&alg, &p, PlanBounds::default());
+    let (x2, w2) = (xa[700], wa[700]);
+    g.bench_function("stage_derivatives_algebraic", |b| {
+        b.iter(|| stage_derivatives(&plan_a, 700, black_box(&x2), &w2, &zeta, None))
     });
     g.finish();
 }

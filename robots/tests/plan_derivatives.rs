@@ -20,7 +20,7 @@ const ROUND_OFF: f64 = 512.0 * f64::EPSILON;
 fn structured_equality_jacobian_equals_generic() {
     let wip = Wip::default();
     let p = eight(0.005);
-    let (xs, ws) = varint_start(&wip, &p);
+    let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
     let mut seed = 12345u64;
     let mut rand = move || {
         seed = seed

@@ -293,3 +293,59 @@ fn closed_form_with_extensions_equals_generic_path() {
     println!("worst relative difference: values {worst:.3e}, derivatives {worst_d:.3e}");
     assert!(worst < 1e-10 && worst_d < 1e-10);
 }
+
+/// The algebraic-current model (`NS = 3`, its own ℓ, A and forcing) through the generic
+/// path equals (a) the full model's mechanical accelerations with the currents at their
+/// steady state `i = (u − k_e n_wm (φ̇ − α̇))/R_m` (the mass matrix has no current–mechanics
+/// block, so `L_m` does not enter them), and (b) the hand-derived closed form with those
+/// currents, at 500 random states and inputs. Tolerance as above, ε·κ with κ ≈ 1e4.
+#[test]
+fn algebraic_current_model_equals_full_model_at_steady_current() {
+    use robots::wip::algebraic_current::WipAlgebraicCurrent;
+    use robots::wip::closed_form::shape_acceleration;
+    let full = Wip::default();
+    let alg = WipAlgebraicCurrent::new(full);
+    let p = full.params;
+    let mut rng = Lcg(31);
+    let mut worst: f64 = 0.0;
+    for _ in 0..500 {
+        let s3 = SVector::<f64, 3>::new(
+            rng.uniform(-1.0, 1.0),
+            rng.uniform(-9.0, 9.0),
+            rng.uniform(-9.0, 9.0),
+        );
+        let v3 = SVector::<f64, 3>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
+        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let i = [
+            p.steady_current(u[0], v3[1] - v3[0]),
+            p.steady_current(u[1], v3[2] - v3[0]),
+        ];
+        // Same formula, multiplication by 1/R_m instead of division: a few ulps apart.
+        let ia = alg.currents(&v3, &u);
+        for (x, y) in ia.iter().zip(&i) {
+            assert!(
+                (x - y).abs() <= 4.0 * f64::EPSILON * (1.0 + y.abs()),
+                "{x} vs {y}"
+            );
+        }
+        let a = acceleration::<WipAlgebraicCurrent, f64, 3, 2, 3, 2>(&alg, &s3, &v3, &u).unwrap();
+        let s5 = SVector::<f64, 5>::new(s3[0], s3[1], s3[2], rng.uniform(-1.0, 1.0), 0.3);
+        let v5 = SVector::<f64, 5>::new(v3[0], v3[1], v3[2], i[0], i[1]);
+        let b = acceleration::<Wip, f64, 3, 2, 5, 2>(&full, &s5, &v5, &u).unwrap();
+        let c = shape_acceleration(&full, s3[0], [v3[0], v3[1], v3[2]], i, [0.0; 3]).unwrap();
+        for j in 0..3 {
+            let scale = 1.0 + a[j].abs();
+            worst = worst
+                .max((a[j] - b[j]).abs() / scale)
+                .max((a[j] - c[j]).abs() / scale);
+        }
+        // The full model's current rows are at rest there: i̇ = 0 is the steady state.
+        assert!(b[3].abs() < 1e-9 * (1.0 + b[1].abs()) && b[4].abs() < 1e-9 * (1.0 + b[2].abs()));
+        assert_eq!(
+            alg.connection(&s3),
+            full.connection(&s5).fixed_columns::<3>(0)
+        );
+    }
+    println!("worst relative difference: {worst:.3e}");
+    assert!(worst < 1e-10, "worst relative difference {worst:e}");
+}

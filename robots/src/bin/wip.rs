@@ -45,7 +45,7 @@ DIR/summary.json and SVG plots (path, voltages, voltage rates, currents, tilt, h
 rate; bounds dashed). The iteration table goes to stderr. Default DIR: out.
 
   --integrator  varint (default: variational integrator), rk1, rk2, rk4 (continuous model)
-  --current     dynamic (default; the algebraic-current variant is not implemented yet)
+  --current     dynamic (default: motor-current dynamics) or algebraic (their steady state)
   --h           step in seconds (default 0.005)
   --params      JSON parameter file (model.md's keys)
   --max-iter    interior-point iteration limit (default 500)
@@ -58,13 +58,14 @@ Exit status: 0 solved; 1 not solved (infeasible, iteration limit, failure: one l
 stderr, files still written) or a bad input file; 2 bad usage.";
 
 const BENCH_HELP: &str = "\
-usage: wip bench [--problems eight,zigzag] [--integrators varint,rk1,rk2,rk4] [--out DIR]
+usage: wip bench [--problems eight,zigzag] [--integrators varint,rk1,rk2,rk4]
+                 [--currents dynamic,algebraic] [--out DIR]
 
 Reruns the paper's Figure \"computation time\" (MATLAB + CasADi 3.2.3 + IPOPT, i7-8700;
-current dynamics: RK1 553 s, RK2 544 s, RK4 680 s, VarInt 522 s) with our solver: one
-plan per problem and integrator, each alone, and prints a table of status, iterations,
-solve time and objective; writes DIR/bench.json (default DIR: out). The algebraic-current
-variant is not implemented yet and is listed as such. RK runs take minutes each.";
+algebraic current / current dynamics: RK1 690/553 s, RK2 710/544 s, RK4 776/680 s,
+VarInt 688/522 s) with our solver: one plan per problem, integrator and current model,
+each alone, and prints a table of status, iterations, solve time and objective; writes
+DIR/bench.json (default DIR: out). RK runs with the current dynamics take minutes each.";
 
 const DIAGNOSE_HELP: &str = "\
 usage: wip diagnose <DATA.csv> [--params FILE] [--out DIR] [--window SECONDS]
@@ -226,7 +227,7 @@ fn cmd_simulate(mut parser: lexopt::Parser) -> Result<(), Failure> {
 
 fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
     use robots::wip::benchmarks;
-    use robots::wip::plan::{plan, PlanBounds, Transcription};
+    use robots::wip::plan::{plan, CurrentModel, PlanBounds, Transcription};
     use robots::wip::plan_report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
     let t_setup = std::time::Instant::now();
     let (mut which, mut params, mut out) = (None, None, PathBuf::from("out"));
@@ -259,19 +260,7 @@ fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
         Failure::Usage("plan: which problem? (eight, zigzag or a waypoint FILE.json)".into())
     })?;
     let transcription: Transcription = integrator.parse().map_err(Failure::Usage)?;
-    match current.as_str() {
-        "dynamic" => {}
-        "algebraic" => {
-            return Err(Failure::Run(
-                "--current algebraic is not implemented yet (only the current dynamics are)".into(),
-            ))
-        }
-        other => {
-            return Err(Failure::Usage(format!(
-                "unknown current model '{other}' (expected dynamic or algebraic)"
-            )))
-        }
-    }
+    let current_model: CurrentModel = current.parse().map_err(Failure::Usage)?;
     if !(h > 0.0 && h <= 0.1) {
         return Err(Failure::Run(format!("--h must be in (0, 0.1] s, got {h}")));
     }
@@ -288,14 +277,14 @@ fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
     let setup = t_setup.elapsed().as_secs_f64();
     if !quiet {
         eprintln!(
-            "wip plan {}: {} stages of {} s, {} waypoints, integrator {integrator}",
+            "wip plan {}: {} stages of {} s, {} waypoints, integrator {integrator}, {current} current",
             problem.name,
             problem.n,
             problem.h,
             problem.points.len()
         );
     }
-    let o = plan(&wip, &problem, transcription, opts);
+    let o = plan(&wip, &problem, transcription, current_model, opts);
     let traj = reduced_trajectory(&wip, &o);
     let write =
         |name: &str, text: &str| write_atomic(&out, name, text.as_bytes()).map_err(Failure::Run);
@@ -348,9 +337,10 @@ fn cmd_plan(mut parser: lexopt::Parser) -> Result<(), Failure> {
 
 fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
     use robots::wip::benchmarks;
-    use robots::wip::plan::{plan, Transcription};
+    use robots::wip::plan::{plan, CurrentModel, Transcription};
     let mut problems = vec!["eight".to_string(), "zigzag".to_string()];
     let mut integrators: Vec<String> = ["varint", "rk1", "rk2", "rk4"].map(String::from).to_vec();
+    let mut currents: Vec<String> = ["dynamic", "algebraic"].map(String::from).to_vec();
     let mut out = PathBuf::from("out");
     let list = |v: String| {
         v.split(',')
@@ -361,6 +351,7 @@ fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
         match arg {
             Long("problems") => problems = list(parser.value()?.string()?),
             Long("integrators") => integrators = list(parser.value()?.string()?),
+            Long("currents") => currents = list(parser.value()?.string()?),
             Long("out") => out = PathBuf::from(parser.value()?),
             Long("help") | Short('h') => {
                 println!("{BENCH_HELP}");
@@ -369,14 +360,23 @@ fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
             other => return Err(Failure::Usage(other.unexpected().to_string())),
         }
     }
-    // The paper's times with the current dynamics (its Figure "computation time").
-    let paper = |i: &str| match i {
-        "rk1" => Some(553.0),
-        "rk2" => Some(544.0),
-        "rk4" => Some(680.0),
-        "varint" => Some(522.0),
+    // The paper's times (its Figure "computation time", the eight).
+    let paper = |i: &str, c: CurrentModel| match (i, c) {
+        ("rk1", CurrentModel::Dynamic) => Some(553.0),
+        ("rk2", CurrentModel::Dynamic) => Some(544.0),
+        ("rk4", CurrentModel::Dynamic) => Some(680.0),
+        ("varint", CurrentModel::Dynamic) => Some(522.0),
+        ("rk1", CurrentModel::Algebraic) => Some(690.0),
+        ("rk2", CurrentModel::Algebraic) => Some(710.0),
+        ("rk4", CurrentModel::Algebraic) => Some(776.0),
+        ("varint", CurrentModel::Algebraic) => Some(688.0),
         _ => None,
     };
+    let currents = currents
+        .iter()
+        .map(|c| c.parse::<CurrentModel>())
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(Failure::Usage)?;
     let wip = Wip::default();
     let mut rows = Vec::new();
     println!(
@@ -386,39 +386,37 @@ fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
     for p in &problems {
         let problem = benchmarks::by_name(p, 0.005)
             .ok_or_else(|| Failure::Usage(format!("unknown benchmark '{p}' (eight, zigzag)")))?;
-        for i in &integrators {
-            let tr: Transcription = i.parse().map_err(Failure::Usage)?;
-            eprintln!("bench: {p} with {i} …");
-            let opts = dmech_ocp::ipm::IpOptions::default();
-            let o = plan(&wip, &problem, tr, opts);
-            let paper_s = if p == "eight" { paper(i) } else { None };
-            println!(
-                "{:<8} {:<7} {:<9} {:<14} {:>6} {:>10.2} {:>14.4} {:>12}",
-                p,
-                i,
-                "dynamic",
-                o.status.code(),
-                o.iterations,
-                o.timings.total,
-                o.objective,
-                paper_s
-                    .map(|v| format!("{v:.0}"))
-                    .unwrap_or_else(|| "-".into())
-            );
-            rows.push(serde_json::json!({
-                "problem": p, "integrator": i, "current": "dynamic",
-                "status": o.status.code(), "iterations": o.iterations,
-                "solve_time_s": o.timings.total, "objective": o.objective,
-                "max_violation": o.max_violation,
-                "time_breakdown_s": {"derivatives": o.timings.derivatives,
-                    "kkt": o.timings.kkt, "line_search": o.timings.line_search},
-                "paper_time_s": paper_s
-            }));
+        for &c in &currents {
+            for i in &integrators {
+                let tr: Transcription = i.parse().map_err(Failure::Usage)?;
+                eprintln!("bench: {p} with {i}, {} current …", c.name());
+                let opts = dmech_ocp::ipm::IpOptions::default();
+                let o = plan(&wip, &problem, tr, c, opts);
+                let paper_s = if p == "eight" { paper(i, c) } else { None };
+                println!(
+                    "{:<8} {:<7} {:<9} {:<14} {:>6} {:>10.2} {:>14.4} {:>12}",
+                    p,
+                    i,
+                    c.name(),
+                    o.status.code(),
+                    o.iterations,
+                    o.timings.total,
+                    o.objective,
+                    paper_s
+                        .map(|v| format!("{v:.0}"))
+                        .unwrap_or_else(|| "-".into())
+                );
+                rows.push(serde_json::json!({
+                    "problem": p, "integrator": i, "current": c.name(),
+                    "status": o.status.code(), "iterations": o.iterations,
+                    "solve_time_s": o.timings.total, "objective": o.objective,
+                    "max_violation": o.max_violation,
+                    "time_breakdown_s": {"derivatives": o.timings.derivatives,
+                        "kkt": o.timings.kkt, "line_search": o.timings.line_search},
+                    "paper_time_s": paper_s
+                }));
+            }
         }
-        println!(
-            "{:<8} {:<7} {:<9} {:<14}",
-            p, "*", "algebraic", "not implemented"
-        );
     }
     let json = serde_json::to_string_pretty(&serde_json::json!({ "runs": rows }))
         .expect("JSON of numbers and strings");

@@ -4,6 +4,7 @@
 //! `s = (α, φR, φL, qR, qL)`, shape velocity `v_s = (v_α, v_φR, v_φL, iR, iL)`. The wheel
 //! angles are absolute (measured from the inertial frame).
 
+pub mod algebraic_current;
 pub mod benchmarks;
 pub mod closed_form;
 pub mod diagnose;

@@ -2,14 +2,18 @@
 //! for the generic solver of `dmech-ocp`: cost, bounds, waypoints, boundary states, and a
 //! start along the waypoint polyline.
 //!
-//! Stage layout (both transcriptions, `NX = 15`): `x = (x, y, θ, α, φR, φL, qR, qL,
-//! v(5), u_prev(2))`, where `v` is `v_{k−1}` for the variational integrator and `v_k`
-//! for Runge–Kutta. The VI decides `w = (v_k, u_k)`, RK decides `w = u_k`.
+//! Two models ([`PlanModel`]): the full WIP (`NS = 5`, shape `(α, φR, φL, qR, qL)`, the
+//! currents are shape velocities) and the algebraic-current WIP (`NS = 3`, the currents
+//! follow from `v` and `u`). Stage layout of both transcriptions, `NX = 2 NS + 5`:
+//! `x = (x, y, θ, s(NS), v(NS), u_prev(2))`, where `v` is `v_{k−1}` for the variational
+//! integrator and `v_k` for Runge–Kutta. The VI decides `w = (v_k, u_k)`, RK decides
+//! `w = u_k`.
 
+use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::{arc_lengths, PlanProblem};
 use super::simulate::Integrator;
 use super::Wip;
-use dmech::{ForcingQuadrature, RungeKutta};
+use dmech::{ForcingQuadrature, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult, Solver};
 use dmech_ocp::problem::{StageProblem, StateEquality};
@@ -17,14 +21,59 @@ use dmech_ocp::runge_kutta::RkStages;
 use dmech_ocp::varint::VarIntStages;
 use nalgebra::{SMatrix, SVector};
 
+/// Stage state size of the full model (`NS = 5`).
 pub const NX: usize = 15;
+/// Stage state size of the algebraic-current model (`NS = 3`).
+pub const NX_ALGEBRAIC: usize = 11;
 /// Inequalities per stage: uR, uL, ΔuR, ΔuL, iR, iL, α, v_θ.
 pub const NC: usize = 8;
-const V_AT: usize = 8;
-const U_PREV_AT: usize = 13;
 
 /// `d_0` of the first (smoothed-friction) phase, s/rad.
 pub const SMOOTH_FRICTION_SLOPE: f64 = 1.0;
+
+/// A WIP model the planner transcribes: what differs between the current models.
+pub trait PlanModel<const NS: usize>:
+    PrincipalKinematicSystem<3, 2, NS, 2, Param = f64> + Clone + PartialEq + Sync
+{
+    /// The mechanics and parameters shared by all models.
+    fn wip(&self) -> &Wip;
+    fn wip_mut(&mut self) -> &mut Wip;
+    /// The currents `(iR, iL)` at shape velocity `v_k` and voltages `u_k`.
+    fn currents<T: Real>(&self, v: &SVector<T, NS>, u: &SVector<T, 2>) -> [T; 2];
+    /// A shape velocity with whatever the model holds of the currents set to their steady
+    /// state for `u = 0` (the starts' velocities come from kinematics alone).
+    fn settle_currents(&self, v: &mut SVector<f64, NS>);
+}
+
+impl PlanModel<5> for Wip {
+    fn wip(&self) -> &Wip {
+        self
+    }
+    fn wip_mut(&mut self) -> &mut Wip {
+        self
+    }
+    fn currents<T: Real>(&self, v: &SVector<T, 5>, _u: &SVector<T, 2>) -> [T; 2] {
+        [v[3], v[4]]
+    }
+    fn settle_currents(&self, v: &mut SVector<f64, 5>) {
+        let q = &self.params;
+        v[3] = q.steady_current(0.0, v[1] - v[0]);
+        v[4] = q.steady_current(0.0, v[2] - v[0]);
+    }
+}
+
+impl PlanModel<3> for WipAlgebraicCurrent {
+    fn wip(&self) -> &Wip {
+        &self.wip
+    }
+    fn wip_mut(&mut self) -> &mut Wip {
+        &mut self.wip
+    }
+    fn currents<T: Real>(&self, v: &SVector<T, 3>, u: &SVector<T, 2>) -> [T; 2] {
+        WipAlgebraicCurrent::currents(self, v, u)
+    }
+    fn settle_currents(&self, _v: &mut SVector<f64, 3>) {}
+}
 
 /// The bounds of benchmarks.md.
 #[derive(Clone, Copy, Debug)]
@@ -50,14 +99,14 @@ impl Default for PlanBounds {
 }
 
 /// What is common to both transcriptions.
-pub struct WipPlan<'a> {
-    pub wip: &'a Wip,
+pub struct WipPlan<'a, M> {
+    pub model: &'a M,
     pub problem: &'a PlanProblem,
     pub bounds: PlanBounds,
 }
 
-impl WipPlan<'_> {
-    fn x0(&self) -> SVector<f64, NX> {
+impl<M> WipPlan<'_, M> {
+    fn x0<const NX: usize>(&self) -> SVector<f64, NX> {
         let mut x = SVector::zeros();
         x[0] = self.problem.points[0][0];
         x[1] = self.problem.points[0][1];
@@ -81,9 +130,9 @@ impl WipPlan<'_> {
         (-hi, hi)
     }
 
-    /// Waypoint positions at their stages; at the end the full pose, `α = 0` and all
-    /// velocities and currents zero.
-    fn equalities(&self) -> Vec<StateEquality> {
+    /// Waypoint positions at their stages; at the end the full pose, `α = 0` and the shape
+    /// velocity zero (velocities and, in the full model, currents), `v` at `3 + NS`.
+    fn equalities<const NS: usize>(&self) -> Vec<StateEquality> {
         let p = self.problem;
         let mut eqs = Vec::new();
         for (pt, &k) in p.points.iter().zip(&p.stages) {
@@ -110,39 +159,86 @@ impl WipPlan<'_> {
         fix(1, end[1]);
         fix(2, p.end_heading);
         fix(3, 0.0);
-        for i in 0..5 {
-            fix(V_AT + i, 0.0);
+        for i in 0..NS {
+            fix(3 + NS + i, 0.0);
         }
         eqs
     }
+}
 
+impl<M> WipPlan<'_, M> {
     /// `v_θ` from the wheel rates.
-    fn heading_rate<T: Real>(&self, vr: T, vl: T) -> T {
-        (vr - vl) * (self.wip.params.r / (2.0 * self.wip.params.d))
+    fn heading_rate<T: Real, const NS: usize>(&self, vr: T, vl: T) -> T
+    where
+        M: PlanModel<NS>,
+    {
+        let p = &self.model.wip().params;
+        (vr - vl) * (p.r / (2.0 * p.d))
+    }
+
+    /// The inequalities at shape velocity `v`, tilt `alpha`, voltages `u` after `u_prev`.
+    fn constraints<T: Real, const NS: usize>(
+        &self,
+        v: &SVector<T, NS>,
+        alpha: T,
+        u: &SVector<T, 2>,
+        u_prev: [T; 2],
+    ) -> SVector<T, NC>
+    where
+        M: PlanModel<NS>,
+    {
+        let [ir, il] = self.model.currents(v, u);
+        SVector::<T, NC>::from_column_slice(&[
+            u[0],
+            u[1],
+            u[0] - u_prev[0],
+            u[1] - u_prev[1],
+            ir,
+            il,
+            alpha,
+            self.heading_rate::<T, NS>(v[1], v[2]),
+        ])
+    }
+
+    /// The running cost `½ (uR iR + uL iL)`.
+    fn cost<T: Real, const NS: usize>(&self, v: &SVector<T, NS>, u: &SVector<T, 2>) -> T
+    where
+        M: PlanModel<NS>,
+    {
+        let [ir, il] = self.model.currents(v, u);
+        (u[0] * ir + u[1] * il) * 0.5
     }
 }
 
-/// The VI transcription: `NW = 7` (`v_k`, `u_k`), `NE = 5` (momentum matching).
-pub struct VarIntPlan<'a> {
-    pub plan: WipPlan<'a>,
-    pub stages: VarIntStages<'a, Wip>,
+/// Compile-time check of the stage layout `NX = 2 NS + 5`.
+const fn layout_ok(ns: usize, nx: usize) -> bool {
+    nx == 2 * ns + 5
 }
 
-impl<'a> VarIntPlan<'a> {
-    pub fn new(wip: &'a Wip, problem: &'a PlanProblem, bounds: PlanBounds) -> Self {
+/// The VI transcription: `NW = NS + 2` (`v_k`, `u_k`), `NE = NS` (momentum matching).
+pub struct VarIntPlan<'a, M, const NS: usize> {
+    pub plan: WipPlan<'a, M>,
+    pub stages: VarIntStages<'a, M>,
+}
+
+impl<'a, M: PlanModel<NS>, const NS: usize> VarIntPlan<'a, M, NS> {
+    pub fn new(model: &'a M, problem: &'a PlanProblem, bounds: PlanBounds) -> Self {
         VarIntPlan {
             plan: WipPlan {
-                wip,
+                model,
                 problem,
                 bounds,
             },
-            stages: VarIntStages::new::<3, 2, 5, 2>(wip, problem.h, ForcingQuadrature::Right),
+            stages: VarIntStages::new::<3, 2, NS, 2>(model, problem.h, ForcingQuadrature::Right),
         }
     }
 }
 
-impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
+impl<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>
+    StageProblem<NX, NW, NS, NC> for VarIntPlan<'_, M, NS>
+{
     fn horizon(&self) -> usize {
+        const { assert!(layout_ok(NS, NX) && NW == NS + 2) };
         self.plan.problem.n
     }
     fn initial_state(&self) -> SVector<f64, NX> {
@@ -152,12 +248,17 @@ impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
         &self,
         _k: usize,
         x: &SVector<T, NX>,
-        w: &SVector<T, 7>,
+        w: &SVector<T, NW>,
     ) -> SVector<T, NX> {
-        self.stages.dynamics::<T, 3, 2, 5, 2, NX, 7>(x, w)
+        self.stages.dynamics::<T, 3, 2, NS, 2, NX, NW>(x, w)
     }
-    fn equality<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 7>) -> SVector<T, 5> {
-        self.stages.equality::<T, 3, 2, 5, 2, NX, 7>(x, w)
+    fn equality<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NS> {
+        self.stages.equality::<T, 3, 2, NS, 2, NX, NW>(x, w)
     }
     fn affine_in_state(&self) -> bool {
         // The cost reads w only; the inequalities read α and u_{k−1} linearly.
@@ -167,59 +268,62 @@ impl StageProblem<NX, 7, 5, NC> for VarIntPlan<'_> {
         &self,
         _k: usize,
         x: &SVector<f64, NX>,
-        w: &SVector<f64, 7>,
-    ) -> (SVector<f64, 5>, SMatrix<f64, 5, NX>, SMatrix<f64, 5, 7>) {
-        self.stages.equality_jacobian::<3, 2, 5, 2, NX, 7>(x, w)
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
+        self.stages.equality_jacobian::<3, 2, NS, 2, NX, NW>(x, w)
     }
-    fn cost<T: Real>(&self, _k: usize, _x: &SVector<T, NX>, w: &SVector<T, 7>) -> T {
-        (w[5] * w[3] + w[6] * w[4]) * 0.5
+    fn cost<T: Real>(&self, _k: usize, _x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
+        let (v, u) = (
+            w.fixed_rows::<NS>(0).into_owned(),
+            w.fixed_rows::<2>(NS).into_owned(),
+        );
+        self.plan.cost(&v, &u)
     }
     fn constraints<T: Real>(
         &self,
         _k: usize,
         x: &SVector<T, NX>,
-        w: &SVector<T, 7>,
+        w: &SVector<T, NW>,
     ) -> SVector<T, NC> {
-        SVector::<T, NC>::from_column_slice(&[
-            w[5],
-            w[6],
-            w[5] - x[U_PREV_AT],
-            w[6] - x[U_PREV_AT + 1],
-            w[3],
-            w[4],
-            x[3],
-            self.plan.heading_rate(w[1], w[2]),
-        ])
+        let (v, u) = (
+            w.fixed_rows::<NS>(0).into_owned(),
+            w.fixed_rows::<2>(NS).into_owned(),
+        );
+        let u_prev = [x[3 + 2 * NS], x[4 + 2 * NS]];
+        self.plan.constraints(&v, x[3], &u, u_prev)
     }
     fn bounds(&self, _k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
         self.plan.bounds_vec()
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
-        self.plan.equalities()
+        self.plan.equalities::<NS>()
     }
 }
 
 /// The Runge–Kutta transcriptions: `NW = 2` (`u_k`), no stage equality.
-pub struct RkPlan<'a> {
-    pub plan: WipPlan<'a>,
-    pub stages: RkStages<'a, Wip>,
+pub struct RkPlan<'a, M, const NS: usize> {
+    pub plan: WipPlan<'a, M>,
+    pub stages: RkStages<'a, M>,
 }
 
-impl<'a> RkPlan<'a> {
-    pub fn new(wip: &'a Wip, problem: &'a PlanProblem, bounds: PlanBounds, rk: RungeKutta) -> Self {
+impl<'a, M: PlanModel<NS>, const NS: usize> RkPlan<'a, M, NS> {
+    pub fn new(model: &'a M, problem: &'a PlanProblem, bounds: PlanBounds, rk: RungeKutta) -> Self {
         RkPlan {
             plan: WipPlan {
-                wip,
+                model,
                 problem,
                 bounds,
             },
-            stages: RkStages::new::<3, 2, 5, 2>(wip, problem.h, rk),
+            stages: RkStages::new::<3, 2, NS, 2>(model, problem.h, rk),
         }
     }
 }
 
-impl StageProblem<NX, 2, 0, NC> for RkPlan<'_> {
+impl<M: PlanModel<NS>, const NS: usize, const NX: usize> StageProblem<NX, 2, 0, NC>
+    for RkPlan<'_, M, NS>
+{
     fn horizon(&self) -> usize {
+        const { assert!(layout_ok(NS, NX)) };
         self.plan.problem.n
     }
     fn initial_state(&self) -> SVector<f64, NX> {
@@ -231,7 +335,7 @@ impl StageProblem<NX, 2, 0, NC> for RkPlan<'_> {
         x: &SVector<T, NX>,
         w: &SVector<T, 2>,
     ) -> SVector<T, NX> {
-        self.stages.dynamics::<T, 3, 2, 5, 2, NX, 2>(x, w)
+        self.stages.dynamics::<T, 3, 2, NS, 2, NX, 2>(x, w)
     }
     fn equality<T: Real>(
         &self,
@@ -242,7 +346,7 @@ impl StageProblem<NX, 2, 0, NC> for RkPlan<'_> {
         SVector::<T, 0>::zeros()
     }
     fn cost<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 2>) -> T {
-        (w[0] * x[V_AT + 3] + w[1] * x[V_AT + 4]) * 0.5
+        self.plan.cost(&x.fixed_rows::<NS>(3 + NS).into_owned(), w)
     }
     fn constraints<T: Real>(
         &self,
@@ -250,22 +354,15 @@ impl StageProblem<NX, 2, 0, NC> for RkPlan<'_> {
         x: &SVector<T, NX>,
         w: &SVector<T, 2>,
     ) -> SVector<T, NC> {
-        SVector::<T, NC>::from_column_slice(&[
-            w[0],
-            w[1],
-            w[0] - x[U_PREV_AT],
-            w[1] - x[U_PREV_AT + 1],
-            x[V_AT + 3],
-            x[V_AT + 4],
-            x[3],
-            self.plan.heading_rate(x[V_AT + 1], x[V_AT + 2]),
-        ])
+        let v = x.fixed_rows::<NS>(3 + NS).into_owned();
+        let u_prev = [x[3 + 2 * NS], x[4 + 2 * NS]];
+        self.plan.constraints(&v, x[3], w, u_prev)
     }
     fn bounds(&self, _k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
         self.plan.bounds_vec()
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
-        self.plan.equalities()
+        self.plan.equalities::<NS>()
     }
 }
 
@@ -357,22 +454,24 @@ pub fn polyline_start(wip: &Wip, p: &PlanProblem) -> Vec<(SVector<f64, 3>, SVect
 
 /// Stage states from [`polyline_start`] and the shape velocities
 /// `vel_j = (s_{j+1} − s_j)/h`; stage `k` (`0 < k < N`) carries `vel_{k − lag}` (`lag = 1`:
-/// the VI's `v_{k−1}`; `lag = 0`: RK's `v_k`). Both ends are at rest.
-fn start_states(
-    wip: &Wip,
+/// the VI's `v_{k−1}`; `lag = 0`: RK's `v_k`). Both ends are at rest. The model takes the
+/// first `NS` components of the full shape `(α, φR, φL, qR, qL)`.
+fn start_states<M: PlanModel<NS>, const NS: usize, const NX: usize>(
+    model: &M,
     p: &PlanProblem,
     lag: usize,
-) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 5>>) {
-    let path = polyline_start(wip, p);
+) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NS>>) {
+    let path = polyline_start(model.wip(), p);
     let n = p.n;
-    let vel: Vec<SVector<f64, 5>> = (0..n).map(|k| (path[k + 1].1 - path[k].1) / p.h).collect();
+    let shape = |k: usize| path[k].1.fixed_rows::<NS>(0).into_owned();
+    let vel: Vec<SVector<f64, NS>> = (0..n).map(|k| (shape(k + 1) - shape(k)) / p.h).collect();
     let xs = (0..=n)
         .map(|k| {
             let mut x = SVector::<f64, NX>::zeros();
             x.fixed_rows_mut::<3>(0).copy_from(&path[k].0);
-            x.fixed_rows_mut::<5>(3).copy_from(&path[k].1);
+            x.fixed_rows_mut::<NS>(3).copy_from(&shape(k));
             if k > 0 && k < n {
-                x.fixed_rows_mut::<5>(V_AT).copy_from(&vel[k - lag]);
+                x.fixed_rows_mut::<NS>(3 + NS).copy_from(&vel[k - lag]);
             }
             x
         })
@@ -381,13 +480,16 @@ fn start_states(
 }
 
 /// The VI start: [`start_states`] with `w_k = (v_k, u_k = 0)`.
-pub fn varint_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 7>>) {
-    let (xs, vel) = start_states(wip, p, 1);
+pub fn varint_start<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
+    model: &M,
+    p: &PlanProblem,
+) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
+    let (xs, vel) = start_states::<M, NS, NX>(model, p, 1);
     let ws = vel
         .iter()
         .map(|v| {
-            let mut w = SVector::<f64, 7>::zeros();
-            w.fixed_rows_mut::<5>(0).copy_from(v);
+            let mut w = SVector::<f64, NW>::zeros();
+            w.fixed_rows_mut::<NS>(0).copy_from(v);
             w
         })
         .collect();
@@ -395,16 +497,18 @@ pub fn varint_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<S
 }
 
 /// The RK start: [`start_states`] with `v_k` in the state, `u = 0`.
-pub fn rk_start(wip: &Wip, p: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 2>>) {
-    let (mut xs, _) = start_states(wip, p, 0);
+pub fn rk_start<M: PlanModel<NS>, const NS: usize, const NX: usize>(
+    model: &M,
+    p: &PlanProblem,
+) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 2>>) {
+    let (mut xs, _) = start_states::<M, NS, NX>(model, p, 0);
     // The currents on their slow manifold for u = 0 (steady state). The current is stiff
     // (h R_m/L_m = 18.75 at h = 5 ms): an explicit step from i = 0 amplifies the mismatch by
     // |R(−hR/L)| (4,200 for RK4), which left RK4 a start violation of 1e4.
-    let q = &wip.params;
     for x in xs.iter_mut() {
-        let va = x[V_AT];
-        x[V_AT + 3] = q.steady_current(0.0, x[V_AT + 1] - va);
-        x[V_AT + 4] = q.steady_current(0.0, x[V_AT + 2] - va);
+        let mut v = x.fixed_rows::<NS>(3 + NS).into_owned();
+        model.settle_currents(&mut v);
+        x.fixed_rows_mut::<NS>(3 + NS).copy_from(&v);
     }
     let n = p.n;
     (xs, vec![SVector::zeros(); n])
@@ -439,6 +543,36 @@ impl std::str::FromStr for Transcription {
     }
 }
 
+/// The current model of a plan: the motor circuit's dynamics (`L_m i̇ = u − R_m i − k_e n_wm w`,
+/// the full model) or its steady state ([`WipAlgebraicCurrent`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CurrentModel {
+    Dynamic,
+    Algebraic,
+}
+
+impl CurrentModel {
+    pub fn name(self) -> &'static str {
+        match self {
+            CurrentModel::Dynamic => "dynamic",
+            CurrentModel::Algebraic => "algebraic",
+        }
+    }
+}
+
+impl std::str::FromStr for CurrentModel {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "dynamic" => Ok(CurrentModel::Dynamic),
+            "algebraic" => Ok(CurrentModel::Algebraic),
+            other => Err(format!(
+                "unknown current model '{other}' (expected dynamic or algebraic)"
+            )),
+        }
+    }
+}
+
 /// A finished solve, transcription-independent.
 pub struct PlanOutcome {
     pub status: dmech_ocp::ipm::Status,
@@ -449,7 +583,10 @@ pub struct PlanOutcome {
     pub trajectory: PlannedTrajectory,
 }
 
-fn outcome<const NW: usize>(
+/// The solution in the full model's terms: the algebraic-current model's currents from
+/// [`PlanModel::currents`], its charges `q_{k+1} = q_k + h i_k`.
+fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
+    model: &M,
     r: SolveResult<NX, NW, NC>,
     h: f64,
     velocity_in_w: bool,
@@ -463,21 +600,35 @@ fn outcome<const NW: usize>(
         v: Vec::with_capacity(n + 1),
         u: Vec::with_capacity(n + 1),
     };
+    let mut charges = [0.0; 2];
     for k in 0..=n {
         let x = &it.x[k];
         t.g.push(x.fixed_rows::<3>(0).into_owned());
-        t.s.push(x.fixed_rows::<5>(3).into_owned());
         let v = if velocity_in_w {
             if k < n {
-                it.w[k].fixed_rows::<5>(0).into_owned()
+                it.w[k].fixed_rows::<NS>(0).into_owned()
             } else {
                 SVector::zeros()
             }
         } else {
-            x.fixed_rows::<5>(V_AT).into_owned()
+            x.fixed_rows::<NS>(3 + NS).into_owned()
         };
-        t.v.push(v);
         let u = it.w[k.min(n - 1)].fixed_rows::<2>(NW - 2).into_owned();
+        let (mut s5, mut v5) = (SVector::<f64, 5>::zeros(), SVector::<f64, 5>::zeros());
+        s5.fixed_rows_mut::<NS>(0).copy_from(&x.fixed_rows::<NS>(3));
+        v5.fixed_rows_mut::<NS>(0).copy_from(&v);
+        if NS < 5 {
+            let i = if k < n {
+                model.currents(&v, &u)
+            } else {
+                [0.0; 2]
+            };
+            (s5[3], s5[4]) = (charges[0], charges[1]);
+            (v5[3], v5[4]) = (i[0], i[1]);
+            charges = [charges[0] + h * i[0], charges[1] + h * i[1]];
+        }
+        t.s.push(s5);
+        t.v.push(v5);
         t.u.push(u);
     }
     PlanOutcome {
@@ -490,7 +641,7 @@ fn outcome<const NW: usize>(
     }
 }
 
-/// Plan with the given transcription from the polyline start.
+/// Plan with the given transcription and current model from the polyline start.
 ///
 /// Two phases: the problem with a gentler Coulomb friction (`d_0 = 1 s/rad` instead of 8:
 /// same saturated torque, 8× smaller slope at zero relative wheel speed) from the
@@ -504,45 +655,65 @@ pub fn plan(
     wip: &Wip,
     problem: &PlanProblem,
     transcription: Transcription,
+    current: CurrentModel,
+    opts: IpOptions,
+) -> PlanOutcome {
+    match current {
+        CurrentModel::Dynamic => plan_model::<Wip, 5, NX, 7>(wip, problem, transcription, opts),
+        CurrentModel::Algebraic => plan_model::<_, 3, NX_ALGEBRAIC, 5>(
+            &WipAlgebraicCurrent::new(*wip),
+            problem,
+            transcription,
+            opts,
+        ),
+    }
+}
+
+/// [`plan`] for one model; `NW = NS + 2` is the VI's decision size.
+fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
+    model: &M,
+    problem: &PlanProblem,
+    transcription: Transcription,
     opts: IpOptions,
 ) -> PlanOutcome {
     let bounds = PlanBounds::default();
-    let mut smooth = *wip;
-    smooth.params.d_0 = SMOOTH_FRICTION_SLOPE.min(wip.params.d_0);
-    let phases = (smooth != *wip).then_some(opts.clone());
+    let mut smooth = model.clone();
+    let d_0 = &mut smooth.wip_mut().params.d_0;
+    *d_0 = SMOOTH_FRICTION_SLOPE.min(*d_0);
+    let phases = (smooth != *model).then_some(opts.clone());
+    let h = problem.h;
     match transcription {
         Transcription::VarInt => {
-            let (xs, ws) = varint_start(wip, problem);
+            let (xs, ws) = varint_start::<M, NS, NX, NW>(model, problem);
             let (p0, p1) = (
-                VarIntPlan::new(&smooth, problem, bounds),
-                VarIntPlan::new(wip, problem, bounds),
+                VarIntPlan::<M, NS>::new(&smooth, problem, bounds),
+                VarIntPlan::<M, NS>::new(model, problem, bounds),
             );
-            two_phase::<_, 7, 5, 2>(&p0, &p1, phases, xs, ws, opts, problem.h, true)
+            let r = two_phase::<_, NX, NW, NS, 2>(&p0, &p1, phases, xs, ws, opts);
+            outcome::<M, NS, NX, NW>(model, r, h, true)
         }
         Transcription::Rk(rk) => {
-            let (xs, ws) = rk_start(wip, problem);
+            let (xs, ws) = rk_start::<M, NS, NX>(model, problem);
             let (p0, p1) = (
-                RkPlan::new(&smooth, problem, bounds, rk),
-                RkPlan::new(wip, problem, bounds, rk),
+                RkPlan::<M, NS>::new(&smooth, problem, bounds, rk),
+                RkPlan::<M, NS>::new(model, problem, bounds, rk),
             );
-            two_phase::<_, 2, 0, 2>(&p0, &p1, phases, xs, ws, opts, problem.h, false)
+            let r = two_phase::<_, NX, 2, 0, 2>(&p0, &p1, phases, xs, ws, opts);
+            outcome::<M, NS, NX, 2>(model, r, h, false)
         }
     }
 }
 
 /// Phase one (`smoothed`) from `(xs, ws)`; phase two (`exact`) from its solution, unless
 /// `second` is `None` (the model has no friction to smooth). See [`plan`].
-#[allow(clippy::too_many_arguments)]
-fn two_phase<P, const NW: usize, const NE: usize, const NU: usize>(
+fn two_phase<P, const NX: usize, const NW: usize, const NE: usize, const NU: usize>(
     smoothed: &P,
     exact: &P,
     second: Option<IpOptions>,
     xs: Vec<SVector<f64, NX>>,
     ws: Vec<SVector<f64, NW>>,
     opts: IpOptions,
-    h: f64,
-    velocity_in_w: bool,
-) -> PlanOutcome
+) -> SolveResult<NX, NW, NC>
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
@@ -560,7 +731,7 @@ where
     let s0: Solver<_, NX, NW, NE, NU, NC> = Solver::new(first, phase_one);
     let r0 = s0.solve(s0.initial_iterate(xs, ws));
     let Some(o) = second.filter(|_| r0.status == dmech_ocp::ipm::Status::Solved) else {
-        return outcome(r0, h, velocity_in_w);
+        return r0;
     };
     let warm = IpOptions {
         mu_init: o.warm_mu_init(),
@@ -568,11 +739,11 @@ where
     };
     let s1: Solver<_, NX, NW, NE, NU, NC> = Solver::new(exact, warm);
     let r = s1.solve(s1.warm_iterate(r0.iterate.clone()));
-    outcome(merge(r, &r0), h, velocity_in_w)
+    merge(r, &r0)
 }
 
 /// The second phase's result with the first phase's iterations and time added.
-fn merge<const NW: usize>(
+fn merge<const NX: usize, const NW: usize>(
     mut r: SolveResult<NX, NW, NC>,
     r0: &SolveResult<NX, NW, NC>,
 ) -> SolveResult<NX, NW, NC> {

@@ -1,0 +1,85 @@
+//! The WIP with its current dynamics replaced by their steady state: the paper's
+//! "algebraic current" (`model.md`: "constant current") variant,
+//! `0 = u − R_m i − k_e n_wm (φ̇ − α̇)`.
+//!
+//! A principal-kinematic system of its own on SE(2) × R³, shape `s = (α, φR, φL)`: with
+//! `L_m = 0` the charge coordinates carry no kinetic energy and the charges' Euler–Lagrange
+//! equations are the algebraic relation above; what the currents do to the mechanics (the
+//! back-EMF term `−k_e n_wm (φ̇ − α̇) q` of ℓ, differentiated in time) is the motor torque
+//! `k_m n_wm i` on the wheel and its reaction on the body. So
+//! `ℓ_a(s, v, ξ) = ℓ((s, 0, 0), (v, 0, 0), ξ)` and
+//! `F_a = (fR + fL − k n (iR + iL), −fR + k n iR, −fL + k n iL)`, `i = (u − k n w)/R_m`.
+//! The integrators and the transcriptions of `dmech` apply unchanged.
+
+use super::model::friction;
+use super::Wip;
+use dmech::{Lift, Param, PrincipalKinematicSystem};
+use dmech_lie::{Real, Se2};
+use nalgebra::{SMatrix, SVector};
+
+/// The WIP with algebraic currents; `P` is the parameter scalar.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WipAlgebraicCurrent<P = f64> {
+    /// The full model whose mechanics this one shares (`L_m` is not read).
+    pub wip: Wip<P>,
+}
+
+impl<P: Real> WipAlgebraicCurrent<P> {
+    pub fn new(wip: Wip<P>) -> Self {
+        WipAlgebraicCurrent { wip }
+    }
+
+    /// The steady-state currents `(iR, iL)` at shape velocity `v = (v_α, v_φR, v_φL)` and
+    /// voltages `u`.
+    pub fn currents<T: Lift<P>>(&self, v: &SVector<T, 3>, u: &SVector<T, 2>) -> [T; 2] {
+        let p = self.wip.params.map(Param);
+        let kn = p.k_e * p.n_wm;
+        let g = Param(P::one()) / p.R_m;
+        [
+            g * (u[0] - kn * (v[1] - v[0])),
+            g * (u[1] - kn * (v[2] - v[0])),
+        ]
+    }
+}
+
+/// `(s, 0, 0)`: the full model's shape with the charges (or currents) zero.
+fn with_zero_charges<T: Real>(s: &SVector<T, 3>) -> SVector<T, 5> {
+    SVector::<T, 5>::new(s[0], s[1], s[2], T::zero(), T::zero())
+}
+
+impl<P: Real> PrincipalKinematicSystem<3, 2, 3, 2> for WipAlgebraicCurrent<P> {
+    type Param = P;
+    type Group<T: Real> = Se2<T>;
+
+    fn reduced_lagrangian<T: Lift<P>>(
+        &self,
+        s: &SVector<T, 3>,
+        v: &SVector<T, 3>,
+        xi: &SVector<T, 3>,
+    ) -> T {
+        self.wip
+            .reduced_lagrangian(&with_zero_charges(s), &with_zero_charges(v), xi)
+    }
+
+    fn connection<T: Lift<P>>(&self, s: &SVector<T, 3>) -> SMatrix<T, 3, 3> {
+        self.wip
+            .connection(&with_zero_charges(s))
+            .fixed_columns::<3>(0)
+            .into_owned()
+    }
+
+    fn forcing<T: Lift<P>>(
+        &self,
+        _s: &SVector<T, 3>,
+        v: &SVector<T, 3>,
+        u: &SVector<T, 2>,
+    ) -> SVector<T, 3> {
+        let p = self.wip.params.map(Param);
+        let kn = p.k_e * p.n_wm;
+        let fr = friction(p.d_v, p.d_c, p.d_0, v[1] - v[0]);
+        let fl = friction(p.d_v, p.d_c, p.d_0, v[2] - v[0]);
+        let [ir, il] = self.currents(v, u);
+        let (tr, tl) = (kn * ir, kn * il);
+        SVector::<T, 3>::new(fr + fl - tr - tl, tr - fr, tl - fl)
+    }
+}
