@@ -8,6 +8,15 @@ use robots::wip::{ReducedState, Wip, WipParams};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// `println!` that ignores a closed stdout (`wip plan eight | head -1`): the results are in
+/// the files and the exit status tells success; std's `println!` would panic on EPIPE.
+macro_rules! println {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
 const USAGE: &str = "\
 usage: wip <subcommand> [options]
 
