@@ -11,7 +11,6 @@
 //! `F_a = (fR + fL − k n (iR + iL), −fR + k n iR, −fL + k n iL)`, `i = (u − k n w)/R_m`.
 //! The integrators and the transcriptions of `dmech` apply unchanged.
 
-use super::model::friction;
 use super::Wip;
 use dmech::{Lift, Param, PrincipalKinematicSystem};
 use dmech_lie::{Real, Se2};
@@ -30,14 +29,12 @@ impl<P: Real> WipAlgebraicCurrent<P> {
     }
 
     /// The steady-state currents `(iR, iL)` at shape velocity `v = (v_α, v_φR, v_φL)` and
-    /// voltages `u`.
+    /// voltages `u` ([`super::WipParams::steady_current`]).
     pub fn currents<T: Lift<P>>(&self, v: &SVector<T, 3>, u: &SVector<T, 2>) -> [T; 2] {
-        let p = self.wip.params.map(Param);
-        let kn = p.k_e * p.n_wm;
-        let g = Param(P::one()) / p.R_m;
+        let p = &self.wip.params;
         [
-            g * (u[0] - kn * (v[1] - v[0])),
-            g * (u[1] - kn * (v[2] - v[0])),
+            p.steady_current(u[0], v[1] - v[0]),
+            p.steady_current(u[1], v[2] - v[0]),
         ]
     }
 }
@@ -70,16 +67,17 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 3, 2> for WipAlgebraicCurrent<P> {
 
     fn forcing<T: Lift<P>>(
         &self,
-        _s: &SVector<T, 3>,
+        s: &SVector<T, 3>,
         v: &SVector<T, 3>,
         u: &SVector<T, 2>,
     ) -> SVector<T, 3> {
-        let p = self.wip.params.map(Param);
-        let kn = p.k_e * p.n_wm;
-        let fr = friction(p.d_v, p.d_c, p.d_0, v[1] - v[0]);
-        let fl = friction(p.d_v, p.d_c, p.d_0, v[2] - v[0]);
+        // The full model's friction on the mechanical coordinates, plus the motor torques.
+        let f = self
+            .wip
+            .forcing(&with_zero_charges(s), &with_zero_charges(v), u);
+        let kn = Param(self.wip.params.k_e) * Param(self.wip.params.n_wm);
         let [ir, il] = self.currents(v, u);
         let (tr, tl) = (kn * ir, kn * il);
-        SVector::<T, 3>::new(fr + fl - tr - tl, tr - fr, tl - fl)
+        SVector::<T, 3>::new(f[0] - tr - tl, f[1] + tr, f[2] + tl)
     }
 }

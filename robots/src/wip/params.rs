@@ -92,9 +92,10 @@ impl<P: Copy> WipParams<P> {
 
 impl<P: dmech_lie::Real> WipParams<P> {
     /// The motor current at steady state, `L_m i̇ = u − R_m i − k_e n_wm w` with `i̇ = 0`, for
-    /// the voltage `u` at the wheel's rate relative to the body `w = φ̇ − α̇`.
-    pub fn steady_current(&self, u: P, w: P) -> P {
-        (u - self.k_e * self.n_wm * w) / self.R_m
+    /// the voltage `u` at the wheel's rate relative to the body `w = φ̇ − α̇`, in any scalar
+    /// the parameters lift to.
+    pub fn steady_current<T: dmech::Lift<P>>(&self, u: T, w: T) -> T {
+        (u - w.mul_param(self.k_e * self.n_wm)) / T::lift(self.R_m)
     }
 }
 

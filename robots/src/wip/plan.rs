@@ -769,6 +769,7 @@ where
 {
     let intermediate_tol = (10.0 * opts.warm_mu_init()).max(opts.tol);
     let last = problems.len() - 1;
+    let mut start = Some((xs, ws));
     let mut done: Option<SolveResult<NX, NW, NC>> = None;
     for (j, p) in problems.iter().enumerate() {
         let mut o = opts.clone();
@@ -780,7 +781,10 @@ where
         }
         let s: Solver<_, NX, NW, NE, NU, NC> = Solver::new(p, o);
         let r = match &done {
-            None => s.solve(s.initial_iterate(xs.clone(), ws.clone())),
+            None => {
+                let (xs, ws) = start.take().expect("only the first problem starts cold");
+                s.solve(s.initial_iterate(xs, ws))
+            }
             Some(prev) => merge(s.solve(s.warm_iterate(prev.iterate.clone())), prev),
         };
         let solved = r.status == dmech_ocp::ipm::Status::Solved;
