@@ -11,12 +11,14 @@
 use crate::layout::{segment, Layout};
 use dmech::partials::{grad_part, lift_vec, seeded};
 use dmech::variational::{
-    discrete_force, incoming_momentum, momentum_matching_residual, outgoing_momentum,
+    discrete_force, incoming_momentum_dual, momentum_matching_residual, outgoing_momentum_dual,
 };
 use dmech::{ForcingQuadrature, PrincipalKinematicSystem};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
+
+type D<const N: usize> = DualSVec64<N>;
 
 /// Which terms of the momentum-matching residual a derivative pass evaluates.
 #[derive(Clone, Copy)]
@@ -139,37 +141,38 @@ impl<'a, S> VarIntStages<'a, S> {
     /// `(s_k, v_{k−1}, u_{k−1}, v_k, u_k)`.
     #[allow(clippy::too_many_arguments)]
     fn equality_terms<
-        T: Real,
         const DOF: usize,
         const DIM: usize,
         const NS: usize,
         const NU: usize,
+        const N: usize,
     >(
         &self,
         terms: Terms,
-        s: &SVector<T, NS>,
-        v_prev: &SVector<T, NS>,
-        u_prev: &SVector<T, NU>,
-        v: &SVector<T, NS>,
-        u: &SVector<T, NU>,
-    ) -> SVector<T, NS>
+        s: &SVector<D<N>, NS>,
+        v_prev: &SVector<D<N>, NS>,
+        u_prev: &SVector<D<N>, NU>,
+        v: &SVector<D<N>, NS>,
+        u: &SVector<D<N>, NU>,
+    ) -> SVector<D<N>, NS>
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
-        let ht = T::from(self.h);
+        let ht = D::<N>::from(self.h);
         let a_k = self.sys.connection(s);
-        let mut r = SVector::<T, NS>::zeros();
+        let mut r = SVector::<D<N>, NS>::zeros();
         if terms.outgoing {
-            r += outgoing_momentum::<S, T, DOF, DIM, NS, NU>(self.sys, self.h, s, v, &a_k) / ht;
+            r +=
+                outgoing_momentum_dual::<S, DOF, DIM, NS, NU, N>(self.sys, self.h, s, v, &a_k) / ht;
         }
         let s_prev = s - v_prev * ht;
         if terms.incoming {
-            r -= incoming_momentum::<S, T, DOF, DIM, NS, NU>(
+            r -= incoming_momentum_dual::<S, DOF, DIM, NS, NU, N>(
                 self.sys, self.h, &s_prev, v_prev, &a_k,
             ) / ht;
         }
         if terms.force {
-            r -= discrete_force::<S, T, DOF, DIM, NS, NU>(
+            r -= discrete_force::<S, D<N>, DOF, DIM, NS, NU>(
                 self.sys,
                 self.quadrature,
                 &s_prev,
@@ -186,8 +189,10 @@ impl<'a, S> VarIntStages<'a, S> {
     /// `(e, E_x, E_w)`, exact, seeding each block of `(s_k, v_{k−1}, u_{k−1}, v_k, u_k)` in
     /// turn and evaluating only the terms that depend on it: the outgoing momentum depends
     /// on `(s_k, v_k)`, the incoming one on `(s_k, v_{k−1})`, the force on the blocks of its
-    /// quadrature. The group coordinates do not enter. About 3× cheaper than seeding all of
-    /// `x` and `w` (`docs/ocp.md`); checked against that generic path in a test.
+    /// quadrature. The group coordinates do not enter. The momenta's second derivatives come
+    /// from one hyper-dual evaluation of `ℓ` per term ([`outgoing_momentum_dual`]) instead
+    /// of duals nested inside duals. 12–15 µs against 44 µs for seeding all of `x` and `w`
+    /// (`plan_stage` bench, `docs/ocp.md`); checked against that generic path in a test.
     #[allow(clippy::type_complexity)]
     pub fn equality_jacobian<
         const DOF: usize,
@@ -228,7 +233,7 @@ impl<'a, S> VarIntStages<'a, S> {
         // real parts differ by round-off, and the iteration count is sensitive to it).
         let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
         // s_k: every term.
-        let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
+        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
             terms(true, true, true),
             &seeded(&s),
             &lift_vec(&v_prev),
@@ -238,7 +243,7 @@ impl<'a, S> VarIntStages<'a, S> {
         );
         put_columns(&mut ex, l.s_at(), &r);
         // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
-        let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
+        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
             terms(false, true, left),
             &lift_vec(&s),
             &seeded(&v_prev),
@@ -248,7 +253,7 @@ impl<'a, S> VarIntStages<'a, S> {
         );
         put_columns(&mut ex, l.v_at(), &r);
         // v_k: the outgoing momentum, and the force if it reads the current interval.
-        let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
+        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
             terms(true, false, right),
             &lift_vec(&s),
             &lift_vec(&v_prev),
@@ -259,7 +264,7 @@ impl<'a, S> VarIntStages<'a, S> {
         put_columns(&mut ew, 0, &r);
         // The inputs enter through the force only.
         if left {
-            let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
+            let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
                 terms(false, false, true),
                 &lift_vec(&s),
                 &lift_vec(&v_prev),
@@ -270,7 +275,7 @@ impl<'a, S> VarIntStages<'a, S> {
             put_columns(&mut ex, l.u_at(), &r);
         }
         if right {
-            let r = self.equality_terms::<_, DOF, DIM, NS, NU>(
+            let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
                 terms(false, false, true),
                 &lift_vec(&s),
                 &lift_vec(&v_prev),

@@ -13,7 +13,9 @@
 //! `dmech-lie`, and `F̄_k` the discrete force of the chosen [`ForcingQuadrature`].
 
 use crate::linalg::Lu;
-use crate::partials::{momenta_and_jacobians, pulled_back_gradient, value_and_jacobian};
+use crate::partials::{
+    momenta_and_jacobians, pulled_back_gradient, pulled_back_gradient_dual, value_and_jacobian,
+};
 use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::LieGroup;
 use nalgebra::{SMatrix, SVector};
@@ -74,16 +76,102 @@ where
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
+    let (xi_prev, d) = incoming_variation::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, a_k);
+    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
+}
+
+/// `(ξ_{k−1}, D)` of the incoming momentum: `ξ_{k−1} = −A(s_{k−1}) v_{k−1}` and the
+/// variation `δξ = D ν`, `D = −dexp⁻¹(−hξ_{k−1}) A(s_k)`.
+pub fn incoming_variation<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_prev: &SVector<T, NS>,
+    v_prev: &SVector<T, NS>,
+    a_k: &SMatrix<T, DOF, NS>,
+) -> (SVector<T, DOF>, SMatrix<T, DOF, NS>)
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+{
     let xi_prev = -(sys.connection(s_prev) * v_prev);
     let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * T::from(-h)));
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(
-        sys,
-        s_prev,
-        0.0,
-        v_prev,
-        &xi_prev,
-        &(-(dinv * a_k)),
-    )
+    (xi_prev, -(dinv * a_k))
+}
+
+/// `(ξ_k, D)` of the outgoing momentum: `ξ_k = −A(s_k) v_k`, `D = −dexp⁻¹(hξ_k) A(s_k)`.
+pub fn outgoing_variation<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    h: f64,
+    v_k: &SVector<T, NS>,
+    a_k: &SMatrix<T, DOF, NS>,
+) -> (SVector<T, DOF>, SMatrix<T, DOF, NS>)
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+{
+    let xi_k = -(a_k * v_k);
+    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * T::from(h)));
+    (xi_k, -(dinv * a_k))
+}
+
+/// [`incoming_momentum`] for first-order vector-dual inputs (value and Jacobian in `N`
+/// seeds), by [`pulled_back_gradient_dual`]: the same numbers as the generic path with
+/// `T = DualVec<f64, N>`, without nesting duals inside `ℓ`.
+pub fn incoming_momentum_dual<
+    S,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+    const N: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_prev: &SVector<Dv<f64, N>, NS>,
+    v_prev: &SVector<Dv<f64, N>, NS>,
+    a_k: &SMatrix<Dv<f64, N>, DOF, NS>,
+) -> SVector<Dv<f64, N>, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+{
+    let (xi_prev, d) = incoming_variation::<S, _, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, a_k);
+    pulled_back_gradient_dual::<S, DOF, DIM, NS, NU, N>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
+}
+
+/// [`outgoing_momentum`] for first-order vector-dual inputs (see
+/// [`incoming_momentum_dual`]).
+pub fn outgoing_momentum_dual<
+    S,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+    const N: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_k: &SVector<Dv<f64, N>, NS>,
+    v_k: &SVector<Dv<f64, N>, NS>,
+    a_k: &SMatrix<Dv<f64, N>, DOF, NS>,
+) -> SVector<Dv<f64, N>, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+{
+    let (xi_k, d) = outgoing_variation::<S, _, DOF, DIM, NS, NU>(h, v_k, a_k);
+    pulled_back_gradient_dual::<S, DOF, DIM, NS, NU, N>(sys, s_k, -h, v_k, &xi_k, &d)
 }
 
 /// The terms of the momentum-matching equation at node `k` that belong to the interval
@@ -109,9 +197,8 @@ where
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    let xi_k = -(a_k * v_k);
-    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * T::from(h)));
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_k, -h, v_k, &xi_k, &(-(dinv * a_k)))
+    let (xi_k, d) = outgoing_variation::<S, T, DOF, DIM, NS, NU>(h, v_k, a_k);
+    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_k, -h, v_k, &xi_k, &d)
 }
 
 /// The discrete force at node `k` for the chosen quadrature.
