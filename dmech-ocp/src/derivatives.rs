@@ -1,7 +1,8 @@
 //! Exact stage derivatives of a [`StageProblem`] by dual numbers.
 //!
-//! Jacobians of the dynamics, the stage equality, the cost and the inequalities come from
-//! two vector-dual passes (seeded in `x`, then in `w`). The Hessian of
+//! Jacobians of the cost and the inequalities come from two vector-dual passes (seeded in
+//! `x`, then in `w`); those of the dynamics and the stage equality from the problem's
+//! [`StageProblem::dynamics_jacobian`] and [`StageProblem::equality_jacobian`]. The Hessian of
 //! `Φ = ℓ_k + ζᵀ c_k` (cost plus inequality curvature, `ζ` the inequality multipliers)
 //! comes from three second-order passes (`xx`, `ww` by `Dual2`, `xw` by hyper-duals).
 //! The curvature of the dynamics and of the stage equality is not formed: with the WIP's
@@ -135,24 +136,22 @@ pub fn stage_derivatives<P, const NX: usize, const NW: usize, const NE: usize, c
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
-    // Pass seeded in x.
+    let (f, fx, fw) = p.dynamics_jacobian(k, x, w);
+    let (e, ex, ew) = p.equality_jacobian(k, x, w);
+    // Cost and inequalities: a pass seeded in x, then one in w.
     let xd = seed(x);
     let wc = w.map(DualSVec64::<NX>::from_re);
-    let f_d = p.dynamics(k, &xd, &wc);
-    let (e, ex, ew) = p.equality_jacobian(k, x, w);
     let l_d = p.cost(k, &xd, &wc);
     let c_d = p.constraints(k, &xd, &wc);
-    // Pass seeded in w.
     let xc = x.map(DualSVec64::<NW>::from_re);
     let wd = seed(w);
-    let f_w = p.dynamics(k, &xc, &wd);
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
 
     let mut d = StageDerivatives {
-        f: f_d.map(|d| d.re),
-        fx: SMatrix::from_fn(|i, j| grad(&f_d[i])[j]),
-        fw: SMatrix::from_fn(|i, j| grad(&f_w[i])[j]),
+        f,
+        fx,
+        fw,
         e,
         ex,
         ew,

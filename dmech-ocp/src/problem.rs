@@ -59,6 +59,25 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     fn affine_in_state(&self) -> bool {
         false
     }
+    /// `(f, F_x, F_w)` of the dynamics, exact. The default differentiates
+    /// [`StageProblem::dynamics`] by two vector-dual passes (seeded in `x`, then in `w`); a
+    /// problem with a cheaper exact route overrides it (e.g.
+    /// [`crate::runge_kutta::RkStages::dynamics_jacobian`]).
+    #[allow(clippy::type_complexity)]
+    fn dynamics_jacobian(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
+        let fx = self.dynamics(k, &seeded(x), &lift_vec::<f64, NX, NW>(w));
+        let fw = self.dynamics(k, &lift_vec::<f64, NW, NX>(x), &seeded(w));
+        (
+            fx.map(|d| d.re),
+            SMatrix::from_fn(|i, j| grad_part(&fx[i])[j]),
+            SMatrix::from_fn(|i, j| grad_part(&fw[i])[j]),
+        )
+    }
     /// `(e, E_x, E_w)` of the stage equality, exact. The default differentiates
     /// [`StageProblem::equality`] by two vector-dual passes (seeded in `x`, then in `w`); a
     /// problem with a cheaper exact route overrides it (e.g.

@@ -10,13 +10,13 @@
 //! `𝕄 = ∂(P − Aᵀμ)/∂v` (at fixed `A`) and `r₀ = r(0)`, whose time derivatives are taken
 //! by a dual number in time along `(ṡ, v̇) = (v, 0)`.
 
-use crate::linalg::solve;
-use crate::partials::{dl_ds, dl_dxi, pulled_back_gradient, value_and_jacobian};
+use crate::linalg::{solve, Lu};
+use crate::partials::{dl_ds, dl_dxi, grad_part, pulled_back_gradient, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
 use crate::variational::StepError;
 use dmech_lie::{LieGroup, Real};
-use nalgebra::SVector;
-use num_dual::{Dual, DualVec};
+use nalgebra::{SMatrix, SVector};
+use num_dual::{Derivative, Dual, DualVec};
 
 type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 
@@ -61,6 +61,26 @@ where
     Dual<T>: Lift<S::Param>,
     Dv<Dual<T>, NS>: Lift<S::Param>,
 {
+    let (m, r0) = mass_and_bias::<S, T, DOF, DIM, NS, NU>(sys, s, v, u);
+    solve(&m, &(-(r0 - f_ext)))
+}
+
+/// `(𝕄, r₀)` of the equations of motion `𝕄 v̇ + r₀ = 0` (no external force).
+fn mass_and_bias<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    sys: &S,
+    s: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+    u: &SVector<T, NU>,
+) -> (SMatrix<T, NS, NS>, SVector<T, NS>)
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+    Dv<T, DOF>: Lift<S::Param>,
+    Dv<Dv<T, NS>, NS>: Lift<S::Param>,
+    Dual<T>: Lift<S::Param>,
+    Dv<Dual<T>, NS>: Lift<S::Param>,
+{
     let a = sys.connection(s);
     let at = a.transpose();
     let xi = -(a * v);
@@ -90,9 +110,83 @@ where
 
     let ls = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
     let ad = <S::Group<T> as LieGroup<DOF, DIM>>::ad(&xi);
-    let f = sys.forcing(s, v, u) + f_ext;
+    let f = sys.forcing(s, v, u);
     let r0 = momentum_dot + at * (ad.transpose() * mu) - ls - f;
-    solve(&m, &(-r0))
+    (m, r0)
+}
+
+/// The residual of the equations of motion at a trial acceleration `a`:
+/// `r(s, v, a, u) = d/dt (P − A(s₀)ᵀμ) + Aᵀ ad_ξᵀ μ − ∂ℓ/∂s − F`, the time derivative taken
+/// along `(ṡ, v̇) = (v, a)` by one dual number in time (so `r = 𝕄 a + r₀`; it vanishes
+/// exactly at [`acceleration`]). Generic over the scalar; [`acceleration_dual`] uses it
+/// for the implicit-function derivative of the acceleration.
+pub fn motion_residual<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    sys: &S,
+    s: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+    a: &SVector<T, NS>,
+    u: &SVector<T, NU>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+    Dv<T, DOF>: Lift<S::Param>,
+    Dual<T>: Lift<S::Param>,
+    Dv<Dual<T>, NS>: Lift<S::Param>,
+{
+    let a0 = sys.connection(s);
+    let xi = -(a0 * v);
+    let st = SVector::<Dual<T>, NS>::from_fn(|i, _| Dual::new(s[i], v[i]));
+    let vt = SVector::<Dual<T>, NS>::from_fn(|i, _| Dual::new(v[i], a[i]));
+    let xit = -(sys.connection(&st) * vt);
+    let a0t = a0.map(Dual::from_re);
+    let momentum_dot =
+        pulled_back_gradient::<S, _, DOF, DIM, NS, NU>(sys, &st, 0.0, &vt, &xit, &(-a0t))
+            .map(|z| z.eps);
+    let mu = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
+    let ls = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
+    let ad = <S::Group<T> as LieGroup<DOF, DIM>>::ad(&xi);
+    momentum_dot + a0.transpose() * (ad.transpose() * mu) - ls - sys.forcing(s, v, u)
+}
+
+/// [`acceleration`] for inputs that are first-order vector duals in `N` seeds `θ`: the
+/// value in `f64`, the `θ`-Jacobian by the implicit function theorem on
+/// `r(s, v, a, u) = 0` ([`motion_residual`]): `∂a/∂θ = −𝕄⁻¹ ∂r/∂θ|_a`, one dual
+/// evaluation of `r` at the fixed acceleration. The generic path nests three levels of
+/// duals for the same numbers (`𝕄` is a second derivative of `ℓ`).
+pub fn acceleration_dual<
+    S,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+    const N: usize,
+>(
+    sys: &S,
+    s: &SVector<Dv<f64, N>, NS>,
+    v: &SVector<Dv<f64, N>, NS>,
+    u: &SVector<Dv<f64, N>, NU>,
+) -> Option<SVector<Dv<f64, N>, NS>>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+{
+    let (s0, v0, u0) = (s.map(|z| z.re), v.map(|z| z.re), u.map(|z| z.re));
+    let (m, r0) = mass_and_bias::<S, f64, DOF, DIM, NS, NU>(sys, &s0, &v0, &u0);
+    let lu = Lu::new(&m)?;
+    let a = lu.solve(&(-r0));
+    let r = motion_residual::<S, Dv<f64, N>, DOF, DIM, NS, NU>(
+        sys,
+        s,
+        v,
+        &a.map(Dv::<f64, N>::from_re),
+        u,
+    );
+    let r_theta = SMatrix::<f64, NS, N>::from_fn(|i, j| grad_part(&r[i])[j]);
+    let da = lu.solve_columns(&(-r_theta));
+    Some(SVector::from_fn(|i, _| {
+        DualVec::new(a[i], Derivative::some(da.row(i).transpose()))
+    }))
 }
 
 /// The rate of the group coordinates (`LieGroup::coordinates`) for body velocity `ξ`:

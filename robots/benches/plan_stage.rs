@@ -52,6 +52,31 @@ fn bench(c: &mut Criterion) {
     g.bench_function("stage_derivatives_rk1", |b| {
         b.iter(|| stage_derivatives(&rk1, 700, black_box(&x1), &w1, &zeta, None))
     });
+    let rk4 = RkPlan::<_, 5>::new(&wip, &p, PlanBounds::default(), RungeKutta::Rk4);
+    g.bench_function("stage_derivatives_rk4", |b| {
+        b.iter(|| stage_derivatives(&rk4, 700, black_box(&x1), &w1, &zeta, None))
+    });
+    // The generic route of the RK1 dynamics Jacobian (duals nested three deep), against
+    // the implicit-function route the solver takes (inside `stage_derivatives_rk1`).
+    g.bench_function("rk1_dynamics_jacobian_generic", |b| {
+        b.iter(|| {
+            let fx = rk1.stages.dynamics::<DualSVec64<15>, 3, 2, 5, 2, 15, 2>(
+                &seeded(black_box(&x1)),
+                &w1.map(DualSVec64::<15>::from_re),
+            );
+            let fw = rk1.stages.dynamics::<DualSVec64<2>, 3, 2, 5, 2, 15, 2>(
+                &x1.map(DualSVec64::<2>::from_re),
+                &seeded(&w1),
+            );
+            (fx, fw)
+        })
+    });
+    g.bench_function("rk1_dynamics_jacobian", |b| {
+        b.iter(|| {
+            rk1.stages
+                .dynamics_jacobian::<3, 2, 5, 2, 15, 2>(black_box(&x1), &w1)
+        })
+    });
     // The algebraic-current model (NS = 3, NX = 11): the VI stage.
     let alg = WipAlgebraicCurrent::new(wip);
     let (xa, wa) = varint_start::<_, 3, 11, 5>(&alg, &p);

@@ -1,15 +1,18 @@
 //! The VI transcription's structured equality Jacobian (each block seeded alone, only the
 //! terms that read it) against the generic path (all of `x` and `w` seeded through
-//! `VarIntStages::equality`), for the three force quadratures, at the eight's start and
-//! at perturbed points.
+//! `VarIntStages::equality`), for the three force quadratures; and the RK transcriptions'
+//! dynamics Jacobian (implicit-function accelerations) against theirs, for RK1/2/4 and
+//! both current models; at the eight's start and at perturbed points.
 
 use dmech::partials::{grad_part, seeded};
-use dmech::ForcingQuadrature;
+use dmech::{ForcingQuadrature, RungeKutta};
+use dmech_ocp::runge_kutta::RkStages;
 use dmech_ocp::varint::VarIntStages;
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
+use robots::wip::algebraic_current::WipAlgebraicCurrent;
 use robots::wip::benchmarks::eight;
-use robots::wip::plan::varint_start;
+use robots::wip::plan::{rk_start, varint_start, PlanModel};
 use robots::wip::Wip;
 
 /// Both are exact derivatives evaluated in double precision along different operation
@@ -61,5 +64,72 @@ fn structured_equality_jacobian_equals_generic() {
                 );
             }
         }
+    }
+}
+
+/// `(f, F_x, F_w)` of an RK transcription by its route (accelerations differentiated by
+/// the implicit function theorem) against the generic path (duals nested three deep
+/// through `RkStages::dynamics`); the worst error relative to the Jacobian's largest entry.
+fn rk_jacobian_error<M, const NS: usize, const NX: usize>(model: &M, method: RungeKutta) -> f64
+where
+    M: PlanModel<NS>,
+{
+    let p = eight(0.005);
+    let (xs, ws) = rk_start::<M, NS, NX>(model, &p);
+    let st = RkStages::new::<3, 2, NS, 2>(model, p.h, method);
+    let mut rand = lcg(777);
+    let mut worst = 0.0f64;
+    for k in [0, 350, 2100] {
+        for perturb in [0.0, 0.3] {
+            let x: SVector<f64, NX> = xs[k].map(|v| v + perturb * rand());
+            let w: SVector<f64, 2> = ws[k].map(|v| v + perturb * rand());
+            let (f, fx, fw) = st.dynamics_jacobian::<3, 2, NS, 2, NX, 2>(&x, &w);
+            let gx = st.dynamics::<DualSVec64<NX>, 3, 2, NS, 2, NX, 2>(
+                &seeded(&x),
+                &w.map(DualSVec64::<NX>::from_re),
+            );
+            let gw = st.dynamics::<DualSVec64<2>, 3, 2, NS, 2, NX, 2>(
+                &x.map(DualSVec64::<2>::from_re),
+                &seeded(&w),
+            );
+            let fx_ref = SMatrix::<f64, NX, NX>::from_fn(|i, j| grad_part(&gx[i])[j]);
+            let fw_ref = SMatrix::<f64, NX, 2>::from_fn(|i, j| grad_part(&gw[i])[j]);
+            let f_ref = gx.map(|d| d.re);
+            let scale = fx_ref.amax().max(fw_ref.amax()).max(1.0);
+            let err = (fx - fx_ref)
+                .amax()
+                .max((fw - fw_ref).amax())
+                .max((f - f_ref).amax());
+            worst = worst.max(err / scale);
+        }
+    }
+    worst
+}
+
+fn lcg(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    }
+}
+
+#[test]
+fn rk_dynamics_jacobian_equals_generic() {
+    let wip = Wip::default();
+    let alg = WipAlgebraicCurrent::new(wip);
+    for method in [RungeKutta::Rk1, RungeKutta::Rk2, RungeKutta::Rk4] {
+        let e_dyn = rk_jacobian_error::<Wip, 5, 15>(&wip, method);
+        let e_alg = rk_jacobian_error::<WipAlgebraicCurrent, 3, 11>(&alg, method);
+        eprintln!("{method:?}: dynamic current {e_dyn:.3e}, algebraic current {e_alg:.3e}");
+        assert!(
+            e_dyn <= ROUND_OFF,
+            "{method:?}, dynamic current: {e_dyn:.3e}"
+        );
+        assert!(
+            e_alg <= ROUND_OFF,
+            "{method:?}, algebraic current: {e_alg:.3e}"
+        );
     }
 }

@@ -340,6 +340,14 @@ impl<M: PlanModel<NS>, const NS: usize, const NX: usize> StageProblem<NX, 2, 0, 
     ) -> SVector<T, NX> {
         self.stages.dynamics::<T, 3, 2, NS, 2, NX, 2>(x, w)
     }
+    fn dynamics_jacobian(
+        &self,
+        _k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, 2>,
+    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, 2>) {
+        self.stages.dynamics_jacobian::<3, 2, NS, 2, NX, 2>(x, w)
+    }
     fn equality<T: Real>(
         &self,
         _k: usize,
