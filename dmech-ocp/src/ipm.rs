@@ -954,12 +954,19 @@ where
                     }
                     let switching =
                         dphi < 0.0 && alpha * (-dphi).powf(s_ph) > dl * m.theta.powf(s_th);
+                    // IPOPT's `Compare_le`: a decrease test passes within 10 ulps of the
+                    // reference, so that steps whose predicted decrease is below the
+                    // round-off of φ (near the solution, θ ≈ 1e-13) are not rejected by
+                    // noise.
+                    let le = |lhs: f64, rhs: f64, base: f64| {
+                        lhs - rhs <= 10.0 * f64::EPSILON * base.abs()
+                    };
                     if m.theta <= theta_min_f && switching {
-                        (tmz.barrier <= m.barrier + eta * alpha * dphi, false)
+                        (le(tmz.barrier, m.barrier + eta * alpha * dphi, m.barrier), false)
                     } else {
                         (
-                            tmz.theta <= (1.0 - gth) * m.theta
-                                || tmz.barrier <= m.barrier - gph * m.theta,
+                            le(tmz.theta, (1.0 - gth) * m.theta, m.theta)
+                                || le(tmz.barrier, m.barrier - gph * m.theta, m.barrier),
                             true,
                         )
                     }

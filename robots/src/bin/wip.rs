@@ -68,13 +68,15 @@ stderr, files still written) or a bad input file; 2 bad usage.";
 
 const BENCH_HELP: &str = "\
 usage: wip bench [--problems eight,zigzag] [--integrators varint,rk1,rk2,rk4]
-                 [--currents dynamic,algebraic] [--out DIR]
+                 [--currents dynamic,algebraic] [--time-limit SECONDS] [--out DIR]
 
 Reruns the paper's Figure \"computation time\" (MATLAB + CasADi 3.2.3 + IPOPT, i7-8700;
 algebraic current / current dynamics: RK1 690/553 s, RK2 710/544 s, RK4 776/680 s,
 VarInt 688/522 s) with our solver: one plan per problem, integrator and current model,
 each alone, and prints a table of status, iterations, solve time and objective; writes
-DIR/bench.json (default DIR: out). RK runs with the current dynamics take minutes each.";
+DIR/bench.json (default DIR: out). RK runs with the current dynamics take minutes each;
+--time-limit stops each plan after that many seconds (status max_iterations; default
+none).";
 
 const DIAGNOSE_HELP: &str = "\
 usage: wip diagnose <DATA.csv> [--params FILE] [--out DIR] [--window SECONDS]
@@ -351,6 +353,7 @@ fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
     let mut integrators: Vec<String> = ["varint", "rk1", "rk2", "rk4"].map(String::from).to_vec();
     let mut currents: Vec<String> = ["dynamic", "algebraic"].map(String::from).to_vec();
     let mut out = PathBuf::from("out");
+    let mut time_limit = f64::INFINITY;
     let list = |v: String| {
         v.split(',')
             .map(|s| s.trim().to_string())
@@ -362,6 +365,9 @@ fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
             Long("integrators") => integrators = list(parser.value()?.string()?),
             Long("currents") => currents = list(parser.value()?.string()?),
             Long("out") => out = PathBuf::from(parser.value()?),
+            Long("time-limit") => {
+                time_limit = parse_f64(&parser.value()?.string()?, "--time-limit")?
+            }
             Long("help") | Short('h') => {
                 println!("{BENCH_HELP}");
                 return Ok(());
@@ -399,7 +405,10 @@ fn cmd_bench(mut parser: lexopt::Parser) -> Result<(), Failure> {
             for i in &integrators {
                 let tr: Transcription = i.parse().map_err(Failure::Usage)?;
                 eprintln!("bench: {p} with {i}, {} current …", c.name());
-                let opts = dmech_ocp::ipm::IpOptions::default();
+                let opts = dmech_ocp::ipm::IpOptions {
+                    time_limit,
+                    ..Default::default()
+                };
                 let o = plan(&wip, &problem, tr, c, opts);
                 let paper_s = if p == "eight" { paper(i, c) } else { None };
                 println!(

@@ -787,6 +787,10 @@ where
         if j > 0 {
             o.mu_init = intermediate_tol;
         }
+        // The time limit holds for the whole continuation.
+        if let Some(prev) = &done {
+            o.time_limit = (opts.time_limit - prev.timings.total).max(0.0);
+        }
         let s: Solver<_, NX, NW, NE, NU, NC> = Solver::new(p, o);
         let r = match &done {
             None => {
