@@ -962,7 +962,10 @@ where
                         lhs - rhs <= 10.0 * f64::EPSILON * base.abs()
                     };
                     if m.theta <= theta_min_f && switching {
-                        (le(tmz.barrier, m.barrier + eta * alpha * dphi, m.barrier), false)
+                        (
+                            le(tmz.barrier, m.barrier + eta * alpha * dphi, m.barrier),
+                            false,
+                        )
                     } else {
                         (
                             le(tmz.theta, (1.0 - gth) * m.theta, m.theta)

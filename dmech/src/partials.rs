@@ -114,7 +114,7 @@ where
 {
     let lift = |x: &Dv<f64, N>, nu: Option<SMatrix<f64, 1, NS>>, mixed| {
         let mut h = Hd::<N, NS>::from_re(x.re);
-        h.eps1 = x.eps.clone();
+        h.eps1 = x.eps;
         h.eps2 = Derivative::new(nu);
         h.eps1eps2 = Derivative::new(mixed);
         h
