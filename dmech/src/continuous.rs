@@ -82,8 +82,6 @@ where
     Dv<Dual<T>, NS>: Lift<S::Param>,
 {
     let a = sys.connection(s);
-    let at = a.transpose();
-    let xi = -(a * v);
 
     // 𝕄 = ∂/∂v [P(s, v, −A v) − Aᵀ μ(s, v, −A v)] at fixed s. `P − Aᵀμ` is the momentum
     // paired with a shape variation ν along the constraint, the ν-gradient of
@@ -98,20 +96,8 @@ where
         v,
     );
 
-    // Time derivative of P − A(s₀)ᵀμ along (ṡ, v̇) = (v, 0), by a dual number in time.
-    let st = SVector::<Dual<T>, NS>::from_fn(|i, _| Dual::new(s[i], v[i]));
-    let vt = v.map(Dual::from_re);
-    let xit = -(sys.connection(&st) * vt);
-    let a0 = a.map(Dual::from_re);
-    let momentum_dot =
-        pulled_back_gradient::<S, _, DOF, DIM, NS, NU>(sys, &st, 0.0, &vt, &xit, &(-a0))
-            .map(|z| z.eps);
-    let mu = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
-
-    let ls = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
-    let ad = <S::Group<T> as LieGroup<DOF, DIM>>::ad(&xi);
-    let f = sys.forcing(s, v, u);
-    let r0 = momentum_dot + at * (ad.transpose() * mu) - ls - f;
+    // r₀ = r(a = 0): the time derivative of P − A(s₀)ᵀμ along (ṡ, v̇) = (v, 0) and the rest.
+    let r0 = motion_residual::<S, T, DOF, DIM, NS, NU>(sys, s, v, &SVector::zeros(), u);
     (m, r0)
 }
 
