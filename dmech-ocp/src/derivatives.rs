@@ -11,7 +11,7 @@
 
 use crate::problem::StageProblem;
 use dmech::linalg::Lu;
-use dmech::partials::{grad_part as grad, seeded as seed};
+use dmech::partials::{grad_part as grad, seeded as seed, split_passes};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
 
@@ -147,6 +147,7 @@ where
     let wd = seed(w);
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
+    let (c, cx, cw) = split_passes(&c_d, &c_w);
 
     let mut d = StageDerivatives {
         f,
@@ -158,9 +159,9 @@ where
         cost: l_d.re,
         gx: grad(&l_d),
         gw: grad(&l_w),
-        c: c_d.map(|d| d.re),
-        cx: SMatrix::from_fn(|i, j| grad(&c_d[i])[j]),
-        cw: SMatrix::from_fn(|i, j| grad(&c_w[i])[j]),
+        c,
+        cx,
+        cw,
         hxx: SMatrix::zeros(),
         hxw: SMatrix::zeros(),
         hww: SMatrix::zeros(),

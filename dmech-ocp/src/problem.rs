@@ -17,7 +17,7 @@
 //! Every function is generic over the scalar: the solver takes exact derivatives with
 //! dual numbers. Nothing here knows about a particular robot.
 
-use dmech::partials::{grad_part, lift_vec, seeded};
+use dmech::partials::{lift_vec, seeded, split_passes};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 
@@ -72,11 +72,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
         let fx = self.dynamics(k, &seeded(x), &lift_vec::<f64, NX, NW>(w));
         let fw = self.dynamics(k, &lift_vec::<f64, NW, NX>(x), &seeded(w));
-        (
-            fx.map(|d| d.re),
-            SMatrix::from_fn(|i, j| grad_part(&fx[i])[j]),
-            SMatrix::from_fn(|i, j| grad_part(&fw[i])[j]),
-        )
+        split_passes(&fx, &fw)
     }
     /// `(e, E_x, E_w)` of the stage equality, exact. The default differentiates
     /// [`StageProblem::equality`] by two vector-dual passes (seeded in `x`, then in `w`); a
@@ -91,10 +87,6 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
         let ex = self.equality(k, &seeded(x), &lift_vec::<f64, NX, NW>(w));
         let ew = self.equality(k, &lift_vec::<f64, NW, NX>(x), &seeded(w));
-        (
-            ex.map(|d| d.re),
-            SMatrix::from_fn(|i, j| grad_part(&ex[i])[j]),
-            SMatrix::from_fn(|i, j| grad_part(&ew[i])[j]),
-        )
+        split_passes(&ex, &ew)
     }
 }

@@ -3,7 +3,7 @@
 
 use crate::layout::{segment, Layout};
 use dmech::continuous::{acceleration, acceleration_dual, coordinate_rate};
-use dmech::partials::{grad_part, lift_vec, seeded};
+use dmech::partials::{lift_vec, seeded, split_passes};
 use dmech::{PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
@@ -132,11 +132,7 @@ impl<'a, S> RkStages<'a, S> {
             &seeded(w),
             &|s, v, u| acceleration_dual::<S, DOF, DIM, NS, NU, NW>(self.sys, s, v, u),
         );
-        (
-            fx.map(|d| d.re),
-            SMatrix::from_fn(|i, j| grad_part(&fx[i])[j]),
-            SMatrix::from_fn(|i, j| grad_part(&fw[i])[j]),
-        )
+        split_passes(&fx, &fw)
     }
 
     /// The RK step with a given acceleration function.

@@ -33,6 +33,20 @@ pub fn grad_part<T: Real, const N: usize>(f: &Dv<T, N>) -> SVector<T, N> {
     f.eps.0.unwrap_or_else(SVector::zeros)
 }
 
+/// `(y, ∂y/∂x, ∂y/∂w)` from two vector-dual evaluations of the same `y(x, w)`, one seeded
+/// in `x` and one in `w` (the value is taken from the first).
+#[allow(clippy::type_complexity)]
+pub fn split_passes<const M: usize, const NX: usize, const NW: usize>(
+    yx: &SVector<Dv<f64, NX>, M>,
+    yw: &SVector<Dv<f64, NW>, M>,
+) -> (SVector<f64, M>, SMatrix<f64, M, NX>, SMatrix<f64, M, NW>) {
+    (
+        yx.map(|d| d.re),
+        SMatrix::from_fn(|i, j| grad_part(&yx[i])[j]),
+        SMatrix::from_fn(|i, j| grad_part(&yw[i])[j]),
+    )
+}
+
 /// Value and Jacobian of `f: Rᴺ → Rᴹ` by vector duals, generic over the scalar.
 pub fn value_and_jacobian<T: Real, const N: usize, const M: usize>(
     f: impl Fn(&SVector<Dv<T, N>, N>) -> SVector<Dv<T, N>, M>,
