@@ -35,7 +35,8 @@ pub const SMOOTH_FRICTION_SLOPE: f64 = 1.0;
 pub trait PlanModel<const NS: usize>:
     PrincipalKinematicSystem<3, 2, NS, 2, Param = f64> + Clone + PartialEq + Sync
 {
-    /// Whether the currents are states with their (stiff) dynamics.
+    /// Whether the currents are states with their (stiff) dynamics; if not, the outcome
+    /// reconstructs currents and charges from `currents`.
     const CURRENT_DYNAMICS: bool;
     /// The mechanics and parameters shared by all models.
     fn wip(&self) -> &Wip;
@@ -662,7 +663,7 @@ fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
         let (mut s5, mut v5) = (SVector::<f64, 5>::zeros(), SVector::<f64, 5>::zeros());
         s5.fixed_rows_mut::<NS>(0).copy_from(&x.fixed_rows::<NS>(3));
         v5.fixed_rows_mut::<NS>(0).copy_from(&v);
-        if NS < 5 {
+        if !M::CURRENT_DYNAMICS {
             let i = if k < n {
                 model.currents(&v, &u)
             } else {
