@@ -150,16 +150,49 @@ fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads: usize, f:
     par_update(out, threads, |k, slot| *slot = f(k));
 }
 
+/// Stages per work item of the parallel loops: small enough that two threads finish
+/// together (stage costs differ, e.g. where the friction saturates), large enough that
+/// taking an item costs nothing against its work.
+const PAR_CHUNK: usize = 32;
+
 /// `f(k, &mut items[k])` for every `k`, on `threads` scoped threads.
 fn par_update<R: Send, F: Fn(usize, &mut R) + Sync>(items: &mut [R], threads: usize, f: F) {
-    let n = items.len();
-    let chunk = n.div_ceil(threads.max(1)).max(1);
+    let mut none: Vec<()> = vec![(); items.len()];
+    par_zip(items, &mut none, threads, |k, a, _| f(k, a));
+}
+
+/// `f(k, &mut a[k], &mut b[k])` for every `k`, on `threads` scoped threads: two per-stage
+/// arrays filled in one pass, so that a stage's data is still in cache for the second.
+/// Threads take chunks of [`PAR_CHUNK`] stages from a shared queue.
+fn par_zip<A: Send, B: Send, F: Fn(usize, &mut A, &mut B) + Sync>(
+    a: &mut [A],
+    b: &mut [B],
+    threads: usize,
+    f: F,
+) {
+    assert_eq!(a.len(), b.len());
+    let threads = threads.max(1);
+    let chunks = a
+        .chunks_mut(PAR_CHUNK)
+        .zip(b.chunks_mut(PAR_CHUNK))
+        .enumerate();
+    if threads == 1 {
+        for (ci, (pa, pb)) in chunks {
+            for (j, (sa, sb)) in pa.iter_mut().zip(pb.iter_mut()).enumerate() {
+                f(ci * PAR_CHUNK + j, sa, sb);
+            }
+        }
+        return;
+    }
+    let queue = std::sync::Mutex::new(chunks);
     std::thread::scope(|sc| {
-        for (ci, part) in items.chunks_mut(chunk).enumerate() {
-            let f = &f;
-            sc.spawn(move || {
-                for (j, slot) in part.iter_mut().enumerate() {
-                    f(ci * chunk + j, slot);
+        for _ in 0..threads {
+            let (f, queue) = (&f, &queue);
+            sc.spawn(move || loop {
+                let next = queue.lock().unwrap_or_else(|p| p.into_inner()).next();
+                let Some((ci, (pa, pb))) = next else { break };
+                for (j, (sa, sb)) in pa.iter_mut().zip(pb.iter_mut()).enumerate() {
+                    f(ci * PAR_CHUNK + j, sa, sb);
                 }
             });
         }
@@ -255,6 +288,16 @@ struct Elimination<const NX: usize, const NW: usize, const NU: usize> {
     w0: SVector<f64, NW>,
     wx: SMatrix<f64, NW, NX>,
     wu: SMatrix<f64, NW, NU>,
+}
+
+impl<const NX: usize, const NW: usize, const NU: usize> Elimination<NX, NW, NU> {
+    fn zeros() -> Self {
+        Elimination {
+            w0: SVector::zeros(),
+            wx: SMatrix::zeros(),
+            wu: SMatrix::zeros(),
+        }
+    }
 }
 
 struct Bounds<const NC: usize> {
@@ -738,6 +781,9 @@ where
             return self.finish(Status::Failed(msg), it, 0, tm, t_start);
         }
         let mut ders = vec![StageDerivatives::<NX, NW, NE, NC>::zeros(); n];
+        // The condensed stages and their eliminations, overwritten every iteration.
+        let mut lq = vec![LqStage::<NX, NU>::zeros(); n];
+        let mut elim = vec![Elimination::<NX, NW, NU>::zeros(); n];
         let mut qn = vec![QuasiNewton::<NX, NW, NE>::new(); if o.quasi_newton { n } else { 0 }];
         let mut ls_count = 0;
         let mut forced_steps = 0usize;
@@ -752,7 +798,7 @@ where
             }
             // Derivatives.
             let t0 = Instant::now();
-            par_fill(&mut ders, o.threads, |k| {
+            let derivatives = |k: usize| {
                 stage_derivatives(
                     self.p,
                     k,
@@ -761,15 +807,17 @@ where
                     &(it.z_hi[k] - it.z_lo[k]),
                     o.exact_hessian.then_some(&it.lambda[k]),
                 )
-            });
+            };
             if o.quasi_newton {
-                par_update(&mut qn, o.threads, |k, q| {
-                    let d = &ders[k];
+                par_zip(&mut ders, &mut qn, o.threads, |k, d, q| {
+                    *d = derivatives(k);
                     let nu = d
                         .equality_multiplier(&it.lambda[k], &(it.z_hi[k] - it.z_lo[k]))
                         .unwrap_or_else(SVector::zeros);
                     q.update(&it.x[k], &it.w[k], d, &it.lambda[k], &nu);
                 });
+            } else {
+                par_fill(&mut ders, o.threads, derivatives);
             }
             tm.derivatives += t0.elapsed().as_secs_f64();
 
@@ -837,11 +885,11 @@ where
 
             // KKT solve.
             let t1 = Instant::now();
-            let (lq, elim) =
-                match self.condense_all(|k| self.condense(k, &it, &ders[k], qn.get(k), mu, dc)) {
-                    Ok(c) => c,
-                    Err(e) => return self.finish(Status::Failed(e), it, iter, tm, t_start),
-                };
+            if let Err(e) = self.condense_all(&mut lq, &mut elim, |k| {
+                self.condense(k, &it, &ders[k], qn.get(k), mu, dc)
+            }) {
+                return self.finish(Status::Failed(e), it, iter, tm, t_start);
+            }
             let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
             self.add_state_equalities(n, &it, dc, &mut q_n, &mut q_vec_n);
             let mut delta = 0.0;
@@ -1128,22 +1176,32 @@ where
         (amax_p, amax_d)
     }
 
-    /// Every stage condensed by `stage(k)`, in parallel; the first error if any.
+    /// Every stage condensed by `stage(k)` into `lq[k]`, `elim[k]`, in parallel; the
+    /// error of the first stage that fails, if any.
     #[allow(clippy::type_complexity)]
     fn condense_all<F>(
         &self,
+        lq: &mut [LqStage<NX, NU>],
+        elim: &mut [Elimination<NX, NW, NU>],
         stage: F,
-    ) -> Result<(Vec<LqStage<NX, NU>>, Vec<Elimination<NX, NW, NU>>), String>
+    ) -> Result<(), String>
     where
         F: Fn(usize) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> + Sync,
     {
-        let mut condensed: Vec<Result<_, String>> =
-            (0..self.n).map(|_| Err(String::new())).collect();
-        par_fill(&mut condensed, self.opts.threads, stage);
-        condensed
-            .into_iter()
-            .collect::<Result<Vec<_>, _>>()
-            .map(|v| v.into_iter().unzip())
+        let failed = std::sync::Mutex::new(None::<(usize, String)>);
+        par_zip(lq, elim, self.opts.threads, |k, l, e| match stage(k) {
+            Ok((sl, se)) => (*l, *e) = (sl, se),
+            Err(msg) => {
+                let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
+                if f.as_ref().is_none_or(|(j, _)| k < *j) {
+                    *f = Some((k, msg));
+                }
+            }
+        });
+        match failed.into_inner().unwrap_or_else(|p| p.into_inner()) {
+            Some((_, msg)) => Err(msg),
+            None => Ok(()),
+        }
     }
 
     /// The second-order correction step: the KKT system of the iterate (same curvature,
@@ -1163,15 +1221,16 @@ where
         delta: f64,
     ) -> Option<Step<NX, NW, NC>> {
         let n = self.n;
-        let (lq, elim) = self
-            .condense_all(|k| {
-                let mut d = ders[k].clone();
-                let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
-                d.f = it.x[k + 1] + r;
-                d.e = d.e * alpha + trial_vals[k].e;
-                self.condense(k, it, &d, qn.get(k), mu, dc)
-            })
-            .ok()?;
+        let mut lq = vec![LqStage::<NX, NU>::zeros(); n];
+        let mut elim = vec![Elimination::<NX, NW, NU>::zeros(); n];
+        self.condense_all(&mut lq, &mut elim, |k| {
+            let mut d = ders[k].clone();
+            let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
+            d.f = it.x[k + 1] + r;
+            d.e = d.e * alpha + trial_vals[k].e;
+            self.condense(k, it, &d, qn.get(k), mu, dc)
+        })
+        .ok()?;
         let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
         self.add_state_equalities(n, it, dc, &mut q_n, &mut q_vec_n);
         let sol = solve_lq(&lq, &q_n, &q_vec_n, &SVector::zeros(), delta).ok()?;

@@ -30,6 +30,21 @@ pub struct LqStage<const NX: usize, const NU: usize> {
     pub c: SVector<f64, NX>,
 }
 
+impl<const NX: usize, const NU: usize> LqStage<NX, NU> {
+    pub fn zeros() -> Self {
+        LqStage {
+            q_mat: SMatrix::zeros(),
+            s_mat: SMatrix::zeros(),
+            r_mat: SMatrix::zeros(),
+            q: SVector::zeros(),
+            r: SVector::zeros(),
+            a: SMatrix::zeros(),
+            b: SMatrix::zeros(),
+            c: SVector::zeros(),
+        }
+    }
+}
+
 /// The solution: states `x[0..=N]`, inputs `u[0..N]`, and the multipliers of the dynamics
 /// (`lambda[k]` for the constraint that defines `x_{k+1}`).
 #[derive(Clone, Debug)]
