@@ -44,6 +44,12 @@ pub struct IpOptions {
     /// Partitioned SR1 approximation of the dynamics' and stage equalities' curvature
     /// (used when `exact_hessian` is off).
     pub quasi_newton: bool,
+    /// The SR1 update `B += r rᵀ/(sᵀr)` of a stage is skipped when `|sᵀr| ≤ sr1_skip ‖s‖‖r‖`.
+    /// The update's norm is `‖r‖²/|sᵀr|`, at most `‖r‖/(sr1_skip ‖s‖)`: this bounds how far
+    /// one stage's curvature may leap past what the secant observed. One stage's leap
+    /// into negative curvature forces the inertia shift on all stages, so the bound is
+    /// tight (1e-2, not the textbook 1e-8: measurements in `docs/ocp.md`).
+    pub sr1_skip: f64,
     /// Wall-clock limit in seconds (reported as `MaxIterations`).
     pub time_limit: f64,
 }
@@ -71,6 +77,7 @@ impl Default for IpOptions {
             verbose: false,
             exact_hessian: false,
             quasi_newton: true,
+            sr1_skip: 1e-2,
             time_limit: f64::INFINITY,
         }
     }
@@ -238,9 +245,11 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
     }
 
     /// SR1 update with the multipliers of the new iterate, then remember the new point.
+    /// Skipped when `|sᵀr| ≤ skip ‖s‖‖r‖` ([`IpOptions::sr1_skip`]).
     #[allow(clippy::too_many_arguments)]
     fn update<const NC: usize>(
         &mut self,
+        skip: f64,
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
         d: &StageDerivatives<NX, NW, NE, NC>,
@@ -256,7 +265,7 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
             let den = sx.dot(&rx) + sw.dot(&rw);
             let ns = (sx.norm_squared() + sw.norm_squared()).sqrt();
             let nr = (rx.norm_squared() + rw.norm_squared()).sqrt();
-            if den.abs() > 1e-8 * ns * nr && ns > 0.0 {
+            if den.abs() > skip * ns * nr && ns > 0.0 {
                 self.bxx += rx * rx.transpose() / den;
                 self.bxw += rx * rw.transpose() / den;
                 self.bww += rw * rw.transpose() / den;
@@ -814,7 +823,7 @@ where
                     let nu = d
                         .equality_multiplier(&it.lambda[k], &(it.z_hi[k] - it.z_lo[k]))
                         .unwrap_or_else(SVector::zeros);
-                    q.update(&it.x[k], &it.w[k], d, &it.lambda[k], &nu);
+                    q.update(o.sr1_skip, &it.x[k], &it.w[k], d, &it.lambda[k], &nu);
                 });
             } else {
                 par_fill(&mut ders, o.threads, derivatives);
