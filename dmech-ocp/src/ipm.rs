@@ -676,37 +676,31 @@ where
         ders: &[StageDerivatives<NX, NW, NE, NC>],
     ) -> KktError {
         let n = self.n;
-        let mut dual = 0.0f64;
-        let mut mult_sum = 0.0;
-        let mut mult_cnt = 0.0;
-        let mut primal = 0.0f64;
-        let mut gx_next = SVector::<f64, NX>::zeros(); // −λ_k contribution to ∇x_k
-        for k in 0..n {
+        // Per stage, in parallel: (dual error, primal error, Σ|ν|, Σ|λ| + Σz); summed below
+        // in stage order, as the serial loop did (the sums bitwise the same).
+        let mut per_stage = vec![(0.0f64, 0.0f64, None::<f64>, 0.0f64); n];
+        par_fill(&mut per_stage, self.opts.threads, |k| {
             let d = &ders[k];
             let zeta = it.z_hi[k] - it.z_lo[k];
             let lam = &it.lambda[k];
-            let mut gx = d.gx + d.fx.transpose() * lam + d.cx.transpose() * zeta + gx_next;
+            let mut gx = d.gx + d.fx.transpose() * lam + d.cx.transpose() * zeta;
+            if k > 0 {
+                gx -= it.lambda[k - 1]; // x_k's part in the dynamics row of stage k − 1
+            }
             let mut gw = d.gw + d.fw.transpose() * lam + d.cw.transpose() * zeta;
-            if let Some(nu) = d.equality_multiplier(lam, &zeta) {
+            let nu_sum = d.equality_multiplier(lam, &zeta).map(|nu| {
                 gx += d.ex.transpose() * nu;
                 gw += d.ew.transpose() * nu;
-                mult_sum += nu.abs().sum();
-                mult_cnt += NE as f64;
-            }
+                nu.abs().sum()
+            });
             // A state equality fixes one component: its multiplier estimate zeroes that
             // component of the gradient (the iterate's y carries the round-off of the
             // regularised update, amplified by 1/δ_c).
             for &j in &self.eqs_at[k] {
                 gx[self.eqs[j].index] = 0.0;
             }
-            if k > 0 {
-                dual = dual.max(gx.amax());
-            }
-            dual = dual.max(gw.amax());
-            gx_next = -lam;
-            mult_sum += lam.abs().sum() + it.z_lo[k].sum() + it.z_hi[k].sum();
-            mult_cnt += (NX + 2 * NC) as f64;
-            primal = primal.max((d.f - it.x[k + 1]).amax()).max(d.e.amax());
+            let dual = if k > 0 { gx.amax() } else { 0.0 }.max(gw.amax());
+            let mut primal = (d.f - it.x[k + 1]).amax().max(d.e.amax());
             let b = &self.bounds[k];
             for i in 0..NC {
                 if b.has_lo[i] > 0.0 {
@@ -716,7 +710,28 @@ where
                     primal = primal.max((b.hi[i] - d.c[i] - it.t_hi[k][i]).abs());
                 }
             }
+            let others = lam.abs().sum() + it.z_lo[k].sum() + it.z_hi[k].sum();
+            (dual, primal, nu_sum, others)
+        });
+        let mut dual = 0.0f64;
+        let mut mult_sum = 0.0;
+        let mut mult_cnt = 0.0;
+        let mut primal = 0.0f64;
+        for &(d_k, p_k, nu_sum, others) in &per_stage {
+            if let Some(v) = nu_sum {
+                mult_sum += v;
+                mult_cnt += NE as f64;
+            }
+            dual = dual.max(d_k);
+            mult_sum += others;
+            mult_cnt += (NX + 2 * NC) as f64;
+            primal = primal.max(p_k);
         }
+        let gx_next = if n > 0 {
+            -it.lambda[n - 1]
+        } else {
+            SVector::zeros()
+        };
         let mut gx_n = gx_next;
         for &j in &self.eqs_at[n] {
             gx_n[self.eqs[j].index] = 0.0;
