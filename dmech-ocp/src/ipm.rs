@@ -555,7 +555,9 @@ where
         qn: Option<&QuasiNewton<NX, NW, NE>>,
         mu: f64,
         dc: f64,
-    ) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> {
+        lq: &mut LqStage<NX, NU>,
+        elim: &mut Elimination<NX, NW, NU>,
+    ) -> Result<(), String> {
         let b = &self.bounds[k];
         // Inequalities: Σ and the barrier gradient term.
         let mut sigma = SVector::<f64, NC>::zeros();
@@ -618,17 +620,17 @@ where
         let mut q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
         let r = wu.transpose() * (gw + hww_w0);
         self.add_state_equalities(k, it, dc, &mut q_mat, &mut q);
-        let lq = LqStage {
-            q_mat,
-            s_mat,
-            r_mat,
-            q,
-            r,
-            a: d.fx + d.fw * wx,
-            b: d.fw * wu,
-            c: d.f + d.fw * w0 - it.x[k + 1],
-        };
-        Ok((lq, Elimination { w0, wx, wu }))
+        // Written in place (no stage-sized temporaries to move).
+        lq.q_mat = q_mat;
+        lq.s_mat = s_mat;
+        lq.r_mat = r_mat;
+        lq.q = q;
+        lq.r = r;
+        lq.a = d.fx + d.fw * wx;
+        lq.b = d.fw * wu;
+        lq.c = d.f + d.fw * w0 - it.x[k + 1];
+        (elim.w0, elim.wx, elim.wu) = (w0, wx, wu);
+        Ok(())
     }
 
     /// The quadratic terms of the state equalities at stage `k`.
@@ -909,8 +911,8 @@ where
 
             // KKT solve.
             let t1 = Instant::now();
-            if let Err(e) = self.condense_all(&mut lq, &mut elim, |k| {
-                self.condense(k, &it, &ders[k], qn.get(k), mu, dc)
+            if let Err(e) = self.condense_all(&mut lq, &mut elim, |k, l, e| {
+                self.condense(k, &it, &ders[k], qn.get(k), mu, dc, l, e)
             }) {
                 return self.finish(Status::Failed(e), it, iter, tm, t_start);
             }
@@ -1200,7 +1202,7 @@ where
         (amax_p, amax_d)
     }
 
-    /// Every stage condensed by `stage(k)` into `lq[k]`, `elim[k]`, in parallel; the
+    /// Every stage condensed by `stage(k, &mut lq[k], &mut elim[k])`, in parallel; the
     /// error of the first stage that fails, if any.
     #[allow(clippy::type_complexity)]
     fn condense_all<F>(
@@ -1210,15 +1212,18 @@ where
         stage: F,
     ) -> Result<(), String>
     where
-        F: Fn(usize) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> + Sync,
+        F: Fn(usize, &mut LqStage<NX, NU>, &mut Elimination<NX, NW, NU>) -> Result<(), String>
+            + Sync,
     {
         let failed = std::sync::Mutex::new(None::<(usize, String)>);
-        par_zip(lq, elim, self.opts.threads, |k, l, e| match stage(k) {
-            Ok((sl, se)) => (*l, *e) = (sl, se),
-            Err(msg) => {
-                let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
-                if f.as_ref().is_none_or(|(j, _)| k < *j) {
-                    *f = Some((k, msg));
+        par_zip(lq, elim, self.opts.threads, |k, l, e| {
+            match stage(k, l, e) {
+                Ok(()) => {}
+                Err(msg) => {
+                    let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
+                    if f.as_ref().is_none_or(|(j, _)| k < *j) {
+                        *f = Some((k, msg));
+                    }
                 }
             }
         });
@@ -1247,12 +1252,12 @@ where
         let n = self.n;
         let mut lq = vec![LqStage::<NX, NU>::zeros(); n];
         let mut elim = vec![Elimination::<NX, NW, NU>::zeros(); n];
-        self.condense_all(&mut lq, &mut elim, |k| {
+        self.condense_all(&mut lq, &mut elim, |k, l, e| {
             let mut d = ders[k].clone();
             let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
             d.f = it.x[k + 1] + r;
             d.e = d.e * alpha + trial_vals[k].e;
-            self.condense(k, it, &d, qn.get(k), mu, dc)
+            self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
         })
         .ok()?;
         let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
