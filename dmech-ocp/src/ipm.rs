@@ -178,30 +178,25 @@ fn par_zip<A: Send, B: Send, F: Fn(usize, &mut A, &mut B) + Sync>(
     f: F,
 ) {
     assert_eq!(a.len(), b.len());
-    let threads = threads.max(1);
     let chunks = a
         .chunks_mut(PAR_CHUNK)
         .zip(b.chunks_mut(PAR_CHUNK))
         .enumerate();
-    if threads == 1 {
-        for (ci, (pa, pb)) in chunks {
-            for (j, (sa, sb)) in pa.iter_mut().zip(pb.iter_mut()).enumerate() {
-                f(ci * PAR_CHUNK + j, sa, sb);
-            }
+    let queue = std::sync::Mutex::new(chunks);
+    let work = || loop {
+        let next = queue.lock().unwrap_or_else(|p| p.into_inner()).next();
+        let Some((ci, (pa, pb))) = next else { break };
+        for (j, (sa, sb)) in pa.iter_mut().zip(pb.iter_mut()).enumerate() {
+            f(ci * PAR_CHUNK + j, sa, sb);
         }
+    };
+    if threads <= 1 {
+        work();
         return;
     }
-    let queue = std::sync::Mutex::new(chunks);
     std::thread::scope(|sc| {
         for _ in 0..threads {
-            let (f, queue) = (&f, &queue);
-            sc.spawn(move || loop {
-                let next = queue.lock().unwrap_or_else(|p| p.into_inner()).next();
-                let Some((ci, (pa, pb))) = next else { break };
-                for (j, (sa, sb)) in pa.iter_mut().zip(pb.iter_mut()).enumerate() {
-                    f(ci * PAR_CHUNK + j, sa, sb);
-                }
-            });
+            sc.spawn(work);
         }
     });
 }
@@ -620,7 +615,7 @@ where
         let mut q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
         let r = wu.transpose() * (gw + hww_w0);
         self.add_state_equalities(k, it, dc, &mut q_mat, &mut q);
-        // Written in place (no stage-sized temporaries to move).
+        // Into the caller's buffers, kept across iterations.
         lq.q_mat = q_mat;
         lq.s_mat = s_mat;
         lq.r_mat = r_mat;
@@ -1389,6 +1384,92 @@ where
                 .zip(&s.y)
                 .map(|(y0, y1)| y0 + (y1 - y0) * a)
                 .collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    type Der = StageDerivatives<3, 2, 1, 1>;
+
+    /// A deterministic pseudo-random matrix with entries in [−0.5, 0.5).
+    fn mat<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
+        SMatrix::from_fn(|_, _| {
+            *seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        })
+    }
+
+    /// Two stage Jacobians, points and multipliers with `cos∠(s, y) = cos` (y the
+    /// multiplier-weighted change of the Jacobians, `B = 0` before, so `r = y`).
+    fn secant_pair(cos: f64) -> (QuasiNewton<3, 2, 1>, Der, SVector<f64, 3>, SVector<f64, 3>) {
+        let mut seed = 7u64;
+        let (mut d0, mut d1) = (Der::zeros(), Der::zeros());
+        (d0.fx, d0.fw, d0.ex, d0.ew) = (
+            mat(&mut seed),
+            mat(&mut seed),
+            mat(&mut seed),
+            mat(&mut seed),
+        );
+        (d1.fx, d1.fw, d1.ex, d1.ew) = (d0.fx, d0.fw, d0.ex, d0.ew);
+        // Only f_x changes, by M: y = (Mᵀλ, 0) and sᵀy = (M s_x)ᵀλ. λ is built from the
+        // unit vector along M s_x and one orthogonal to it, at the requested angle.
+        let m: SMatrix<f64, 3, 3> = mat(&mut seed);
+        d1.fx += m;
+        let (x0, w0) = (mat::<3, 1>(&mut seed), mat::<2, 1>(&mut seed));
+        let x1 = x0 + mat::<3, 1>(&mut seed);
+        let sx = x1 - x0;
+        let a = (m * sx).normalize();
+        let o = {
+            let t = mat::<3, 1>(&mut seed);
+            (t - a * a.dot(&t)).normalize()
+        };
+        // sᵀy = (M s_x)ᵀλ and ‖y‖ = ‖Mᵀλ‖: pick λ's angle to M s_x by bisection on cos.
+        let cos_of = |phi: f64| {
+            let lam = a * phi.cos() + o * phi.sin();
+            sx.dot(&(m.transpose() * lam)) / (sx.norm() * (m.transpose() * lam).norm())
+        };
+        assert!(cos_of(0.0) > cos && cos_of(std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        let (mut lo, mut hi) = (0.0, std::f64::consts::FRAC_PI_2);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if cos_of(mid) > cos {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let lam = a * lo.cos() + o * lo.sin();
+        let mut q = QuasiNewton::<3, 2, 1>::new();
+        q.update(1e-8, &x0, &w0, &d0, &lam, &SVector::zeros());
+        (q, d1, x1, lam)
+    }
+
+    /// An applied SR1 update satisfies the secant equation `B⁺ s = y`.
+    #[test]
+    fn sr1_update_satisfies_the_secant_equation() {
+        let (mut q, d1, x1, lam) = secant_pair(0.05);
+        let w1 = q.w;
+        let (sx, y) = (x1 - q.x, (d1.fx - q.fx).transpose() * lam);
+        q.update(1e-2, &x1, &w1, &d1, &lam, &SVector::zeros());
+        let bs = q.bxx * sx; // s_w = 0
+        let err = (bs - y).amax().max((q.bxw.transpose() * sx).amax());
+        // One rank-one product and one division: round-off of a few ε; bound ≈ 500 ε.
+        assert!(err < 1e-13 * y.amax().max(1.0), "B s − y = {err:e}");
+    }
+
+    /// Below the skip threshold the update is skipped; above it, it is applied.
+    #[test]
+    fn sr1_update_skipped_below_threshold() {
+        for (cos, skip, applied) in [(5e-3, 1e-2, false), (5e-3, 1e-8, true), (2e-2, 1e-2, true)] {
+            let (mut q, d1, x1, lam) = secant_pair(cos);
+            let w1 = q.w;
+            q.update(skip, &x1, &w1, &d1, &lam, &SVector::zeros());
+            assert_eq!(q.bxx.amax() > 0.0, applied, "cos {cos}, threshold {skip}");
         }
     }
 }
