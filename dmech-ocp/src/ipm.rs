@@ -542,6 +542,7 @@ where
     }
 
     /// Condense stage `k`: eliminate the dependent decisions and the inequality slacks.
+    #[allow(clippy::too_many_arguments)]
     fn condense(
         &self,
         k: usize,
