@@ -33,6 +33,11 @@ pub struct StageDerivatives<const NX: usize, const NW: usize, const NE: usize, c
     pub hxx: SMatrix<f64, NX, NX>,
     pub hxw: SMatrix<f64, NX, NW>,
     pub hww: SMatrix<f64, NW, NW>,
+    /// The stage equality's multiplier estimate at the iterate's `(λ, ζ)`
+    /// ([`StageDerivatives::equality_multiplier`]), computed once per iteration by the
+    /// solver for its SR1 update and its KKT error; `None` before that or if `E_v` is
+    /// singular.
+    pub nu: Option<SVector<f64, NE>>,
 }
 
 impl<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
@@ -55,6 +60,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
             hxx: SMatrix::zeros(),
             hxw: SMatrix::zeros(),
             hww: SMatrix::zeros(),
+            nu: None,
         }
     }
 
@@ -165,6 +171,7 @@ where
         hxx: SMatrix::zeros(),
         hxw: SMatrix::zeros(),
         hww: SMatrix::zeros(),
+        nu: None,
     };
     let mult: Multipliers<NX, NE> = lambda.map(|lam| {
         (

@@ -553,7 +553,6 @@ where
     }
 
     /// Condense stage `k`: eliminate the dependent decisions and the inequality slacks.
-    #[allow(clippy::too_many_arguments)]
     fn condense(
         &self,
         k: usize,
@@ -562,9 +561,7 @@ where
         qn: Option<&QuasiNewton<NX, NW, NE>>,
         mu: f64,
         dc: f64,
-        lq: &mut LqStage<NX, NU>,
-        elim: &mut Elimination<NX, NW, NU>,
-    ) -> Result<(), String> {
+    ) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> {
         let b = &self.bounds[k];
         // Inequalities: Σ and the barrier gradient term.
         let mut sigma = SVector::<f64, NC>::zeros();
@@ -627,17 +624,17 @@ where
         let mut q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
         let r = wu.transpose() * (gw + hww_w0);
         self.add_state_equalities(k, it, dc, &mut q_mat, &mut q);
-        // Into the caller's buffers, kept across iterations.
-        lq.q_mat = q_mat;
-        lq.s_mat = s_mat;
-        lq.r_mat = r_mat;
-        lq.q = q;
-        lq.r = r;
-        lq.a = d.fx + d.fw * wx;
-        lq.b = d.fw * wu;
-        lq.c = d.f + d.fw * w0 - it.x[k + 1];
-        (elim.w0, elim.wx, elim.wu) = (w0, wx, wu);
-        Ok(())
+        let lq = LqStage {
+            q_mat,
+            s_mat,
+            r_mat,
+            q,
+            r,
+            a: d.fx + d.fw * wx,
+            b: d.fw * wu,
+            c: d.f + d.fw * w0 - it.x[k + 1],
+        };
+        Ok((lq, Elimination { w0, wx, wu }))
     }
 
     /// The quadratic terms of the state equalities at stage `k`.
@@ -697,7 +694,7 @@ where
                 gx -= it.lambda[k - 1]; // x_k's part in the dynamics row of stage k − 1
             }
             let mut gw = d.gw + d.fw.transpose() * lam + d.cw.transpose() * zeta;
-            let nu_sum = d.equality_multiplier(lam, &zeta).map(|nu| {
+            let nu_sum = d.nu.map(|nu| {
                 gx += d.ex.transpose() * nu;
                 gw += d.ew.transpose() * nu;
                 nu.abs().sum()
@@ -736,12 +733,12 @@ where
             mult_cnt += (NX + 2 * NC) as f64;
             primal = primal.max(p_k);
         }
-        let gx_next = if n > 0 {
+        // x_N's gradient: its part in the dynamics row of stage N − 1.
+        let mut gx_n = if n > 0 {
             -it.lambda[n - 1]
         } else {
             SVector::zeros()
         };
-        let mut gx_n = gx_next;
         for &j in &self.eqs_at[n] {
             gx_n[self.eqs[j].index] = 0.0;
         }
@@ -832,21 +829,23 @@ where
             // Derivatives.
             let t0 = Instant::now();
             let derivatives = |k: usize| {
-                stage_derivatives(
+                let zeta = it.z_hi[k] - it.z_lo[k];
+                let lam = &it.lambda[k];
+                let mut d = stage_derivatives(
                     self.p,
                     k,
                     &it.x[k],
                     &it.w[k],
-                    &(it.z_hi[k] - it.z_lo[k]),
-                    o.exact_hessian.then_some(&it.lambda[k]),
-                )
+                    &zeta,
+                    o.exact_hessian.then_some(lam),
+                );
+                d.nu = d.equality_multiplier(lam, &zeta);
+                d
             };
             if o.quasi_newton {
                 par_zip(&mut ders, &mut qn, o.threads, |k, d, q| {
                     *d = derivatives(k);
-                    let nu = d
-                        .equality_multiplier(&it.lambda[k], &(it.z_hi[k] - it.z_lo[k]))
-                        .unwrap_or_else(SVector::zeros);
+                    let nu = d.nu.unwrap_or_else(SVector::zeros);
                     q.update(o.sr1_skip, &it.x[k], &it.w[k], d, &it.lambda[k], &nu);
                 });
             } else {
@@ -918,8 +917,8 @@ where
 
             // KKT solve.
             let t1 = Instant::now();
-            if let Err(e) = self.condense_all(&mut lq, &mut elim, |k, l, e| {
-                self.condense(k, &it, &ders[k], qn.get(k), mu, dc, l, e)
+            if let Err(e) = self.condense_all(&mut lq, &mut elim, |k| {
+                self.condense(k, &it, &ders[k], qn.get(k), mu, dc)
             }) {
                 return self.finish(Status::Failed(e), it, iter, tm, t_start);
             }
@@ -1075,6 +1074,7 @@ where
                         let t_soc = Instant::now();
                         let Some(sstep) = self.second_order_correction(
                             &it, &ders, &qn, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
+                            &mut lq, &mut elim,
                         ) else {
                             break;
                         };
@@ -1209,8 +1209,8 @@ where
         (amax_p, amax_d)
     }
 
-    /// Every stage condensed by `stage(k, &mut lq[k], &mut elim[k])`, in parallel; the
-    /// error of the first stage that fails, if any.
+    /// Every stage condensed by `stage(k)` into `lq[k]`, `elim[k]`, in parallel; the error
+    /// of the first stage that fails, if any.
     #[allow(clippy::type_complexity)]
     fn condense_all<F>(
         &self,
@@ -1219,18 +1219,15 @@ where
         stage: F,
     ) -> Result<(), String>
     where
-        F: Fn(usize, &mut LqStage<NX, NU>, &mut Elimination<NX, NW, NU>) -> Result<(), String>
-            + Sync,
+        F: Fn(usize) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> + Sync,
     {
         let failed = std::sync::Mutex::new(None::<(usize, String)>);
-        par_zip(lq, elim, self.opts.threads, |k, l, e| {
-            match stage(k, l, e) {
-                Ok(()) => {}
-                Err(msg) => {
-                    let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
-                    if f.as_ref().is_none_or(|(j, _)| k < *j) {
-                        *f = Some((k, msg));
-                    }
+        par_zip(lq, elim, self.opts.threads, |k, l, e| match stage(k) {
+            Ok(c) => (*l, *e) = c,
+            Err(msg) => {
+                let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
+                if f.as_ref().is_none_or(|(j, _)| k < *j) {
+                    *f = Some((k, msg));
                 }
             }
         });
@@ -1242,7 +1239,9 @@ where
 
     /// The second-order correction step: the KKT system of the iterate (same curvature,
     /// same inertia shift `delta`) with the residuals of the dynamics and the stage
-    /// equalities replaced by `α r(x) + r(x_trial)`. `None` if it cannot be solved.
+    /// equalities replaced by `α r(x) + r(x_trial)`, condensed into the iteration's buffers
+    /// `lq`, `elim` (its own step is already recovered from them). `None` if it cannot be
+    /// solved.
     #[allow(clippy::too_many_arguments)]
     fn second_order_correction(
         &self,
@@ -1255,22 +1254,22 @@ where
         mu: f64,
         dc: f64,
         delta: f64,
+        lq: &mut [LqStage<NX, NU>],
+        elim: &mut [Elimination<NX, NW, NU>],
     ) -> Option<Step<NX, NW, NC>> {
         let n = self.n;
-        let mut lq = vec![LqStage::<NX, NU>::zeros(); n];
-        let mut elim = vec![Elimination::<NX, NW, NU>::zeros(); n];
-        self.condense_all(&mut lq, &mut elim, |k, l, e| {
+        self.condense_all(lq, elim, |k| {
             let mut d = ders[k].clone();
             let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
             d.f = it.x[k + 1] + r;
             d.e = d.e * alpha + trial_vals[k].e;
-            self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
+            self.condense(k, it, &d, qn.get(k), mu, dc)
         })
         .ok()?;
         let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
         self.add_state_equalities(n, it, dc, &mut q_n, &mut q_vec_n);
-        let sol = solve_lq(&lq, &q_n, &q_vec_n, &SVector::zeros(), delta).ok()?;
-        Some(self.recover(it, ders, &elim, sol, mu, dc))
+        let sol = solve_lq(lq, &q_n, &q_vec_n, &SVector::zeros(), delta).ok()?;
+        Some(self.recover(it, ders, elim, sol, mu, dc))
     }
 
     /// If the problem declares its cost and inequalities affine in the state, check it at
@@ -1408,12 +1407,7 @@ mod tests {
 
     /// A deterministic pseudo-random matrix with entries in [−0.5, 0.5).
     fn mat<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
-        SMatrix::from_fn(|_, _| {
-            *seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        })
+        SMatrix::from_fn(|_, _| crate::test_rng::uniform(seed))
     }
 
     /// Two stage Jacobians, points and multipliers with `cos∠(s, y) = cos` (y the

@@ -23,4 +23,6 @@ pub mod layout;
 pub mod problem;
 pub mod riccati;
 pub mod runge_kutta;
+#[cfg(test)]
+mod test_rng;
 pub mod varint;

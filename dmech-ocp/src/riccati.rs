@@ -75,10 +75,8 @@ pub fn solve_lq<const NX: usize, const NU: usize>(
     let eye_u = SMatrix::<f64, NU, NU>::identity() * shift;
     let mut p_mat = q_n + eye_x;
     let mut p_vec = *q_vec_n;
-    // Filled backward by `push`: index `n − k` holds stage `k`.
-    let mut cost_to_go = Vec::with_capacity(n + 1);
-    cost_to_go.push((p_mat, p_vec));
-    let mut gains = Vec::with_capacity(n);
+    let mut cost_to_go = vec![(p_mat, p_vec); n + 1];
+    let mut gains = vec![(SMatrix::<f64, NU, NX>::zeros(), SVector::<f64, NU>::zeros()); n];
     for (k, st) in stages.iter().enumerate().rev() {
         let pa = p_mat * st.a;
         let pb = p_mat * st.b;
@@ -96,18 +94,17 @@ pub fn solve_lq<const NX: usize, const NU: usize>(
         let pm = hxx + hux.transpose() * gain;
         p_mat = (pm + pm.transpose()) * 0.5;
         p_vec = hx + hux.transpose() * ff;
-        gains.push((gain, ff));
-        cost_to_go.push((p_mat, p_vec));
+        gains[k] = (gain, ff);
+        cost_to_go[k] = (p_mat, p_vec);
     }
     let mut x = Vec::with_capacity(n + 1);
     x.push(*x0);
     let mut u = Vec::with_capacity(n);
     let mut lambda = Vec::with_capacity(n);
     for (k, st) in stages.iter().enumerate() {
-        let (gain, ff) = &gains[n - 1 - k];
-        let uk = gain * x[k] + ff;
+        let uk = gains[k].0 * x[k] + gains[k].1;
         let next = st.a * x[k] + st.b * uk + st.c;
-        let (pm, pv) = &cost_to_go[n - 1 - k];
+        let (pm, pv) = &cost_to_go[k + 1];
         lambda.push(pm * next + pv);
         u.push(uk);
         x.push(next);
@@ -122,12 +119,7 @@ mod tests {
 
     /// A deterministic pseudo-random matrix.
     fn mat(r: usize, c: usize, seed: &mut u64) -> DMatrix<f64> {
-        DMatrix::from_fn(r, c, |_, _| {
-            *seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        })
+        DMatrix::from_fn(r, c, |_, _| crate::test_rng::uniform(seed))
     }
 
     /// A stage with dynamic sizes, for the dense assembly.
