@@ -11,7 +11,7 @@
 //! by a dual number in time along `(ṡ, v̇) = (v, 0)`.
 
 use crate::linalg::{solve, Lu};
-use crate::partials::{dl_ds, dl_dxi, grad_part, pulled_back_gradient, value_and_jacobian};
+use crate::partials::{dl_ds, dl_dxi, jacobian_part, pulled_back_gradient, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
 use crate::variational::StepError;
 use dmech_lie::{LieGroup, Real};
@@ -168,7 +168,7 @@ where
         &a.map(Dv::<f64, N>::from_re),
         u,
     );
-    let r_theta = SMatrix::<f64, NS, N>::from_fn(|i, j| grad_part(&r[i])[j]);
+    let r_theta = jacobian_part(&r);
     let da = lu.solve_columns(&(-r_theta));
     Some(SVector::from_fn(|i, _| {
         DualVec::new(a[i], Derivative::some(da.row(i).transpose()))
