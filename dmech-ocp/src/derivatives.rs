@@ -142,8 +142,33 @@ pub fn stage_derivatives<P, const NX: usize, const NW: usize, const NE: usize, c
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
-    let (f, fx, fw) = p.dynamics_jacobian(k, x, w);
-    let (e, ex, ew) = p.equality_jacobian(k, x, w);
+    let mut d = StageDerivatives::zeros();
+    stage_derivatives_into(&mut d, p, k, x, w, zeta, lambda);
+    d
+}
+
+/// [`stage_derivatives`] written into `d` field by field (every field is overwritten,
+/// `nu` set to `None`). The solver keeps one `d` per stage across iterations: building
+/// the 8 kB struct and moving it into place cost several copies per stage.
+pub fn stage_derivatives_into<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NC: usize,
+>(
+    d: &mut StageDerivatives<NX, NW, NE, NC>,
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    zeta: &SVector<f64, NC>,
+    lambda: Option<&SVector<f64, NX>>,
+) where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    (d.f, d.fx, d.fw) = p.dynamics_jacobian(k, x, w);
+    (d.e, d.ex, d.ew) = p.equality_jacobian(k, x, w);
     // Cost and inequalities: a pass seeded in x, then one in w.
     let xd = seed(x);
     let wc = w.map(DualSVec64::<NX>::from_re);
@@ -153,26 +178,11 @@ where
     let wd = seed(w);
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
-    let (c, cx, cw) = split_passes(&c_d, &c_w);
-
-    let mut d = StageDerivatives {
-        f,
-        fx,
-        fw,
-        e,
-        ex,
-        ew,
-        cost: l_d.re,
-        gx: grad(&l_d),
-        gw: grad(&l_w),
-        c,
-        cx,
-        cw,
-        hxx: SMatrix::zeros(),
-        hxw: SMatrix::zeros(),
-        hww: SMatrix::zeros(),
-        nu: None,
-    };
+    (d.c, d.cx, d.cw) = split_passes(&c_d, &c_w);
+    d.cost = l_d.re;
+    d.gx = grad(&l_d);
+    d.gw = grad(&l_w);
+    d.nu = None;
     let mult: Multipliers<NX, NE> = lambda.map(|lam| {
         (
             lam,
@@ -182,7 +192,7 @@ where
     });
     // Second order of the Lagrangian (or of ℓ + ζᵀc only, whose `xx` and `xw` blocks vanish
     // when the problem declares it affine in the state).
-    let hww = hess2(&phi::<P, _, NX, NW, NE, NC>(
+    d.hww = hess2(&phi::<P, _, NX, NW, NE, NC>(
         p,
         k,
         zeta,
@@ -190,12 +200,12 @@ where
         &x.map(Dual2SVec64::<NW>::from_re),
         &seed2(w),
     ));
-    d.hww = hww;
     if mult.is_none() && p.affine_in_state() {
-        return d;
+        d.hxx.fill(0.0);
+        d.hxw.fill(0.0);
+        return;
     }
     (d.hxx, d.hxw) = state_blocks(p, k, zeta, &mult, x, w);
-    d
 }
 
 /// The `xx` and `xw` blocks of the Hessian of `ℓ_k + ζᵀc_k` at `(x, w)`: what

@@ -13,9 +13,9 @@
 // Stage loops index several per-stage arrays (derivatives, iterate, step) in step.
 #![allow(clippy::needless_range_loop)]
 
-use crate::derivatives::{stage_derivatives, stage_values, StageDerivatives, StageValues};
+use crate::derivatives::{stage_derivatives_into, stage_values, StageDerivatives, StageValues};
 use crate::problem::{StageProblem, StateEquality};
-use crate::riccati::{solve_lq, LqSolution, LqStage};
+use crate::riccati::{solve_lq, BackwardSweep, LqSolution, LqStage, RiccatiError};
 use dmech::linalg::Lu;
 use nalgebra::{SMatrix, SVector};
 use std::time::Instant;
@@ -561,7 +561,9 @@ where
         qn: Option<&QuasiNewton<NX, NW, NE>>,
         mu: f64,
         dc: f64,
-    ) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> {
+        lq: &mut LqStage<NX, NU>,
+        el: &mut Elimination<NX, NW, NU>,
+    ) -> Result<(), String> {
         let b = &self.bounds[k];
         // Inequalities: Σ and the barrier gradient term.
         let mut sigma = SVector::<f64, NC>::zeros();
@@ -595,9 +597,10 @@ where
         let gw = d.gw + d.cw.transpose() * bc;
 
         // δw = w0 + wx δx + wu δu, with δv from the linearised stage equality.
-        let mut wx = SMatrix::<f64, NW, NX>::zeros();
-        let mut wu = SMatrix::<f64, NW, NU>::zeros();
-        let mut w0 = SVector::<f64, NW>::zeros();
+        let Elimination { w0, wx, wu } = el;
+        wx.fill(0.0);
+        wu.fill(0.0);
+        w0.fill(0.0);
         for i in 0..NU {
             wu[(NE + i, i)] = 1.0;
         }
@@ -614,27 +617,21 @@ where
             wu.fixed_rows_mut::<NE>(0).copy_from(&du);
             w0.fixed_rows_mut::<NE>(0).copy_from(&d0);
         }
+        let (w0, wx, wu) = (&*w0, &*wx, &*wu);
         let hww_wx = hww * wx;
         let hww_wu = hww * wu;
         let hww_w0 = hww * w0;
         let hxw_wx = hxw * wx;
-        let mut q_mat = hxx + hxw_wx + hxw_wx.transpose() + wx.transpose() * hww_wx;
-        let s_mat = hxw * wu + wx.transpose() * hww_wu;
-        let r_mat = wu.transpose() * hww_wu;
-        let mut q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
-        let r = wu.transpose() * (gw + hww_w0);
-        self.add_state_equalities(k, it, dc, &mut q_mat, &mut q);
-        let lq = LqStage {
-            q_mat,
-            s_mat,
-            r_mat,
-            q,
-            r,
-            a: d.fx + d.fw * wx,
-            b: d.fw * wu,
-            c: d.f + d.fw * w0 - it.x[k + 1],
-        };
-        Ok((lq, Elimination { w0, wx, wu }))
+        lq.q_mat = hxx + hxw_wx + hxw_wx.transpose() + wx.transpose() * hww_wx;
+        lq.s_mat = hxw * wu + wx.transpose() * hww_wu;
+        lq.r_mat = wu.transpose() * hww_wu;
+        lq.q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
+        lq.r = wu.transpose() * (gw + hww_w0);
+        self.add_state_equalities(k, it, dc, &mut lq.q_mat, &mut lq.q);
+        lq.a = d.fx + d.fw * wx;
+        lq.b = d.fw * wu;
+        lq.c = d.f + d.fw * w0 - it.x[k + 1];
+        Ok(())
     }
 
     /// The quadratic terms of the state equalities at stage `k`.
@@ -828,10 +825,11 @@ where
             }
             // Derivatives.
             let t0 = Instant::now();
-            let derivatives = |k: usize| {
+            let derivatives = |k: usize, d: &mut StageDerivatives<NX, NW, NE, NC>| {
                 let zeta = it.z_hi[k] - it.z_lo[k];
                 let lam = &it.lambda[k];
-                let mut d = stage_derivatives(
+                stage_derivatives_into(
+                    d,
                     self.p,
                     k,
                     &it.x[k],
@@ -840,16 +838,15 @@ where
                     o.exact_hessian.then_some(lam),
                 );
                 d.nu = d.equality_multiplier(lam, &zeta);
-                d
             };
             if o.quasi_newton {
                 par_zip(&mut ders, &mut qn, o.threads, |k, d, q| {
-                    *d = derivatives(k);
+                    derivatives(k, d);
                     let nu = d.nu.unwrap_or_else(SVector::zeros);
                     q.update(o.sr1_skip, &it.x[k], &it.w[k], d, &it.lambda[k], &nu);
                 });
             } else {
-                par_fill(&mut ders, o.threads, derivatives);
+                par_update(&mut ders, o.threads, derivatives);
             }
             tm.derivatives += t0.elapsed().as_secs_f64();
 
@@ -917,19 +914,33 @@ where
 
             // KKT solve.
             let t1 = Instant::now();
-            if let Err(e) = self.condense_all(&mut lq, &mut elim, |k| {
-                self.condense(k, &it, &ders[k], qn.get(k), mu, dc)
-            }) {
-                return self.finish(Status::Failed(e), it, iter, tm, t_start);
-            }
             let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
             self.add_state_equalities(n, &it, dc, &mut q_n, &mut q_vec_n);
+            // The first factorisation (no shift) runs behind the condensing; the inertia
+            // correction's retries sweep the condensed stages again with a shift.
+            let mut sweep = BackwardSweep::new(n, &q_n, &q_vec_n, 0.0);
+            let first = match self.condense_and_sweep(&mut lq, &mut elim, &mut sweep, |k, l, e| {
+                self.condense(k, &it, &ders[k], qn.get(k), mu, dc, l, e)
+            }) {
+                Ok((r, t_sweep)) => {
+                    tm.riccati += t_sweep;
+                    r.map(|()| sweep.forward(&lq, &SVector::zeros()))
+                }
+                Err(e) => return self.finish(Status::Failed(e), it, iter, tm, t_start),
+            };
             let mut delta = 0.0;
+            let mut attempt = Some(first);
             let sol = loop {
-                let t_r = Instant::now();
-                let r = solve_lq(&lq, &q_n, &q_vec_n, &SVector::zeros(), delta);
-                tm.riccati += t_r.elapsed().as_secs_f64();
                 tm.factorizations += 1;
+                let r = match attempt.take() {
+                    Some(r) => r,
+                    None => {
+                        let t_r = Instant::now();
+                        let r = solve_lq(&lq, &q_n, &q_vec_n, &SVector::zeros(), delta);
+                        tm.riccati += t_r.elapsed().as_secs_f64();
+                        r
+                    }
+                };
                 match r {
                     Ok(s) => break Some(s),
                     Err(_) => {
@@ -1209,31 +1220,133 @@ where
         (amax_p, amax_d)
     }
 
-    /// Every stage condensed by `stage(k)` into `lq[k]`, `elim[k]`, in parallel; the error
-    /// of the first stage that fails, if any.
+    /// Every stage condensed by `stage(k)` into `lq[k]`, `elim[k]`, with the Riccati
+    /// backward sweep (primal shift 0) run behind the condensing: chunks of stages are
+    /// condensed from the last one down, in parallel, and one thread sweeps each chunk as
+    /// soon as it and every later one are done (condensing a chunk itself when the next one
+    /// is not). The serial sweep so overlaps the parallel condensing instead of following
+    /// it; every stage sees the same operations in the same order as
+    /// condense-then-[`solve_lq`], so the result is bitwise the same.
+    ///
+    /// `Err` is the condensing error of the first stage that fails; `Ok` carries the sweep's
+    /// outcome (a stage whose `H_uu` is not positive definite stops it; the condensing
+    /// still completes, for the caller's inertia correction) and the seconds spent in it.
     #[allow(clippy::type_complexity)]
-    fn condense_all<F>(
+    fn condense_and_sweep<F>(
         &self,
         lq: &mut [LqStage<NX, NU>],
         elim: &mut [Elimination<NX, NW, NU>],
+        sweep: &mut BackwardSweep<NX, NU>,
         stage: F,
-    ) -> Result<(), String>
+    ) -> Result<(Result<(), RiccatiError>, f64), String>
     where
-        F: Fn(usize) -> Result<(LqStage<NX, NU>, Elimination<NX, NW, NU>), String> + Sync,
+        F: Fn(usize, &mut LqStage<NX, NU>, &mut Elimination<NX, NW, NU>) -> Result<(), String>
+            + Sync,
     {
         let failed = std::sync::Mutex::new(None::<(usize, String)>);
-        par_zip(lq, elim, self.opts.threads, |k, l, e| match stage(k) {
-            Ok(c) => (*l, *e) = c,
-            Err(msg) => {
-                let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
-                if f.as_ref().is_none_or(|(j, _)| k < *j) {
-                    *f = Some((k, msg));
+        let condense_chunk =
+            |ci: usize, pl: &mut [LqStage<NX, NU>], pe: &mut [Elimination<NX, NW, NU>]| {
+                let mut ok = true;
+                for (j, (l, e)) in pl.iter_mut().zip(pe.iter_mut()).enumerate() {
+                    let k = ci * PAR_CHUNK + j;
+                    if let Err(msg) = stage(k, l, e) {
+                        ok = false;
+                        let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
+                        if f.as_ref().is_none_or(|(j, _)| k < *j) {
+                            *f = Some((k, msg));
+                        }
+                    }
+                }
+                ok
+            };
+        let mut sweep_result = Ok(());
+        let mut sweep_time = 0.0;
+        // Sweep one condensed chunk (all of its stages, last first).
+        let mut sweep_chunk =
+            |ci: usize, stages: &[LqStage<NX, NU>], result: &mut Result<(), RiccatiError>| {
+                if result.is_err() {
+                    return;
+                }
+                let t = Instant::now();
+                for (j, st) in stages.iter().enumerate().rev() {
+                    if let Err(e) = sweep.step(ci * PAR_CHUNK + j, st) {
+                        *result = Err(e);
+                        break;
+                    }
+                }
+                sweep_time += t.elapsed().as_secs_f64();
+            };
+        let n_chunks = lq.len().div_ceil(PAR_CHUNK);
+        let chunks = lq
+            .chunks_mut(PAR_CHUNK)
+            .zip(elim.chunks_mut(PAR_CHUNK))
+            .enumerate()
+            .rev();
+        if self.opts.threads <= 1 {
+            let mut done: Vec<&[LqStage<NX, NU>]> = Vec::with_capacity(n_chunks);
+            for (ci, (pl, pe)) in chunks {
+                condense_chunk(ci, pl, pe);
+                done.push(pl);
+            }
+            if failed.lock().unwrap_or_else(|p| p.into_inner()).is_none() {
+                for (i, pl) in done.into_iter().enumerate() {
+                    sweep_chunk(n_chunks - 1 - i, pl, &mut sweep_result);
                 }
             }
-        });
+        } else {
+            let queue = std::sync::Mutex::new(chunks);
+            let take = || queue.lock().unwrap_or_else(|p| p.into_inner()).next();
+            // Condensed chunks travel to the sweeping thread by channel; `None` marks a
+            // chunk whose condensing failed.
+            let (tx, rx) = std::sync::mpsc::channel::<(usize, Option<&[LqStage<NX, NU>]>)>();
+            std::thread::scope(|sc| {
+                for _ in 1..self.opts.threads {
+                    let tx = tx.clone();
+                    let (take, condense_chunk) = (&take, &condense_chunk);
+                    sc.spawn(move || {
+                        while let Some((ci, (pl, pe))) = take() {
+                            let ok = condense_chunk(ci, pl, pe);
+                            let pl: &[LqStage<NX, NU>] = pl;
+                            if tx.send((ci, ok.then_some(pl))).is_err() {
+                                break;
+                            }
+                        }
+                    });
+                }
+                drop(tx);
+                // This thread: sweep the next chunk when it is ready, otherwise condense
+                // one (the queue hands them out last first, so usually the next one).
+                let mut ready: Vec<Option<Option<&[LqStage<NX, NU>]>>> = vec![None; n_chunks];
+                let mut next = n_chunks;
+                // A chunk that failed to condense stops the sweep (its error is reported).
+                let mut sweeping = true;
+                while next > 0 {
+                    if let Some(chunk) = ready[next - 1].take() {
+                        match chunk {
+                            Some(stages) if sweeping => {
+                                sweep_chunk(next - 1, stages, &mut sweep_result)
+                            }
+                            _ => sweeping = false,
+                        }
+                        next -= 1;
+                    } else if let Ok((ci, chunk)) = rx.try_recv() {
+                        ready[ci] = Some(chunk);
+                    } else if let Some((ci, (pl, pe))) = take() {
+                        let ok = condense_chunk(ci, pl, pe);
+                        let pl: &[LqStage<NX, NU>] = pl;
+                        ready[ci] = Some(ok.then_some(pl));
+                    } else {
+                        match rx.recv() {
+                            Ok((ci, chunk)) => ready[ci] = Some(chunk),
+                            Err(_) => break,
+                        }
+                    }
+                }
+            });
+        }
         match failed.into_inner().unwrap_or_else(|p| p.into_inner()) {
             Some((_, msg)) => Err(msg),
-            None => Ok(()),
+            None => Ok((sweep_result, sweep_time)),
         }
     }
 
@@ -1258,17 +1371,20 @@ where
         elim: &mut [Elimination<NX, NW, NU>],
     ) -> Option<Step<NX, NW, NC>> {
         let n = self.n;
-        self.condense_all(lq, elim, |k| {
-            let mut d = ders[k].clone();
-            let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
-            d.f = it.x[k + 1] + r;
-            d.e = d.e * alpha + trial_vals[k].e;
-            self.condense(k, it, &d, qn.get(k), mu, dc)
-        })
-        .ok()?;
         let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
         self.add_state_equalities(n, it, dc, &mut q_n, &mut q_vec_n);
-        let sol = solve_lq(lq, &q_n, &q_vec_n, &SVector::zeros(), delta).ok()?;
+        let mut sweep = BackwardSweep::new(n, &q_n, &q_vec_n, delta);
+        let (swept, _) = self
+            .condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
+                let mut d = ders[k].clone();
+                let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
+                d.f = it.x[k + 1] + r;
+                d.e = d.e * alpha + trial_vals[k].e;
+                self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
+            })
+            .ok()?;
+        swept.ok()?;
+        let sol = sweep.forward(lq, &SVector::zeros());
         Some(self.recover(it, ders, elim, sol, mu, dc))
     }
 

@@ -61,6 +61,100 @@ pub enum RiccatiError {
     NotPositiveDefinite { stage: usize },
 }
 
+/// The backward sweep of the recursion, one stage at a time from `k = N−1` down, so that a
+/// caller can run it while the stages are still being formed (the solver condenses stage
+/// `k` on one thread while another sweeps through `k + 1 … N−1`).
+pub struct BackwardSweep<const NX: usize, const NU: usize> {
+    eye_x: SMatrix<f64, NX, NX>,
+    eye_u: SMatrix<f64, NU, NU>,
+    p_mat: SMatrix<f64, NX, NX>,
+    p_vec: SVector<f64, NX>,
+    /// `(P_k, p_k)` for `k = next … N`.
+    cost_to_go: Vec<(SMatrix<f64, NX, NX>, SVector<f64, NX>)>,
+    /// `(K_k, κ_k)` for `k = next … N−1`.
+    gains: Vec<(SMatrix<f64, NU, NX>, SVector<f64, NU>)>,
+    /// The stage the next [`BackwardSweep::step`] takes is `next − 1`.
+    next: usize,
+}
+
+impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
+    /// A sweep over `n` stages from the terminal cost `(q_n, q_vec_n)`, with the primal
+    /// shift `shift`.
+    pub fn new(
+        n: usize,
+        q_n: &SMatrix<f64, NX, NX>,
+        q_vec_n: &SVector<f64, NX>,
+        shift: f64,
+    ) -> Self {
+        let eye_x = SMatrix::<f64, NX, NX>::identity() * shift;
+        let p_mat = q_n + eye_x;
+        let p_vec = *q_vec_n;
+        BackwardSweep {
+            eye_x,
+            eye_u: SMatrix::<f64, NU, NU>::identity() * shift,
+            p_mat,
+            p_vec,
+            cost_to_go: vec![(p_mat, p_vec); n + 1],
+            gains: vec![(SMatrix::zeros(), SVector::zeros()); n],
+            next: n,
+        }
+    }
+
+    /// The stage the next [`BackwardSweep::step`] expects, `None` when the sweep is done.
+    pub fn expects(&self) -> Option<usize> {
+        self.next.checked_sub(1)
+    }
+
+    /// Stage `k = next − 1` ([`BackwardSweep::expects`]) of the backward recursion.
+    pub fn step(&mut self, k: usize, st: &LqStage<NX, NU>) -> Result<(), RiccatiError> {
+        assert_eq!(
+            Some(k),
+            self.expects(),
+            "the backward sweep takes the stages in order"
+        );
+        let p_mat = self.p_mat;
+        let pa = p_mat * st.a;
+        let pb = p_mat * st.b;
+        let pc = p_mat * st.c + self.p_vec;
+        let huu = st.r_mat + self.eye_u + st.b.transpose() * pb;
+        let hux = st.s_mat.transpose() + st.b.transpose() * pa;
+        let hxx = st.q_mat + self.eye_x + st.a.transpose() * pa;
+        let hu = st.r + st.b.transpose() * pc;
+        let hx = st.q + st.a.transpose() * pc;
+        let chol = huu
+            .cholesky()
+            .ok_or(RiccatiError::NotPositiveDefinite { stage: k })?;
+        let gain = -chol.solve(&hux);
+        let ff = -chol.solve(&hu);
+        let pm = hxx + hux.transpose() * gain;
+        self.p_mat = (pm + pm.transpose()) * 0.5;
+        self.p_vec = hx + hux.transpose() * ff;
+        self.gains[k] = (gain, ff);
+        self.cost_to_go[k] = (self.p_mat, self.p_vec);
+        self.next = k;
+        Ok(())
+    }
+
+    /// The forward pass from `x0` once every stage has been swept.
+    pub fn forward(&self, stages: &[LqStage<NX, NU>], x0: &SVector<f64, NX>) -> LqSolution<NX, NU> {
+        assert_eq!(self.next, 0, "the backward sweep is not complete");
+        let n = stages.len();
+        let mut x = Vec::with_capacity(n + 1);
+        x.push(*x0);
+        let mut u = Vec::with_capacity(n);
+        let mut lambda = Vec::with_capacity(n);
+        for (k, st) in stages.iter().enumerate() {
+            let uk = self.gains[k].0 * x[k] + self.gains[k].1;
+            let next = st.a * x[k] + st.b * uk + st.c;
+            let (pm, pv) = &self.cost_to_go[k + 1];
+            lambda.push(pm * next + pv);
+            u.push(uk);
+            x.push(next);
+        }
+        LqSolution { x, u, lambda }
+    }
+}
+
 /// Solve the LQ problem over `stages[0..N]` and the terminal cost `(q_n, q_vec_n)` from
 /// `x0`, with the primal shift `shift`.
 pub fn solve_lq<const NX: usize, const NU: usize>(
@@ -70,46 +164,11 @@ pub fn solve_lq<const NX: usize, const NU: usize>(
     x0: &SVector<f64, NX>,
     shift: f64,
 ) -> Result<LqSolution<NX, NU>, RiccatiError> {
-    let n = stages.len();
-    let eye_x = SMatrix::<f64, NX, NX>::identity() * shift;
-    let eye_u = SMatrix::<f64, NU, NU>::identity() * shift;
-    let mut p_mat = q_n + eye_x;
-    let mut p_vec = *q_vec_n;
-    let mut cost_to_go = vec![(p_mat, p_vec); n + 1];
-    let mut gains = vec![(SMatrix::<f64, NU, NX>::zeros(), SVector::<f64, NU>::zeros()); n];
+    let mut sweep = BackwardSweep::new(stages.len(), q_n, q_vec_n, shift);
     for (k, st) in stages.iter().enumerate().rev() {
-        let pa = p_mat * st.a;
-        let pb = p_mat * st.b;
-        let pc = p_mat * st.c + p_vec;
-        let huu = st.r_mat + eye_u + st.b.transpose() * pb;
-        let hux = st.s_mat.transpose() + st.b.transpose() * pa;
-        let hxx = st.q_mat + eye_x + st.a.transpose() * pa;
-        let hu = st.r + st.b.transpose() * pc;
-        let hx = st.q + st.a.transpose() * pc;
-        let chol = huu
-            .cholesky()
-            .ok_or(RiccatiError::NotPositiveDefinite { stage: k })?;
-        let gain = -chol.solve(&hux);
-        let ff = -chol.solve(&hu);
-        let pm = hxx + hux.transpose() * gain;
-        p_mat = (pm + pm.transpose()) * 0.5;
-        p_vec = hx + hux.transpose() * ff;
-        gains[k] = (gain, ff);
-        cost_to_go[k] = (p_mat, p_vec);
+        sweep.step(k, st)?;
     }
-    let mut x = Vec::with_capacity(n + 1);
-    x.push(*x0);
-    let mut u = Vec::with_capacity(n);
-    let mut lambda = Vec::with_capacity(n);
-    for (k, st) in stages.iter().enumerate() {
-        let uk = gains[k].0 * x[k] + gains[k].1;
-        let next = st.a * x[k] + st.b * uk + st.c;
-        let (pm, pv) = &cost_to_go[k + 1];
-        lambda.push(pm * next + pv);
-        u.push(uk);
-        x.push(next);
-    }
-    Ok(LqSolution { x, u, lambda })
+    Ok(sweep.forward(stages, x0))
 }
 
 #[cfg(test)]
