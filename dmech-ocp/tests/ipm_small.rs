@@ -96,3 +96,41 @@ fn double_integrator_converges() {
         assert_eq!(r.status, Status::Solved);
     }
 }
+
+/// The parallel loops and the Riccati sweep that runs behind the condensing give bitwise
+/// the iterates of the serial solver: every stage sees the same operations in the same
+/// order whatever the thread that takes it. A horizon that is not a multiple of the work
+/// chunk (32 stages) and a nonlinear problem, so that chunks finish out of order.
+#[test]
+fn threads_do_not_change_the_iterates() {
+    let p = DoubleIntegrator {
+        n: 1001,
+        h: 0.01,
+        u_max: 1.0,
+        du_max: 0.01,
+        target: 1.0,
+        nonlinear: true,
+    };
+    let solve = |threads| {
+        let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(
+            &p,
+            IpOptions {
+                threads,
+                ..Default::default()
+            },
+        );
+        let start = s.initial_iterate(vec![SVector::zeros(); 1002], vec![SVector::zeros(); 1001]);
+        s.solve(start)
+    };
+    let serial = solve(1);
+    assert_eq!(serial.status, Status::Solved);
+    for threads in [2, 3] {
+        let r = solve(threads);
+        assert_eq!(r.status, serial.status);
+        assert_eq!(r.iterations, serial.iterations);
+        assert_eq!(r.objective.to_bits(), serial.objective.to_bits());
+        assert_eq!(r.iterate.x, serial.iterate.x);
+        assert_eq!(r.iterate.w, serial.iterate.w);
+        assert_eq!(r.iterate.lambda, serial.iterate.lambda);
+    }
+}
