@@ -552,7 +552,10 @@ where
         worst
     }
 
-    /// Condense stage `k`: eliminate the dependent decisions and the inequality slacks.
+    /// Condense stage `k`: eliminate the dependent decisions and the inequality slacks,
+    /// into the solver's buffers `lq`, `el` (written in place: returning the 5 kB pair and
+    /// moving it there was part of the memmove share, see `condense_and_sweep`).
+    #[allow(clippy::too_many_arguments)]
     fn condense(
         &self,
         k: usize,
@@ -618,19 +621,30 @@ where
             w0.fixed_rows_mut::<NE>(0).copy_from(&d0);
         }
         let (w0, wx, wu) = (&*w0, &*wx, &*wu);
-        let hww_wx = hww * wx;
+        // Rows `NE..` of `wx` and `w0` are zero (the free inputs do not depend on δx): the
+        // products with them take only their first `NE` rows (the skipped terms were exact
+        // zeros, and the kept ones are summed in the same order).
+        let dx = wx.fixed_rows::<NE>(0);
+        let d0 = w0.fixed_rows::<NE>(0);
+        let hww_v = hww.fixed_columns::<NE>(0);
+        let hww_wx = hww_v * dx;
         let hww_wu = hww * wu;
-        let hww_w0 = hww * w0;
-        let hxw_wx = hxw * wx;
-        lq.q_mat = hxx + hxw_wx + hxw_wx.transpose() + wx.transpose() * hww_wx;
-        lq.s_mat = hxw * wu + wx.transpose() * hww_wu;
+        let hww_w0 = hww_v * d0;
+        let hxw_wx = hxw.fixed_columns::<NE>(0) * dx;
+        let dx_t = dx.transpose();
+        lq.q_mat = hxx + hxw_wx + hxw_wx.transpose() + dx_t * hww_wx.fixed_rows::<NE>(0);
+        lq.s_mat = hxw * wu + dx_t * hww_wu.fixed_rows::<NE>(0);
         lq.r_mat = wu.transpose() * hww_wu;
-        lq.q = gx + wx.transpose() * gw + hxw * w0 + wx.transpose() * hww_w0;
+        lq.q = gx
+            + dx_t * gw.fixed_rows::<NE>(0)
+            + hxw.fixed_columns::<NE>(0) * d0
+            + dx_t * hww_w0.fixed_rows::<NE>(0);
         lq.r = wu.transpose() * (gw + hww_w0);
         self.add_state_equalities(k, it, dc, &mut lq.q_mat, &mut lq.q);
-        lq.a = d.fx + d.fw * wx;
+        let fw_v = d.fw.fixed_columns::<NE>(0);
+        lq.a = d.fx + fw_v * dx;
         lq.b = d.fw * wu;
-        lq.c = d.f + d.fw * w0 - it.x[k + 1];
+        lq.c = d.f + fw_v * d0 - it.x[k + 1];
         Ok(())
     }
 
@@ -1448,33 +1462,43 @@ where
             lambda,
         } = sol;
         let n = self.n;
-        let mut dw = Vec::with_capacity(n);
-        let (mut dt_lo, mut dt_hi) = (vec![SVector::zeros(); n], vec![SVector::zeros(); n]);
-        let (mut dz_lo, mut dz_hi) = (vec![SVector::zeros(); n], vec![SVector::zeros(); n]);
-        for k in 0..n {
-            let c = &elim[k];
-            let dwk = c.w0 + c.wx * dx[k] + c.wu * du[k];
-            let d = &ders[k];
-            let cd = d.cx * dx[k] + d.cw * dwk;
-            let b = &self.bounds[k];
-            for i in 0..NC {
-                if b.has_lo[i] > 0.0 {
-                    let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
-                    dt_lo[k][i] = cd[i] + r;
-                    dz_lo[k][i] = mu / it.t_lo[k][i]
-                        - it.z_lo[k][i]
-                        - it.z_lo[k][i] / it.t_lo[k][i] * dt_lo[k][i];
+        // Per stage (δw, δt_lo, δt_hi, δz_lo, δz_hi), in parallel.
+        type StageStep<const NW: usize, const NC: usize> =
+            (SVector<f64, NW>, [SVector<f64, NC>; 4]);
+        let mut per_stage: Vec<StageStep<NW, NC>> =
+            vec![(SVector::zeros(), [SVector::zeros(); 4]); n];
+        par_update(
+            &mut per_stage,
+            self.opts.threads,
+            |k, (dwk, [dt_lo, dt_hi, dz_lo, dz_hi])| {
+                let c = &elim[k];
+                *dwk = c.w0 + c.wx * dx[k] + c.wu * du[k];
+                let d = &ders[k];
+                let cd = d.cx * dx[k] + d.cw * *dwk;
+                let b = &self.bounds[k];
+                for i in 0..NC {
+                    if b.has_lo[i] > 0.0 {
+                        let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
+                        dt_lo[i] = cd[i] + r;
+                        dz_lo[i] = mu / it.t_lo[k][i]
+                            - it.z_lo[k][i]
+                            - it.z_lo[k][i] / it.t_lo[k][i] * dt_lo[i];
+                    }
+                    if b.has_hi[i] > 0.0 {
+                        let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
+                        dt_hi[i] = r - cd[i];
+                        dz_hi[i] = mu / it.t_hi[k][i]
+                            - it.z_hi[k][i]
+                            - it.z_hi[k][i] / it.t_hi[k][i] * dt_hi[i];
+                    }
                 }
-                if b.has_hi[i] > 0.0 {
-                    let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
-                    dt_hi[k][i] = r - cd[i];
-                    dz_hi[k][i] = mu / it.t_hi[k][i]
-                        - it.z_hi[k][i]
-                        - it.z_hi[k][i] / it.t_hi[k][i] * dt_hi[k][i];
-                }
-            }
-            dw.push(dwk);
-        }
+            },
+        );
+        let dw = per_stage.iter().map(|s| s.0).collect();
+        let dt_lo = per_stage.iter().map(|s| s.1[0]).collect();
+        let dt_hi = per_stage.iter().map(|s| s.1[1]).collect();
+        let dz_lo = per_stage.iter().map(|s| s.1[2]).collect();
+        let dz_hi = per_stage.iter().map(|s| s.1[3]).collect();
         let y = self
             .eqs
             .iter()
