@@ -168,26 +168,48 @@ fn par_update<R: Send, F: Fn(usize, &mut R) + Sync>(items: &mut [R], threads: us
     par_zip(items, &mut none, threads, |k, a, _| f(k, a));
 }
 
-/// `f(k, &mut a[k], &mut b[k])` for every `k`, on `threads` scoped threads: two per-stage
-/// arrays filled in one pass, so that a stage's data is still in cache for the second.
-/// Threads take chunks of [`PAR_CHUNK`] stages from a shared queue.
+/// `f(k, &mut a[k], &mut b[k])` for every `k`, on `threads` scoped threads (see
+/// [`par_zip3`]).
 fn par_zip<A: Send, B: Send, F: Fn(usize, &mut A, &mut B) + Sync>(
     a: &mut [A],
     b: &mut [B],
     threads: usize,
     f: F,
 ) {
+    let mut none: Vec<()> = vec![(); a.len()];
+    par_zip3(a, b, &mut none, threads, |k, x, y, _| f(k, x, y));
+}
+
+/// `f(k, &mut a[k], &mut b[k], &mut c[k])` for every `k`, on `threads` scoped threads:
+/// per-stage arrays filled in one pass, so that a stage's data is still in cache for the
+/// later ones. Threads take chunks of [`PAR_CHUNK`] stages from a shared queue.
+fn par_zip3<A: Send, B: Send, C: Send, F: Fn(usize, &mut A, &mut B, &mut C) + Sync>(
+    a: &mut [A],
+    b: &mut [B],
+    c: &mut [C],
+    threads: usize,
+    f: F,
+) {
     assert_eq!(a.len(), b.len());
+    assert_eq!(a.len(), c.len());
     let chunks = a
         .chunks_mut(PAR_CHUNK)
         .zip(b.chunks_mut(PAR_CHUNK))
+        .zip(c.chunks_mut(PAR_CHUNK))
         .enumerate();
     let queue = std::sync::Mutex::new(chunks);
     let work = || loop {
         let next = queue.lock().unwrap_or_else(|p| p.into_inner()).next();
-        let Some((ci, (pa, pb))) = next else { break };
-        for (j, (sa, sb)) in pa.iter_mut().zip(pb.iter_mut()).enumerate() {
-            f(ci * PAR_CHUNK + j, sa, sb);
+        let Some((ci, ((pa, pb), pc))) = next else {
+            break;
+        };
+        for (j, ((sa, sb), sc)) in pa
+            .iter_mut()
+            .zip(pb.iter_mut())
+            .zip(pc.iter_mut())
+            .enumerate()
+        {
+            f(ci * PAR_CHUNK + j, sa, sb, sc);
         }
     };
     if threads <= 1 {
@@ -665,6 +687,37 @@ where
     }
 }
 
+/// One stage's part of the KKT error: its dual and primal errors, `Σ|ν|` (if the stage
+/// equality's multiplier estimate exists) and `Σ|λ| + Σz`.
+#[derive(Clone, Copy, Debug, Default)]
+struct StageKkt {
+    dual: f64,
+    primal: f64,
+    nu_sum: Option<f64>,
+    others: f64,
+}
+
+/// What the derivative pass leaves per stage besides the derivatives.
+#[derive(Clone, Copy, Debug)]
+struct StageAux<const NX: usize, const NE: usize, const NC: usize> {
+    kkt: StageKkt,
+    vals: StageValues<NX, NE, NC>,
+}
+
+impl<const NX: usize, const NE: usize, const NC: usize> StageAux<NX, NE, NC> {
+    fn zeros() -> Self {
+        StageAux {
+            kkt: StageKkt::default(),
+            vals: StageValues {
+                f: SVector::zeros(),
+                e: SVector::zeros(),
+                cost: 0.0,
+                c: SVector::zeros(),
+            },
+        }
+    }
+}
+
 /// KKT errors at an iterate: the scaled dual infeasibility, the largest constraint
 /// violation, and IPOPT's dual scaling `s_d` (for the complementarity).
 #[derive(Clone, Copy, Debug)]
@@ -686,55 +739,67 @@ impl<
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
-    /// Dual and primal errors at the current iterate (independent of μ).
-    fn kkt_error(
+    /// Stage `k`'s part of the KKT error at the iterate, from its derivatives `d` (with
+    /// `d.nu` set): computed in the derivative pass, while `d` is still in cache.
+    fn kkt_stage(
         &self,
+        k: usize,
         it: &Iterate<NX, NW, NC>,
-        ders: &[StageDerivatives<NX, NW, NE, NC>],
-    ) -> KktError {
-        let n = self.n;
-        // Per stage, in parallel: (dual error, primal error, Σ|ν|, Σ|λ| + Σz); summed below
-        // in stage order, as the serial loop did (the sums bitwise the same).
-        let mut per_stage = vec![(0.0f64, 0.0f64, None::<f64>, 0.0f64); n];
-        par_fill(&mut per_stage, self.opts.threads, |k| {
-            let d = &ders[k];
-            let zeta = it.z_hi[k] - it.z_lo[k];
-            let lam = &it.lambda[k];
-            let mut gx = d.gx + d.fx.transpose() * lam + d.cx.transpose() * zeta;
-            if k > 0 {
-                gx -= it.lambda[k - 1]; // x_k's part in the dynamics row of stage k − 1
-            }
-            let mut gw = d.gw + d.fw.transpose() * lam + d.cw.transpose() * zeta;
-            let nu_sum = d.nu.map(|nu| {
-                gx += d.ex.transpose() * nu;
-                gw += d.ew.transpose() * nu;
-                nu.abs().sum()
-            });
-            // A state equality fixes one component: its multiplier estimate zeroes that
-            // component of the gradient (the iterate's y carries the round-off of the
-            // regularised update, amplified by 1/δ_c).
-            for &j in &self.eqs_at[k] {
-                gx[self.eqs[j].index] = 0.0;
-            }
-            let dual = if k > 0 { gx.amax() } else { 0.0 }.max(gw.amax());
-            let mut primal = (d.f - it.x[k + 1]).amax().max(d.e.amax());
-            let b = &self.bounds[k];
-            for i in 0..NC {
-                if b.has_lo[i] > 0.0 {
-                    primal = primal.max((d.c[i] - b.lo[i] - it.t_lo[k][i]).abs());
-                }
-                if b.has_hi[i] > 0.0 {
-                    primal = primal.max((b.hi[i] - d.c[i] - it.t_hi[k][i]).abs());
-                }
-            }
-            let others = lam.abs().sum() + it.z_lo[k].sum() + it.z_hi[k].sum();
-            (dual, primal, nu_sum, others)
+        d: &StageDerivatives<NX, NW, NE, NC>,
+    ) -> StageKkt {
+        let zeta = it.z_hi[k] - it.z_lo[k];
+        let lam = &it.lambda[k];
+        let mut gx = d.gx + d.fx.transpose() * lam + d.cx.transpose() * zeta;
+        if k > 0 {
+            gx -= it.lambda[k - 1]; // x_k's part in the dynamics row of stage k − 1
+        }
+        let mut gw = d.gw + d.fw.transpose() * lam + d.cw.transpose() * zeta;
+        let nu_sum = d.nu.map(|nu| {
+            gx += d.ex.transpose() * nu;
+            gw += d.ew.transpose() * nu;
+            nu.abs().sum()
         });
+        // A state equality fixes one component: its multiplier estimate zeroes that
+        // component of the gradient (the iterate's y carries the round-off of the
+        // regularised update, amplified by 1/δ_c).
+        for &j in &self.eqs_at[k] {
+            gx[self.eqs[j].index] = 0.0;
+        }
+        let dual = if k > 0 { gx.amax() } else { 0.0 }.max(gw.amax());
+        let mut primal = (d.f - it.x[k + 1]).amax().max(d.e.amax());
+        let b = &self.bounds[k];
+        for i in 0..NC {
+            if b.has_lo[i] > 0.0 {
+                primal = primal.max((d.c[i] - b.lo[i] - it.t_lo[k][i]).abs());
+            }
+            if b.has_hi[i] > 0.0 {
+                primal = primal.max((b.hi[i] - d.c[i] - it.t_hi[k][i]).abs());
+            }
+        }
+        let others = lam.abs().sum() + it.z_lo[k].sum() + it.z_hi[k].sum();
+        StageKkt {
+            dual,
+            primal,
+            nu_sum,
+            others,
+        }
+    }
+
+    /// Dual and primal errors at the current iterate (independent of μ), from the stages'
+    /// parts ([`Solver::kkt_stage`]) summed in stage order.
+    fn kkt_error(&self, it: &Iterate<NX, NW, NC>, per_stage: &[StageKkt]) -> KktError {
+        let n = self.n;
         let mut dual = 0.0f64;
         let mut mult_sum = 0.0;
         let mut mult_cnt = 0.0;
         let mut primal = 0.0f64;
-        for &(d_k, p_k, nu_sum, others) in &per_stage {
+        for &StageKkt {
+            dual: d_k,
+            primal: p_k,
+            nu_sum,
+            others,
+        } in per_stage
+        {
             if let Some(v) = nu_sum {
                 mult_sum += v;
                 mult_cnt += NE as f64;
@@ -825,6 +890,7 @@ where
         // The condensed stages and their eliminations, overwritten every iteration.
         let mut lq = vec![LqStage::<NX, NU>::zeros(); n];
         let mut elim = vec![Elimination::<NX, NW, NU>::zeros(); n];
+        let mut aux = vec![StageAux::<NX, NE, NC>::zeros(); n];
         let mut qn = vec![QuasiNewton::<NX, NW, NE>::new(); if o.quasi_newton { n } else { 0 }];
         let mut ls_count = 0;
         let mut forced_steps = 0usize;
@@ -853,18 +919,36 @@ where
                 );
                 d.nu = d.equality_multiplier(lam, &zeta);
             };
+            // With each stage's derivatives, while they are in cache: its SR1 update, its
+            // part of the KKT error and its values (reading the 36 MB of derivatives again
+            // for these was 5–7 % of a plan).
+            let finish =
+                |k: usize, d: &StageDerivatives<NX, NW, NE, NC>, a: &mut StageAux<NX, NE, NC>| {
+                    a.kkt = self.kkt_stage(k, &it, d);
+                    a.vals = StageValues {
+                        f: d.f,
+                        e: d.e,
+                        cost: d.cost,
+                        c: d.c,
+                    };
+                };
             if o.quasi_newton {
-                par_zip(&mut ders, &mut qn, o.threads, |k, d, q| {
+                par_zip3(&mut ders, &mut qn, &mut aux, o.threads, |k, d, q, a| {
                     derivatives(k, d);
                     let nu = d.nu.unwrap_or_else(SVector::zeros);
                     q.update(o.sr1_skip, &it.x[k], &it.w[k], d, &it.lambda[k], &nu);
+                    finish(k, d, a);
                 });
             } else {
-                par_update(&mut ders, o.threads, derivatives);
+                par_zip(&mut ders, &mut aux, o.threads, |k, d, a| {
+                    derivatives(k, d);
+                    finish(k, d, a);
+                });
             }
             tm.derivatives += t0.elapsed().as_secs_f64();
 
-            let KktError { dual, primal, s_d } = self.kkt_error(&it, &ders);
+            let per_stage: Vec<StageKkt> = aux.iter().map(|a| a.kkt).collect();
+            let KktError { dual, primal, s_d } = self.kkt_error(&it, &per_stage);
             let compl0 = self.complementarity(&it, 0.0, s_d);
             if o.verbose {
                 eprintln!(
@@ -912,14 +996,9 @@ where
                     break;
                 }
             }
-            vals.iter_mut().zip(ders.iter()).for_each(|(v, d)| {
-                *v = StageValues {
-                    f: d.f,
-                    e: d.e,
-                    cost: d.cost,
-                    c: d.c,
-                }
-            });
+            vals.iter_mut()
+                .zip(aux.iter())
+                .for_each(|(v, a)| *v = a.vals);
             m = self.measures(&it, &vals, mu);
             // The state equalities' regularisation follows the barrier parameter: loose
             // while far from the solution (steps that respect the other constraints),
