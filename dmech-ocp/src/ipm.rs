@@ -1376,14 +1376,12 @@ where
             .enumerate()
             .rev();
         if self.opts.threads <= 1 {
-            let mut done: Vec<&[LqStage<NX, NU>]> = Vec::with_capacity(n_chunks);
+            // Each chunk swept right after it is condensed (still in cache), until one fails.
+            let mut sweeping = true;
             for (ci, (pl, pe)) in chunks {
-                condense_chunk(ci, pl, pe);
-                done.push(pl);
-            }
-            if failed.lock().unwrap_or_else(|p| p.into_inner()).is_none() {
-                for (i, pl) in done.into_iter().enumerate() {
-                    sweep_chunk(n_chunks - 1 - i, pl, &mut sweep_result);
+                sweeping &= condense_chunk(ci, pl, pe);
+                if sweeping {
+                    sweep_chunk(ci, pl, &mut sweep_result);
                 }
             }
         } else {
