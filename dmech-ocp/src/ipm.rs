@@ -787,13 +787,17 @@ where
 
     /// Dual and primal errors at the current iterate (independent of μ), from the stages'
     /// parts ([`Solver::kkt_stage`]) summed in stage order.
-    fn kkt_error(&self, it: &Iterate<NX, NW, NC>, per_stage: &[StageKkt]) -> KktError {
+    fn kkt_error(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        per_stage: impl Iterator<Item = StageKkt>,
+    ) -> KktError {
         let n = self.n;
         let mut dual = 0.0f64;
         let mut mult_sum = 0.0;
         let mut mult_cnt = 0.0;
         let mut primal = 0.0f64;
-        for &StageKkt {
+        for StageKkt {
             dual: d_k,
             primal: p_k,
             nu_sum,
@@ -947,8 +951,7 @@ where
             }
             tm.derivatives += t0.elapsed().as_secs_f64();
 
-            let per_stage: Vec<StageKkt> = aux.iter().map(|a| a.kkt).collect();
-            let KktError { dual, primal, s_d } = self.kkt_error(&it, &per_stage);
+            let KktError { dual, primal, s_d } = self.kkt_error(&it, aux.iter().map(|a| a.kkt));
             let compl0 = self.complementarity(&it, 0.0, s_d);
             if o.verbose {
                 eprintln!(
