@@ -14,6 +14,8 @@
 //! - [`runge_kutta`]: `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`; the dynamics
 //!   are one RK1/RK2/RK4 step of the continuous model; no stage equality.
 //!
+//! - [`refine`]: a VI iterate carried to a finer mesh, the start of mesh sequencing.
+//!
 //! All stage functions are generic over the scalar, so their exact Jacobians and Hessians
 //! come from dual numbers, stage by stage. The design is written up in `docs/ocp.md`.
 
@@ -21,6 +23,7 @@ pub mod derivatives;
 pub mod ipm;
 pub mod layout;
 pub mod problem;
+pub mod refine;
 pub mod riccati;
 pub mod runge_kutta;
 #[cfg(test)]
