@@ -26,18 +26,25 @@ fn number(json: &serde_json::Value, key: &str) -> f64 {
 /// trajectory.csv (re-measured here from the file, not taken from the solver).
 #[test]
 fn plans_a_short_waypoint_problem() {
-    plan_short_problem("dynamic");
+    plan_short_problem("dynamic", 0.02);
 }
 
 /// The same with the algebraic-current model; its currents in trajectory.csv are the
 /// steady-state ones, `i = (u − k_e n_wm (φ̇ − α̇))/R_m`.
 #[test]
 fn plans_a_short_waypoint_problem_with_algebraic_current() {
-    plan_short_problem("algebraic");
+    plan_short_problem("algebraic", 0.02);
 }
 
-fn plan_short_problem(current: &str) {
-    let dir = scratch(&format!("short-{current}"));
+/// At h = 10 ms the plan goes through mesh sequencing (solved at 20 ms, refined to 10 ms):
+/// the same checks hold on the finer mesh's trajectory.
+#[test]
+fn plans_a_short_waypoint_problem_through_a_refined_mesh() {
+    plan_short_problem("dynamic", 0.01);
+}
+
+fn plan_short_problem(current: &str, h: f64) {
+    let dir = scratch(&format!("short-{current}-{h}"));
     let file = dir.join("wp.json");
     std::fs::write(
         &file,
@@ -45,13 +52,12 @@ fn plan_short_problem(current: &str) {
             "accel": 0.2, "start_heading": 0.0, "end_heading": 0.8}"#,
     )
     .unwrap();
-    let h = 0.02;
     let out = wip()
         .args([
             "plan",
             file.to_str().unwrap(),
             "--h",
-            "0.02",
+            &h.to_string(),
             "--current",
             current,
             "--quiet",

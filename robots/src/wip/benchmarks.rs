@@ -19,6 +19,30 @@ pub struct PlanProblem {
     pub end_heading: f64,
 }
 
+impl PlanProblem {
+    /// The same waypoints and timing at step `h`: the duration and the waypoints' times kept
+    /// (to the nearest stage of the new mesh). `None` when two waypoints would share a stage
+    /// or the mesh would have fewer than two steps.
+    pub fn at_step(&self, h: f64) -> Option<PlanProblem> {
+        let scale = self.h / h;
+        let n = (self.n as f64 * scale).round() as usize;
+        let stages: Vec<usize> = self
+            .stages
+            .iter()
+            .map(|&k| ((k as f64 * scale).round() as usize).min(n))
+            .collect();
+        if n < 2 || stages.windows(2).any(|w| w[0] >= w[1]) {
+            return None;
+        }
+        Some(PlanProblem {
+            h,
+            n,
+            stages,
+            ..self.clone()
+        })
+    }
+}
+
 /// Cumulative arc length of a polyline.
 pub fn arc_lengths(points: &[[f64; 2]]) -> Vec<f64> {
     let mut s = vec![0.0];

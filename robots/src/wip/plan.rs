@@ -17,6 +17,7 @@ use dmech::{ForcingQuadrature, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult, Solver};
 use dmech_ocp::problem::{StageProblem, StateEquality};
+use dmech_ocp::refine::refine_varint_iterate;
 use dmech_ocp::runge_kutta::RkStages;
 use dmech_ocp::varint::VarIntStages;
 use nalgebra::{SMatrix, SVector};
@@ -728,12 +729,7 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
     let h = problem.h;
     match transcription {
         Transcription::VarInt => {
-            let (xs, ws) = varint_start::<M, NS, NX, NW>(model, problem);
-            let plans: Vec<_> = models
-                .iter()
-                .map(|m| VarIntPlan::<M, NS>::new(m, problem, bounds))
-                .collect();
-            let r = continuation::<_, NX, NW, NS, 2>(&plans, xs, ws, opts);
+            let r = mesh_sequence::<M, NS, NX, NW>(model, &models, problem, bounds, opts);
             outcome::<M, NS, NX, NW>(model, r, h, true)
         }
         Transcription::Rk(rk) => {
@@ -746,6 +742,121 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
             outcome::<M, NS, NX, 2>(model, r, h, false)
         }
     }
+}
+
+/// The coarsest step of mesh sequencing: the VI plan starts on the mesh of step
+/// `h·2^L ≤ MESH_COARSEST_STEP` (20 ms: the scale series' coarsest mesh, solved directly
+/// in 38 iterations and 0.4 s for the eight).
+pub const MESH_COARSEST_STEP: f64 = 0.02;
+
+/// The barrier a finer mesh restarts at from the refined coarse solution. Measured on the
+/// eight at 1.25 ms from the 2.5 ms solution (iterations of the fine mesh): 1e-3: 54,
+/// 1e-4: 34–37, 1e-5: 39–40.
+const MESH_RESTART_BARRIER: f64 = 1e-4;
+
+/// Tolerance of the coarse meshes: the barrier the next mesh restarts at (solving a coarse
+/// mesh below it is work the refinement throws away). Measured (eight 5 ms / eight 1.25 ms /
+/// zigzag 5 ms, seconds): 1e-6: 1.91 / 10.4 / 1.66; 1e-4: 1.72 / 9.7 / 1.44; 1e-3: 1.96 /
+/// 29.3 (one mesh took 272 iterations) / 1.31.
+const MESH_COARSE_TOL: f64 = MESH_RESTART_BARRIER;
+
+/// Mesh sequencing for the VI: the problem solved on the coarsest mesh of step `h·2^L` (the
+/// largest `L` with `h·2^L ≤` [`MESH_COARSEST_STEP`] on which no two waypoints share a
+/// stage) by the friction continuation, then on each finer mesh, step halved, from the
+/// refined solution ([`dmech_ocp::refine::refine_varint_iterate`]) with the model itself,
+/// restarted at [`MESH_RESTART_BARRIER`]. The returned result is the finest mesh's, with
+/// the iterations and times of all meshes added.
+///
+/// Why: where the robot leaves and reaches rest the voltage rate is bang-bang, and the
+/// interior point moves its switch by one or two stages per iteration; on the finest mesh
+/// alone the switch has a fixed time to travel, i.e. `∝ 1/h` stages, and the iteration
+/// count grew like `N^0.29` (eight: 38 iterations at 20 ms, 86 at 1.25 ms). From the
+/// coarse solution the switch is within a coarse step of its place, each finer mesh takes
+/// 15–30 iterations, and the coarse meshes cost a geometric fraction of the finest
+/// (`docs/ocp.md`).
+fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
+    model: &M,
+    models: &[M],
+    problem: &PlanProblem,
+    bounds: PlanBounds,
+    opts: IpOptions,
+) -> SolveResult<NX, NW, NC> {
+    // Coarsest first, the problem itself last.
+    let mut meshes = vec![problem.clone()];
+    while let Some(coarser) = (meshes[0].h * 2.0 <= MESH_COARSEST_STEP * (1.0 + 1e-9))
+        .then(|| meshes[0].at_step(meshes[0].h * 2.0))
+        .flatten()
+    {
+        meshes.insert(0, coarser);
+    }
+    let last = meshes.len() - 1;
+    let tol = |j: usize| {
+        if j < last {
+            MESH_COARSE_TOL.max(opts.tol)
+        } else {
+            opts.tol
+        }
+    };
+    let announce = |j: usize| {
+        if opts.verbose && last > 0 {
+            eprintln!(
+                "mesh {} of {}: {} stages of {} s",
+                j + 1,
+                last + 1,
+                meshes[j].n,
+                meshes[j].h
+            );
+        }
+    };
+    // A mesh solved from the polyline start by the friction continuation.
+    let from_start = |mesh: &PlanProblem, o: IpOptions| {
+        let (xs, ws) = varint_start::<M, NS, NX, NW>(model, mesh);
+        let plans: Vec<_> = models
+            .iter()
+            .map(|m| VarIntPlan::<M, NS>::new(m, mesh, bounds))
+            .collect();
+        continuation::<_, NX, NW, NS, 2>(&plans, xs, ws, o)
+    };
+    announce(0);
+    let mut o = opts.clone();
+    o.tol = tol(0);
+    let mut r = from_start(&meshes[0], o);
+    for j in 1..=last {
+        if r.status != dmech_ocp::ipm::Status::Solved {
+            break;
+        }
+        announce(j);
+        let mesh = &meshes[j];
+        let plan = VarIntPlan::<M, NS>::new(model, mesh, bounds);
+        // The cost is summed over stages without a factor h: the cost-to-go, and with it
+        // λ and the waypoints' multipliers, scale with the number of stages.
+        let dual_scale = mesh.n as f64 / meshes[j - 1].n as f64;
+        let start =
+            refine_varint_iterate(plan.stages.layout, &r.iterate, mesh.n, mesh.h, dual_scale);
+        let mut o = opts.clone();
+        o.tol = tol(j);
+        o.mu_init = MESH_RESTART_BARRIER;
+        o.time_limit = (opts.time_limit - r.timings.total).max(0.0);
+        let s: Solver<_, NX, NW, NS, 2, NC> = Solver::new(&plan, o);
+        r = merge(s.solve(s.warm_iterate(start)), &r);
+    }
+    if last > 0 && r.status != dmech_ocp::ipm::Status::Solved {
+        // A mesh that fails says nothing final about the problem asked for: solve that one
+        // directly, so that the status and the iterate are its own (the failed attempt's
+        // iterations and time still count).
+        if opts.verbose {
+            eprintln!(
+                "mesh sequencing: {}; solving the {} stages of {} s directly",
+                r.status.code(),
+                problem.n,
+                problem.h
+            );
+        }
+        let mut o = opts.clone();
+        o.time_limit = (opts.time_limit - r.timings.total).max(0.0);
+        return merge(from_start(problem, o), &r);
+    }
+    r
 }
 
 /// The problems of the friction continuation: the model with `d_0` lowered to
