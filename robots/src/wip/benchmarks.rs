@@ -284,6 +284,24 @@ mod tests {
         assert_eq!(ns, vec![1059, 2118, 4235, 8470, 16940]);
     }
 
+    /// The eight at 5 ms taken to 10 ms is the 10 ms benchmark: the same number of steps, and
+    /// every waypoint within one stage (the timing rule rounds the exact times once, at_step
+    /// rounds the 5 ms stages again). Waypoints that would share a stage give `None`.
+    #[test]
+    fn at_step_is_the_same_problem_on_another_mesh() {
+        let (fine, coarse) = (eight(0.005), eight(0.01));
+        let moved = fine.at_step(0.01).expect("the eight has room at 10 ms");
+        assert_eq!(moved.n, coarse.n);
+        assert_eq!(moved.h, 0.01);
+        assert_eq!(moved.points, coarse.points);
+        for (a, b) in moved.stages.iter().zip(&coarse.stages) {
+            assert!(a.abs_diff(*b) <= 1, "stage {a} against {b}");
+        }
+        let mut close = fine.clone();
+        close.stages[1] = close.stages[0] + 1;
+        assert!(close.at_step(0.02).is_none());
+    }
+
     #[test]
     fn cruise_speed_is_the_smaller_root() {
         // T = S/v + v/a at v_c = 0.62718 for the eight (benchmarks.md).

@@ -772,7 +772,7 @@ const MESH_COARSE_TOL: f64 = MESH_RESTART_BARRIER;
 /// alone the switch has a fixed time to travel, i.e. `∝ 1/h` stages, and the iteration
 /// count grew like `N^0.29` (eight: 38 iterations at 20 ms, 86 at 1.25 ms). From the
 /// coarse solution the switch is within a coarse step of its place, each finer mesh takes
-/// 15–30 iterations, and the coarse meshes cost a geometric fraction of the finest
+/// 14–36 iterations (eight, 10 ms … 1.25 ms), and the coarse meshes cost a geometric fraction of the finest
 /// (`docs/ocp.md`).
 fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
     model: &M,
