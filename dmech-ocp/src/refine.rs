@@ -50,13 +50,10 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
         "refinement needs at least one step on each mesh"
     );
     layout.check(NX, NW, layout.ns + layout.nu);
-    let (n_pos, s_at, v_at, u_at) = (
-        layout.s_at() + layout.ns,
-        layout.s_at(),
-        layout.v_at(),
-        layout.u_at(),
-    );
-    let (ns, nu) = (layout.ns, layout.nu);
+    // v_{k−1} and u_{k−1} are adjacent in the state, in w's order (v, u).
+    debug_assert_eq!(layout.u_at(), layout.v_at() + layout.ns);
+    let (n_pos, s_at, v_at) = (layout.s_at() + layout.ns, layout.s_at(), layout.v_at());
+    let ns = layout.ns;
     // Coarse index of fine stage j.
     let ratio = n_fine as f64 / nc as f64;
     let kappa = |j: f64| j / ratio;
@@ -104,37 +101,25 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
     };
 
     let pos: Vec<SVector<f64, NX>> = (0..=n_fine).map(|j| positions(kappa(j as f64))).collect();
-    let vel = |j: usize| -> Vec<f64> {
-        (0..ns)
-            .map(|i| (pos[j + 1][s_at + i] - pos[j][s_at + i]) / h_fine)
-            .collect()
-    };
-    let inputs: Vec<Vec<f64>> = (0..n_fine)
+    let w: Vec<SVector<f64, NW>> = (0..n_fine)
         .map(|j| {
-            (0..nu)
-                .map(|i| input(kappa(j as f64 + 1.0) - 1.0, i))
-                .collect()
+            SVector::<f64, NW>::from_fn(|i, _| {
+                if i < ns {
+                    (pos[j + 1][s_at + i] - pos[j][s_at + i]) / h_fine
+                } else {
+                    input(kappa(j as f64 + 1.0) - 1.0, i - ns)
+                }
+            })
         })
         .collect();
+    // The state carries the previous decision: (v_{j−1}, u_{j−1}) of x_j is w_{j−1}.
     let x = (0..=n_fine)
         .map(|j| {
             let mut x = pos[j];
             if j > 0 {
-                let v = vel(j - 1);
-                for i in 0..ns {
-                    x[v_at + i] = v[i];
-                }
-                for i in 0..nu {
-                    x[u_at + i] = inputs[j - 1][i];
-                }
+                x.fixed_rows_mut::<NW>(v_at).copy_from(&w[j - 1]);
             }
             x
-        })
-        .collect();
-    let w = (0..n_fine)
-        .map(|j| {
-            let v = vel(j);
-            SVector::<f64, NW>::from_fn(|i, _| if i < ns { v[i] } else { inputs[j][i - ns] })
         })
         .collect();
     // λ_k multiplies x_{k+1} = f(x_k, w_k): it belongs to the interval [t_k, t_{k+1}] and

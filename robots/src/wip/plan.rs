@@ -690,7 +690,8 @@ fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
 
 /// Plan with the given transcription and current model from the polyline start.
 ///
-/// Two phases: the problem with a gentler Coulomb friction (`d_0 = 1 s/rad` instead of 8:
+/// VI plans run by mesh sequencing ([`mesh_sequence`]): the coarsest mesh, and an RK plan,
+/// are solved in two phases: the problem with a gentler Coulomb friction (`d_0 = 1 s/rad` instead of 8:
 /// same saturated torque, 8× smaller slope at zero relative wheel speed) from the
 /// polyline start; then the true problem, warm-started from that solution with a small
 /// barrier parameter. The `tanh` of the Coulomb friction has slope `d_c d_0` at zero wheel
@@ -747,7 +748,7 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
 /// The coarsest step of mesh sequencing: the VI plan starts on the mesh of step
 /// `h·2^L ≤ MESH_COARSEST_STEP` (20 ms: the scale series' coarsest mesh, solved directly
 /// in 38 iterations and 0.4 s for the eight).
-pub const MESH_COARSEST_STEP: f64 = 0.02;
+const MESH_COARSEST_STEP: f64 = 0.02;
 
 /// The barrier a finer mesh restarts at from the refined coarse solution. Measured on the
 /// eight at 1.25 ms from the 2.5 ms solution (iterations of the fine mesh): 1e-3: 54,
