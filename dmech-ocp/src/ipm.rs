@@ -18,6 +18,7 @@ use crate::problem::{StageProblem, StateEquality};
 use crate::riccati::{solve_lq, BackwardSweep, LqSolution, LqStage, RiccatiError};
 use dmech::linalg::Lu;
 use nalgebra::{SMatrix, SVector};
+use std::io::Write as _;
 use std::time::Instant;
 
 /// Options of the solver.
@@ -873,7 +874,9 @@ where
         let mut iter = 0;
         let (mut alpha_p, mut alpha_d) = (0.0, 0.0);
         if o.verbose {
-            eprintln!(
+            // Best-effort: a closed or full stderr must not abort the solve (eprintln! panics).
+            let _ = writeln!(
+                std::io::stderr(),
                 "{:>4} {:>14} {:>9} {:>9} {:>6} {:>9} {:>9} {:>9} {:>3} {:>7}",
                 "iter",
                 "objective",
@@ -954,7 +957,8 @@ where
             let KktError { dual, primal, s_d } = self.kkt_error(&it, aux.iter().map(|a| a.kkt));
             let compl0 = self.complementarity(&it, 0.0, s_d);
             if o.verbose {
-                eprintln!(
+                let _ = writeln!(
+                    std::io::stderr(),
                     "{:>4} {:>14.7e} {:>9.2e} {:>9.2e} {:>6.1} {:>9} {:>9.2e} {:>9.2e} {:>3} {:>6.2}s",
                     iter,
                     m.objective,

@@ -1,33 +1,133 @@
-//! File input and output shared by the `wip` subcommands: whole-file writes via a
-//! temporary file and rename, the trajectory CSV, and small CSV readers.
+//! File input and output shared by the `wip` subcommands: output sets written whole
+//! (staged, then renamed into place), the trajectory CSV, the CSV reader, and progress and
+//! result lines that never panic on a closed or full stream.
 
 use crate::wip::simulate::{InputSchedule, Trajectory};
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// A line on stderr (progress, warnings). Best-effort: a closed or full stderr
+/// (`2>/dev/full`, `2>&1 | head -1`) loses the line instead of panicking as `eprintln!`
+/// does, so the run still finishes and writes its files.
+#[macro_export]
+macro_rules! progress {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
+}
+
+/// A line on stdout (the short result summary). Best-effort, as [`progress!`]: the results
+/// are in the files and the exit status tells success.
+#[macro_export]
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
 
 /// Write `contents` to `dir/name` whole: a temporary file in the same directory, then
-/// rename, so a reader never sees a half-written file.
+/// rename, so a reader never sees a half-written file. The temporary file is removed if
+/// the write fails.
 pub fn write_atomic(dir: &Path, name: &str, contents: &[u8]) -> Result<(), String> {
     std::fs::create_dir_all(dir)
         .map_err(|e| format!("cannot create output directory {}: {e}", dir.display()))?;
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
     let dst = dir.join(name);
-    std::fs::write(&tmp, contents).map_err(|e| format!("cannot write {}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, &dst).map_err(|e| format!("cannot write {}: {e}", dst.display()))
+    if let Err(e) = std::fs::write(&tmp, contents) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(format!("cannot write {}: {e}", dst.display()));
+    }
+    std::fs::rename(&tmp, &dst).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        format!("cannot write {}: {e}", dst.display())
+    })
 }
 
-/// `trajectory.csv`: `t,x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL,uR,uL`.
-pub fn trajectory_csv(traj: &Trajectory) -> String {
-    let mut s = String::from("t,x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL,uR,uL\n");
-    for k in 0..traj.t.len() {
-        let _ = write!(s, "{}", traj.t[k]);
-        for v in traj.x[k].iter() {
-            let _ = write!(s, ",{v:.17e}");
-        }
-        let u = traj.u[k];
-        let _ = writeln!(s, ",{:.17e},{:.17e}", u[0], u[1]);
+/// The files of one run, which belong together. Opened before any long work (so an
+/// unwritable directory is found at once), written into a staging directory inside the
+/// output directory, and moved into place only by [`OutputSet::commit`]: a failed run
+/// leaves the previous run's files as they were and no stray temporary files (the staging
+/// directory is removed on drop).
+pub struct OutputSet {
+    dir: PathBuf,
+    staging: PathBuf,
+    names: Vec<String>,
+}
+
+impl OutputSet {
+    /// Create `dir` (and a staging directory in it) or fail with a one-line reason.
+    pub fn create(dir: &Path) -> Result<Self, String> {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create output directory {}: {e}", dir.display()))?;
+        let staging = dir.join(format!(".staging-{}", std::process::id()));
+        std::fs::create_dir_all(&staging)
+            .map_err(|e| format!("output directory {} is not writable: {e}", dir.display()))?;
+        Ok(OutputSet {
+            dir: dir.to_path_buf(),
+            staging,
+            names: Vec::new(),
+        })
     }
-    s
+
+    /// Stage one file of the set.
+    pub fn write(&mut self, name: &str, contents: &[u8]) -> Result<(), String> {
+        std::fs::write(self.staging.join(name), contents)
+            .map_err(|e| format!("cannot write {}: {e}", self.dir.join(name).display()))?;
+        self.names.push(name.to_string());
+        Ok(())
+    }
+
+    /// Move every staged file into the output directory (each by an atomic rename).
+    pub fn commit(self) -> Result<(), String> {
+        for name in &self.names {
+            std::fs::rename(self.staging.join(name), self.dir.join(name))
+                .map_err(|e| format!("cannot write {}: {e}", self.dir.join(name).display()))?;
+        }
+        Ok(())
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+}
+
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.staging);
+    }
+}
+
+/// `trajectory.csv`: `t,x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL,uR,uL`. A non-finite
+/// value is an error naming its row and column: a file of NaNs is never a result.
+pub fn trajectory_csv(traj: &Trajectory) -> Result<String, String> {
+    const COLUMNS: [&str; 12] = [
+        "t", "x", "y", "theta", "alpha", "v_alpha", "v_d", "v_theta", "iR", "iL", "uR", "uL",
+    ];
+    let mut s = COLUMNS.join(",") + "\n";
+    for k in 0..traj.t.len() {
+        let u = traj.u[k];
+        let row = std::iter::once(traj.t[k])
+            .chain(traj.x[k].iter().copied())
+            .chain(u);
+        for (j, v) in row.enumerate() {
+            if !v.is_finite() {
+                return Err(format!(
+                    "the trajectory holds a non-finite value ({v}) at t = {} in column '{}': \
+                     nothing written",
+                    traj.t[k], COLUMNS[j]
+                ));
+            }
+            if j == 0 {
+                let _ = write!(s, "{v}");
+            } else {
+                let _ = write!(s, ",{v:.17e}");
+            }
+        }
+        s.push('\n');
+    }
+    Ok(s)
 }
 
 /// A parsed CSV: header names and numeric rows (NaN for empty fields when allowed),
@@ -44,56 +144,73 @@ impl Csv {
     }
 }
 
-/// Parse CSV text: `#` comment lines and blank lines skipped, a header row, then numbers.
-/// An empty field or `NaN` is NaN if `allow_missing`, else an error; any other text is an
-/// error naming the line and column.
+/// Parse CSV text with the csv crate (a UTF-8 byte-order mark, quoted fields and CRLF line
+/// ends are handled there): `#` comment lines and blank lines skipped, a header row, then
+/// numbers. A header naming a column twice is an error. An empty field or `NaN` is NaN if
+/// `allow_missing`, else an error; any other text is an error naming the line and column.
 pub fn parse_csv(text: &str, what: &str, allow_missing: bool) -> Result<Csv, String> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.trim_start_matches('\u{feff}').as_bytes());
     let mut header: Option<Vec<String>> = None;
     let mut rows = Vec::new();
     let mut lines = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let lineno = i + 1;
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
+    for record in reader.records() {
+        let record = record.map_err(|e| {
+            let line = e.position().map(|p| p.line()).unwrap_or(0);
+            format!("{what}: line {line}: {e}")
+        })?;
+        let lineno = record.position().map(|p| p.line() as usize).unwrap_or(0);
+        if record.iter().all(str::is_empty) {
             continue;
         }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        match &header {
-            None => header = Some(fields.iter().map(|f| f.to_string()).collect()),
-            Some(h) => {
-                if fields.len() != h.len() {
+        let Some(h) = &header else {
+            let names: Vec<String> = record.iter().map(str::to_string).collect();
+            for (j, name) in names.iter().enumerate() {
+                if let Some(i) = names[..j].iter().position(|n| n == name) {
                     return Err(format!(
-                        "{what}: line {lineno} has {} fields, the header has {}",
-                        fields.len(),
-                        h.len()
+                        "{what}: line {lineno}: column '{name}' appears twice (columns {} and {})",
+                        i + 1,
+                        j + 1
                     ));
                 }
-                let mut row = Vec::with_capacity(fields.len());
-                for (f, name) in fields.iter().zip(h) {
-                    let v = if f.is_empty() || f.eq_ignore_ascii_case("nan") {
-                        if allow_missing {
-                            f64::NAN
-                        } else {
-                            return Err(format!(
-                                "{what}: line {lineno}, column '{name}': missing value"
-                            ));
-                        }
-                    } else {
-                        match f.parse::<f64>() {
-                            Ok(v) if v.is_finite() => v,
-                            _ => {
-                                return Err(format!(
-                                    "{what}: line {lineno}, column '{name}': '{f}' is not a finite number"
-                                ))
-                            }
-                        }
-                    };
-                    row.push(v);
-                }
-                rows.push(row);
-                lines.push(lineno);
             }
+            header = Some(names);
+            continue;
+        };
+        if record.len() != h.len() {
+            return Err(format!(
+                "{what}: line {lineno} has {} fields, the header has {}",
+                record.len(),
+                h.len()
+            ));
         }
+        let mut row = Vec::with_capacity(record.len());
+        for (j, (f, name)) in record.iter().zip(h).enumerate() {
+            let v = if f.is_empty() || f.eq_ignore_ascii_case("nan") {
+                if !allow_missing {
+                    return Err(format!(
+                        "{what}: line {lineno}, column {} ('{name}'): missing value",
+                        j + 1
+                    ));
+                }
+                f64::NAN
+            } else {
+                match f.parse::<f64>() {
+                    Ok(v) if v.is_finite() => v,
+                    _ => return Err(format!(
+                        "{what}: line {lineno}, column {} ('{name}'): '{f}' is not a finite number",
+                        j + 1
+                    )),
+                }
+            };
+            row.push(v);
+        }
+        rows.push(row);
+        lines.push(lineno);
     }
     let header = header.ok_or_else(|| format!("{what}: empty file (no header row)"))?;
     Ok(Csv {
@@ -107,7 +224,12 @@ pub fn parse_csv(text: &str, what: &str, allow_missing: bool) -> Result<Csv, Str
 pub fn read_inputs(path: &Path) -> Result<InputSchedule, String> {
     let what = format!("inputs file {}", path.display());
     let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {what}: {e}"))?;
-    let csv = parse_csv(&text, &what, false)?;
+    parse_inputs(&text, &what)
+}
+
+/// [`read_inputs`] on the file's text; `what` names the file in messages.
+pub fn parse_inputs(text: &str, what: &str) -> Result<InputSchedule, String> {
+    let csv = parse_csv(text, what, false)?;
     let col = |n: &str| {
         csv.column(n)
             .ok_or_else(|| format!("{what}: missing column '{n}' (expected t,uR,uL)"))

@@ -127,7 +127,7 @@ fn bad_inputs_exit_1_with_one_line() {
     fails_with_one_line(
         &["simulate", "--x0", x0, "--inputs", "text.csv"],
         &dir,
-        "line 3, column 'uR'",
+        "line 3, column 2 ('uR')",
     );
     fails_with_one_line(
         &["simulate", "--x0", x0, "--inputs", "nocol.csv"],

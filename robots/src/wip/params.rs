@@ -1,33 +1,62 @@
-//! The WIP's parameters (model.md, table "WIP model parameters"), loadable from JSON.
+//! The WIP's parameters (docs/wip.md, table of parameters; the file format in
+//! docs/formats.md): defaults, validation, and the JSON parameter file.
 
+use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// Physical parameters, SI units. Generic over the scalar so that parameters can be dual
-/// numbers (derivatives with respect to them). Field names are the keys of parameter files.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// numbers (derivatives with respect to them). Field names are the keys of parameter files,
+/// written in this order; a file may give any subset (`WipParams<Option<f64>>` reads it).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(
+    deny_unknown_fields,
+    bound(deserialize = "P: Deserialize<'de> + Default")
+)]
 #[allow(non_snake_case)]
 pub struct WipParams<P = f64> {
+    #[serde(default)]
     pub g: P,
+    #[serde(default)]
     pub m_b: P,
+    #[serde(default)]
     pub I_bxx: P,
+    #[serde(default)]
     pub I_byy: P,
+    #[serde(default)]
     pub I_bzz: P,
+    #[serde(default)]
     pub m_w: P,
+    #[serde(default)]
     pub I_wxx: P,
+    #[serde(default)]
     pub I_wyy: P,
+    #[serde(default)]
     pub I_wzz: P,
+    #[serde(default)]
     pub l: P,
+    #[serde(default)]
     pub r: P,
+    #[serde(default)]
     pub d: P,
+    #[serde(default)]
     pub d_v: P,
+    #[serde(default)]
     pub d_c: P,
+    #[serde(default)]
     pub d_0: P,
+    #[serde(default)]
     pub I_m: P,
+    #[serde(default)]
     pub I_g: P,
+    #[serde(default)]
     pub n_wm: P,
+    #[serde(default)]
     pub n_wg: P,
+    #[serde(default)]
     pub k_e: P,
+    #[serde(default)]
     pub L_m: P,
+    #[serde(default)]
     pub R_m: P,
 }
 
@@ -63,29 +92,34 @@ impl Default for WipParams<f64> {
 impl<P: Copy> WipParams<P> {
     /// Apply `f` to every parameter (e.g. to lift them into another scalar).
     pub fn map<Q>(&self, f: impl Fn(P) -> Q) -> WipParams<Q> {
+        self.zip(self, |a, _| f(a))
+    }
+
+    /// Combine two parameter sets key by key.
+    pub fn zip<Q: Copy, R>(&self, other: &WipParams<Q>, f: impl Fn(P, Q) -> R) -> WipParams<R> {
         WipParams {
-            g: f(self.g),
-            m_b: f(self.m_b),
-            I_bxx: f(self.I_bxx),
-            I_byy: f(self.I_byy),
-            I_bzz: f(self.I_bzz),
-            m_w: f(self.m_w),
-            I_wxx: f(self.I_wxx),
-            I_wyy: f(self.I_wyy),
-            I_wzz: f(self.I_wzz),
-            l: f(self.l),
-            r: f(self.r),
-            d: f(self.d),
-            d_v: f(self.d_v),
-            d_c: f(self.d_c),
-            d_0: f(self.d_0),
-            I_m: f(self.I_m),
-            I_g: f(self.I_g),
-            n_wm: f(self.n_wm),
-            n_wg: f(self.n_wg),
-            k_e: f(self.k_e),
-            L_m: f(self.L_m),
-            R_m: f(self.R_m),
+            g: f(self.g, other.g),
+            m_b: f(self.m_b, other.m_b),
+            I_bxx: f(self.I_bxx, other.I_bxx),
+            I_byy: f(self.I_byy, other.I_byy),
+            I_bzz: f(self.I_bzz, other.I_bzz),
+            m_w: f(self.m_w, other.m_w),
+            I_wxx: f(self.I_wxx, other.I_wxx),
+            I_wyy: f(self.I_wyy, other.I_wyy),
+            I_wzz: f(self.I_wzz, other.I_wzz),
+            l: f(self.l, other.l),
+            r: f(self.r, other.r),
+            d: f(self.d, other.d),
+            d_v: f(self.d_v, other.d_v),
+            d_c: f(self.d_c, other.d_c),
+            d_0: f(self.d_0, other.d_0),
+            I_m: f(self.I_m, other.I_m),
+            I_g: f(self.I_g, other.I_g),
+            n_wm: f(self.n_wm, other.n_wm),
+            n_wg: f(self.n_wg, other.n_wg),
+            k_e: f(self.k_e, other.k_e),
+            L_m: f(self.L_m, other.L_m),
+            R_m: f(self.R_m, other.R_m),
         }
     }
 }
@@ -128,40 +162,64 @@ impl WipParams<f64> {
         ]
     }
 
-    /// Parse a JSON parameter file's text: an object with any subset of the keys; a key not
-    /// given keeps its default. An unknown key, a value that is not a finite number, or a
-    /// non-positive mass, radius, half-track or inductance is an error naming the key.
-    pub fn from_json_str(text: &str) -> Result<Self, String> {
-        let value: serde_json::Value =
-            serde_json::from_str(text).map_err(|e| format!("not valid JSON: {e}"))?;
-        let obj = value
-            .as_object()
-            .ok_or("expected a JSON object of parameter names and numbers")?;
-        let mut p = WipParams::default();
-        for (key, v) in obj {
-            let mut named = p.named_mut();
-            let slot = named
-                .iter_mut()
-                .find(|(k, _)| k == key)
-                .ok_or_else(|| format!("unknown parameter '{key}'"))?;
-            let x = v
-                .as_f64()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| format!("parameter '{key}' must be a finite number, got {v}"))?;
-            *slot.1 = x;
-        }
-        for (k, v) in [
-            ("m_b", p.m_b),
-            ("m_w", p.m_w),
-            ("r", p.r),
-            ("d", p.d),
-            ("L_m", p.L_m),
-        ] {
-            if v <= 0.0 {
-                return Err(format!("parameter '{k}' must be positive, got {v}"));
+    /// Check that the parameters describe a physical robot: everything finite; masses,
+    /// inertias of the body and wheels, wheel radius, half-track, gear ratios, motor
+    /// constant, resistance, inductance and the friction slope `d_0` positive; rotor and
+    /// gear inertias, friction coefficients and gravity non-negative (`l` may have either
+    /// sign: the body's centre of mass may sit below the axle). Called where parameters
+    /// come from a file; limiting cases (`R_m = 0`) stay constructible in code.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let mut p = *self;
+        for (key, v) in p.named_mut() {
+            let v = *v;
+            let need = match key {
+                "l" => Sign::Any,
+                "I_m" | "I_g" | "d_v" | "d_c" | "g" => Sign::NonNegative,
+                _ => Sign::Positive,
+            };
+            let ok = v.is_finite()
+                && match need {
+                    Sign::Any => true,
+                    Sign::NonNegative => v >= 0.0,
+                    Sign::Positive => v > 0.0,
+                };
+            if !ok {
+                return Err(ParamError::OutOfRange {
+                    key,
+                    value: v,
+                    need: need.text(),
+                });
             }
         }
+        Ok(())
+    }
+
+    /// Parse a JSON parameter file's text: an object with any subset of the keys; a key not
+    /// given keeps its default. Malformed JSON, an unknown key or a value that is not a
+    /// number is an error with its line and column; then [`WipParams::validate`].
+    pub fn from_json_str(text: &str) -> Result<Self, ParamError> {
+        let given: WipParams<Option<f64>> =
+            serde_json::from_str(text.trim_start_matches('\u{feff}'))
+                .map_err(|e| {
+                    let msg = e.to_string();
+                    match msg.strip_prefix("unknown field `") {
+                        Some(rest) => ParamError::Json(format!(
+                            "unknown parameter '{}' at line {} column {} (`wip params` lists the keys)",
+                            rest.split('`').next().unwrap_or(""),
+                            e.line(),
+                            e.column()
+                        )),
+                        None => ParamError::Json(msg),
+                    }
+                })?;
+        let p = WipParams::default().zip(&given, |d, g| g.unwrap_or(d));
+        p.validate()?;
         Ok(p)
+    }
+
+    /// The parameter file of these parameters (every key, in the documented order).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a struct of numbers") + "\n"
     }
 
     /// Read a parameter file (JSON).
@@ -170,4 +228,36 @@ impl WipParams<f64> {
             .map_err(|e| format!("cannot read parameter file {}: {e}", path.display()))?;
         Self::from_json_str(&text).map_err(|e| format!("parameter file {}: {e}", path.display()))
     }
+}
+
+#[derive(Clone, Copy)]
+enum Sign {
+    Any,
+    NonNegative,
+    Positive,
+}
+
+impl Sign {
+    fn text(self) -> &'static str {
+        match self {
+            Sign::Any => "finite",
+            Sign::NonNegative => "finite and ≥ 0",
+            Sign::Positive => "finite and > 0",
+        }
+    }
+}
+
+/// Why a parameter set was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ParamError {
+    /// Not a JSON object of known keys and numbers (serde's message, with line and column).
+    #[error("{0}")]
+    Json(String),
+    /// A value outside its physical range.
+    #[error("parameter '{key}' must be {need}, got {value}")]
+    OutOfRange {
+        key: &'static str,
+        value: f64,
+        need: &'static str,
+    },
 }

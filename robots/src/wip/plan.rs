@@ -800,7 +800,7 @@ fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: u
     };
     let announce = |j: usize| {
         if opts.verbose && last > 0 {
-            eprintln!(
+            crate::progress!(
                 "mesh {} of {}: {} stages of {} s",
                 j + 1,
                 last + 1,
@@ -846,7 +846,7 @@ fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: u
         // directly, so that the status and the iterate are its own (the failed attempt's
         // iterations and time still count).
         if opts.verbose {
-            eprintln!(
+            crate::progress!(
                 "mesh sequencing: {}; solving the {} stages of {} s directly",
                 r.status.code(),
                 problem.n,

@@ -181,7 +181,7 @@ fn true_rk4(
 
 /// A discrete LQR on the NOMINAL prediction model, linearised at rest upright: state
 /// `(α, v_α, φ̇R, φ̇L)`, input `(uR, uL)`, one sample step. Returns `K` with `u = −K e`.
-pub fn nominal_lqr(p: &WipParams, h: f64) -> SMatrix<f64, 2, 4> {
+pub fn nominal_lqr(p: &WipParams, h: f64) -> Result<SMatrix<f64, 2, 4>, String> {
     let pred = Predictor::<D>::new(ModelExtension::nominal(p), p);
     let idx = [3usize, 6, 7, 8];
     let mut z = SVector::<D, 9>::zeros();
@@ -191,7 +191,7 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> SMatrix<f64, 2, 4> {
     let u = [D::from(0.0).derivative(4), D::from(0.0).derivative(5)];
     let (next, _) = pred
         .step(&z, u, D::from(h))
-        .expect("the nominal model steps at rest");
+        .ok_or("the nominal model cannot step from rest: check the parameters")?;
     let eps = |x: &D, j: usize| {
         x.eps
             .unwrap_generic(nalgebra::Const::<ND>, nalgebra::Const::<1>)[j]
@@ -210,8 +210,10 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> SMatrix<f64, 2, 4> {
     let mut k = SMatrix::<f64, 2, 4>::zeros();
     for _ in 0..20000 {
         let btsb = r + b.transpose() * s * b;
-        let k_new =
-            btsb.try_inverse().expect("R + BᵀSB is positive definite") * (b.transpose() * s * a);
+        let k_new = btsb
+            .try_inverse()
+            .ok_or("the LQR design failed (R + BᵀSB singular): check the parameters")?
+            * (b.transpose() * s * a);
         let s_new = q + a.transpose() * s * (a - b * k_new);
         let done = (k_new - k).norm() < 1e-12 * k_new.norm().max(1.0);
         k = k_new;
@@ -220,7 +222,10 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> SMatrix<f64, 2, 4> {
             break;
         }
     }
-    k
+    if !k.iter().all(|v| v.is_finite()) {
+        return Err("the LQR design failed (non-finite gain): check the parameters".into());
+    }
+    Ok(k)
 }
 
 /// A reference motion: speed and heading rate as sums of sinusoids drawn from the seed.
@@ -279,7 +284,7 @@ pub fn generate(
         ext.set(*e, theta);
     }
     let sys = ext.system(p);
-    let k_lqr = nominal_lqr(p, settings.h);
+    let k_lqr = nominal_lqr(p, settings.h)?;
     let h = settings.h;
     let noise = settings.noise;
     let q_enc = 2.0 * std::f64::consts::PI / noise.encoder_counts_per_rev;

@@ -206,7 +206,19 @@ pub fn diagnose(
 ) -> Result<Diagnosis, String> {
     let t0 = Instant::now();
     let h = log.h;
-    let window = ((opts.window_s / h).round() as usize).max(10);
+    let window = (opts.window_s / h).round();
+    // Fewer samples than this cannot separate an effect's response from the noise (and a
+    // silent clamp would change the answer behind the user's back).
+    const MIN_WINDOW: f64 = 10.0;
+    if !(window >= MIN_WINDOW) {
+        return Err(format!(
+            "a window of {} s is {window} samples of {h} s; it needs at least {MIN_WINDOW} \
+             samples (--window ≥ {} s)",
+            opts.window_s,
+            MIN_WINDOW * h
+        ));
+    }
+    let window = window as usize;
     // Room for the delayed commands before the first window (delays up to 50 ms).
     let first_row = ((0.05 / h).ceil() as usize + 2).min(log.len() / 4);
     if log.len() < first_row + window {

@@ -1,0 +1,160 @@
+//! What the subcommands share: the failure type and its exit status, value parsers that
+//! check ranges, the integrator and current-model value enums, parameter loading, and the
+//! size check that refuses runs too large for memory before they start.
+
+use clap::CommandFactory;
+use robots::wip::plan::{CurrentModel, Transcription};
+use robots::wip::simulate::Integrator;
+use robots::wip::WipParams;
+use std::path::Path;
+
+/// A failure: bad usage (exit 2, with the subcommand's usage) or a failed run (exit 1,
+/// one line).
+pub enum Failure {
+    Usage(clap::Error),
+    Run(String),
+}
+
+impl From<String> for Failure {
+    fn from(m: String) -> Self {
+        Failure::Run(m)
+    }
+}
+
+/// A usage error of subcommand `sub`, printed with that subcommand's usage line.
+pub fn usage_error(sub: &str, msg: impl std::fmt::Display) -> Failure {
+    let mut cmd = crate::Cli::command();
+    let cmd = cmd
+        .find_subcommand_mut(sub)
+        .expect("the subcommand exists")
+        .clone()
+        .bin_name(format!("wip {sub}"));
+    let mut cmd = cmd;
+    Failure::Usage(cmd.error(clap::error::ErrorKind::ValueValidation, msg))
+}
+
+fn finite(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| format!("'{s}' is not a finite number"))
+}
+
+/// A step `h` for planning: (0, 0.1] s.
+pub fn plan_step(s: &str) -> Result<f64, String> {
+    let h = finite(s)?;
+    if h > 0.0 && h <= 0.1 {
+        Ok(h)
+    } else {
+        Err(format!("the step must be in (0, 0.1] s, got {h}"))
+    }
+}
+
+/// A step `h` for simulation: (0, 1] s.
+pub fn sim_step(s: &str) -> Result<f64, String> {
+    let h = finite(s)?;
+    if h > 0.0 && h <= 1.0 {
+        Ok(h)
+    } else {
+        Err(format!("the step must be in (0, 1] s, got {h}"))
+    }
+}
+
+/// A positive, finite number of seconds.
+pub fn positive_number(s: &str) -> Result<f64, String> {
+    let v = finite(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be positive, got {v}"))
+    }
+}
+
+/// A count ≥ 1.
+pub fn positive_count(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if n > 0 => Ok(n),
+        _ => Err(format!("'{s}' is not a count ≥ 1")),
+    }
+}
+
+/// The time-stepping schemes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum IntegratorArg {
+    /// The variational integrator (first order, right-point forcing).
+    Varint,
+    /// Explicit Euler on the continuous model.
+    Rk1,
+    /// Explicit midpoint on the continuous model.
+    Rk2,
+    /// Classical Runge–Kutta on the continuous model.
+    Rk4,
+}
+
+impl IntegratorArg {
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorArg::Varint => "varint",
+            IntegratorArg::Rk1 => "rk1",
+            IntegratorArg::Rk2 => "rk2",
+            IntegratorArg::Rk4 => "rk4",
+        }
+    }
+    pub fn integrator(self) -> Integrator {
+        self.name()
+            .parse()
+            .expect("the value enum lists known names")
+    }
+    pub fn transcription(self) -> Transcription {
+        self.name()
+            .parse()
+            .expect("the value enum lists known names")
+    }
+}
+
+/// The motor-current models of a plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CurrentArg {
+    /// The motor circuit's dynamics (the full model).
+    Dynamic,
+    /// Its steady state (the paper's algebraic current).
+    Algebraic,
+}
+
+impl CurrentArg {
+    pub fn model(self) -> CurrentModel {
+        match self {
+            CurrentArg::Dynamic => CurrentModel::Dynamic,
+            CurrentArg::Algebraic => CurrentModel::Algebraic,
+        }
+    }
+}
+
+/// The nominal parameters, or a parameter file's, validated (docs/formats.md).
+pub fn load_params(path: Option<&Path>) -> Result<WipParams, Failure> {
+    match path {
+        None => Ok(WipParams::default()),
+        Some(p) => Ok(WipParams::from_file(p)?),
+    }
+}
+
+/// Refuse a run of `count` items (stages, steps) above `limit`, before it allocates:
+/// the message gives the memory it would take and the option that raises the limit.
+pub fn check_size(
+    what: &str,
+    count: f64,
+    limit: usize,
+    bytes_each: f64,
+    option: &str,
+) -> Result<(), Failure> {
+    if count.is_finite() && count <= limit as f64 {
+        return Ok(());
+    }
+    Err(Failure::Run(format!(
+        "{what}: {count:.0} would need about {:.1} GB, above the limit of {limit} ({:.1} GB); \
+         check the units (seconds) or raise the limit with {option}",
+        count * bytes_each / 1e9,
+        limit as f64 * bytes_each / 1e9
+    )))
+}

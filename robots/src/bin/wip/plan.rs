@@ -1,0 +1,160 @@
+//! `wip plan`: the constrained energy-optimal trajectory through waypoints.
+
+use crate::common::{
+    check_size, load_params, plan_step, positive_count, usage_error, CurrentArg, Failure,
+    IntegratorArg,
+};
+use dmech_ocp::ipm::{IpOptions, Status};
+use robots::io::{trajectory_csv, OutputSet};
+use robots::wip::benchmarks;
+use robots::wip::plan::{plan, PlanBounds};
+use robots::wip::plan_report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
+use robots::wip::Wip;
+use robots::{progress, say};
+use std::path::PathBuf;
+
+/// Plan a constrained energy-optimal trajectory through waypoints.
+///
+/// Solves the paper's optimal control problem (docs/ocp.md) through the waypoints of a
+/// built-in benchmark (eight, zigzag) or of a waypoint file, and writes DIR/trajectory.csv,
+/// DIR/summary.json and SVG plots (path, voltages, rates, currents, tilt, heading rate;
+/// bounds dashed). The iteration table goes to stderr.
+///
+/// Exit status: 0 solved; 1 not solved (infeasible, iteration limit, failure: one line on
+/// stderr, files still written) or a bad input file; 2 bad usage.
+#[derive(clap::Args)]
+#[command(
+    after_help = "Waypoint file (JSON, docs/formats.md): {\"name\": \"square\", \
+\"points\": [[0,0],[1,0],[1,1]], \"duration\": 12.0, \"accel\": 0.2, \"start_heading\": 0.0, \
+\"end_heading\": 1.5708}"
+)]
+pub struct PlanArgs {
+    /// eight, zigzag, or a waypoint FILE.json
+    #[arg(value_name = "PROBLEM")]
+    problem: String,
+    /// Transcription of the dynamics
+    #[arg(long, value_enum, default_value_t = IntegratorArg::Varint)]
+    integrator: IntegratorArg,
+    /// Motor-current model
+    #[arg(long, value_enum, default_value_t = CurrentArg::Dynamic)]
+    current: CurrentArg,
+    /// Time step in seconds, in (0, 0.1]
+    #[arg(long = "step", alias = "h", value_name = "SECONDS", default_value = "0.005", allow_negative_numbers = true, value_parser = plan_step)]
+    step: f64,
+    /// JSON parameter file (docs/formats.md; `wip params` prints the defaults)
+    #[arg(long, value_name = "FILE")]
+    params: Option<PathBuf>,
+    /// Output directory
+    #[arg(long, value_name = "DIR", default_value = "out")]
+    out: PathBuf,
+    /// Interior-point iteration limit
+    #[arg(long, value_name = "N", default_value = "500", value_parser = positive_count)]
+    max_iter: usize,
+    /// Largest number of stages accepted (each takes about 28 kB while solving)
+    #[arg(long, value_name = "N", default_value = "100000", value_parser = positive_count)]
+    max_stages: usize,
+    /// No iteration table on stderr
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Memory per stage while solving: 466 MB peak at 16,940 stages (docs/ocp.md, scale table).
+const BYTES_PER_STAGE: f64 = 28e3;
+
+pub fn run(a: PlanArgs) -> Result<(), Failure> {
+    let t_setup = std::time::Instant::now();
+    let h = a.step;
+    let problem = match benchmarks::by_name(&a.problem, h) {
+        Some(p) => p,
+        None if a.problem.ends_with(".json") || std::path::Path::new(&a.problem).exists() => {
+            benchmarks::from_file(std::path::Path::new(&a.problem), h)?
+        }
+        None => {
+            return Err(usage_error(
+                "plan",
+                format!(
+                    "unknown problem '{}': expected eight, zigzag or a waypoint FILE.json",
+                    a.problem
+                ),
+            ))
+        }
+    };
+    check_size(
+        &format!("plan {}: stages at h = {h} s", problem.name),
+        problem.n as f64,
+        a.max_stages,
+        BYTES_PER_STAGE,
+        "--max-stages",
+    )?;
+    let wip = Wip::new(load_params(a.params.as_deref())?);
+    let mut files = OutputSet::create(&a.out)?;
+    let opts = IpOptions {
+        verbose: !a.quiet,
+        max_iter: a.max_iter,
+        ..Default::default()
+    };
+    let (integrator, current) = (a.integrator.name(), a.current.model().name());
+    let setup = t_setup.elapsed().as_secs_f64();
+    if !a.quiet {
+        progress!(
+            "wip plan {}: {} stages of {} s, {} waypoints, integrator {integrator}, {current} current",
+            problem.name,
+            problem.n,
+            problem.h,
+            problem.points.len()
+        );
+    }
+    let o = plan(
+        &wip,
+        &problem,
+        a.integrator.transcription(),
+        a.current.model(),
+        opts,
+    );
+    let traj = reduced_trajectory(&wip, &o);
+    let csv = trajectory_csv(&traj)?;
+    files.write("trajectory.csv", csv.as_bytes())?;
+    let summary = summary_json(
+        &problem.name,
+        integrator,
+        current,
+        &problem,
+        &o,
+        &traj,
+        setup,
+    );
+    files.write("summary.json", summary.as_bytes())?;
+    for (name, svg) in plots(&problem, &traj, &PlanBounds::default()) {
+        files.write(&name, svg.as_bytes())?;
+    }
+    files.commit()?;
+    let status = o.status.code();
+    say!(
+        "{}: {status} after {} iterations in {:.2} s (set-up {:.3} s); objective {:.6}, max violation {:.1e}, waypoint error {:.1e} m",
+        problem.name,
+        o.iterations,
+        o.timings.total,
+        setup,
+        o.objective,
+        o.max_violation,
+        waypoint_error_max(&problem, &traj)
+    );
+    say!(
+        "wrote {}/{{trajectory.csv, summary.json, *.svg}}",
+        a.out.display()
+    );
+    match o.status {
+        Status::Solved => Ok(()),
+        Status::Infeasible { violation } => Err(Failure::Run(format!(
+            "infeasible: the constraint violation stopped decreasing at {violation:.3e} (waypoints or end state out of reach within the bounds)"
+        ))),
+        Status::MaxIterations => Err(Failure::Run(format!(
+            "not solved within {} iterations (--max-iter)",
+            o.iterations
+        ))),
+        Status::Diverged => Err(Failure::Run(
+            "the iterates diverged (non-finite or unbounded values)".into(),
+        )),
+        Status::Failed(why) => Err(Failure::Run(format!("solver failed: {why}"))),
+    }
+}

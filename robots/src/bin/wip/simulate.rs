@@ -1,0 +1,121 @@
+//! `wip simulate`: open-loop simulation from a state with zero-order-hold voltages.
+
+use crate::common::{check_size, load_params, positive_count, sim_step, Failure, IntegratorArg};
+use robots::io::{read_inputs, trajectory_csv, OutputSet};
+use robots::say;
+use robots::wip::simulate::{check_stability, simulate, Integrator};
+use robots::wip::{ReducedState, Wip};
+use std::path::PathBuf;
+
+/// Simulate the WIP open loop from a state with given voltages.
+///
+/// Starts from the reduced state --x0 (SI units, radians) and applies the voltages of the
+/// inputs file (columns t,uR,uL; zero-order hold; the first row at t = 0, the last row's t
+/// is the end of the horizon and must be a whole number of steps). Writes
+/// DIR/trajectory.csv (docs/formats.md).
+#[derive(clap::Args)]
+pub struct SimulateArgs {
+    /// Initial state "x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL"
+    #[arg(long, value_name = "STATE", allow_hyphen_values = true)]
+    x0: String,
+    /// Voltages: CSV with columns t,uR,uL
+    #[arg(long, value_name = "FILE.csv")]
+    inputs: PathBuf,
+    /// Time-stepping scheme
+    #[arg(long, value_enum, default_value_t = IntegratorArg::Varint)]
+    integrator: IntegratorArg,
+    /// Time step in seconds, in (0, 1]
+    #[arg(long = "step", alias = "h", value_name = "SECONDS", default_value = "0.005", allow_negative_numbers = true, value_parser = sim_step)]
+    step: f64,
+    /// JSON parameter file (docs/formats.md), e.g. a diagnosis's params_refit.json
+    #[arg(long, value_name = "FILE")]
+    params: Option<PathBuf>,
+    /// Output directory
+    #[arg(long, value_name = "DIR", default_value = "out")]
+    out: PathBuf,
+    /// Largest number of steps accepted (each row of trajectory.csv takes about 300 bytes)
+    #[arg(long, value_name = "N", default_value = "2000000", value_parser = positive_count)]
+    max_steps: usize,
+    /// Largest |voltage| accepted in the inputs file; the model has no saturation, and the
+    /// motors of the WIP are driven at 5 V
+    #[arg(long, value_name = "VOLTS", default_value = "24", value_parser = crate::common::positive_number)]
+    max_voltage: f64,
+}
+
+pub fn run(a: SimulateArgs) -> Result<(), Failure> {
+    let h = a.step;
+    let x = parse_state(&a.x0)?;
+    let params = load_params(a.params.as_deref())?;
+    let sched = read_inputs(&a.inputs)?;
+    if let Some((j, u)) = sched
+        .u
+        .iter()
+        .enumerate()
+        .find(|(_, u)| u[0].abs().max(u[1].abs()) > a.max_voltage)
+    {
+        return Err(Failure::Run(format!(
+            "inputs file {}: data row {} (t = {}): voltage ({}, {}) V is beyond ±{} V (--max-voltage)",
+            a.inputs.display(),
+            j + 1,
+            sched.t[j],
+            u[0],
+            u[1],
+            a.max_voltage
+        )));
+    }
+    let steps = sched.end() / h;
+    check_size("simulate: steps", steps, a.max_steps, 300.0, "--max-steps")?;
+    let n = steps.round() as usize;
+    if n == 0 || (n as f64 * h - sched.end()).abs() > 1e-9 * sched.end().max(1.0) {
+        return Err(Failure::Run(format!(
+            "inputs file {}: the horizon ends at t = {} s, which is {steps:.4} steps of {h} s; \
+             end the file at a whole number of steps or choose a --step that divides it",
+            a.inputs.display(),
+            sched.end()
+        )));
+    }
+
+    let wip = Wip::new(params);
+    let integrator: Integrator = a.integrator.integrator();
+    check_stability(&wip, integrator, h, &x, &sched)?;
+    let mut files = OutputSet::create(&a.out)?;
+    let t0 = std::time::Instant::now();
+    let traj = simulate(&wip, integrator, h, &x, &sched, n)?;
+    let elapsed = t0.elapsed().as_secs_f64();
+    files.write("trajectory.csv", trajectory_csv(&traj)?.as_bytes())?;
+    files.commit()?;
+    let xf = traj.x.last().expect("at least one state");
+    say!(
+        "simulated {n} steps of {h} s with {} in {elapsed:.3} s; final state x={:.6} y={:.6} theta={:.6} alpha={:.6} v_d={:.6} v_theta={:.6} iR={:.6} iL={:.6}",
+        integrator.name(),
+        xf[0], xf[1], xf[2], xf[3], xf[5], xf[6], xf[7], xf[8]
+    );
+    say!("wrote {}", a.out.join("trajectory.csv").display());
+    Ok(())
+}
+
+fn parse_state(text: &str) -> Result<ReducedState, Failure> {
+    let fields: Vec<&str> = text.split(',').collect();
+    if fields.len() != 9 {
+        return Err(Failure::Run(format!(
+            "--x0 needs 9 comma-separated numbers (x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL), got {}",
+            fields.len()
+        )));
+    }
+    let mut x = ReducedState::zeros();
+    for (i, f) in fields.iter().enumerate() {
+        x[i] = f
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                format!(
+                    "--x0 component {} ('{}') is not a finite number",
+                    i + 1,
+                    f.trim()
+                )
+            })?;
+    }
+    Ok(x)
+}
