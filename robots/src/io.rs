@@ -201,10 +201,12 @@ pub fn parse_csv(text: &str, what: &str, allow_missing: bool) -> Result<Csv, Str
             } else {
                 match f.parse::<f64>() {
                     Ok(v) if v.is_finite() => v,
-                    _ => return Err(format!(
+                    _ => {
+                        return Err(format!(
                         "{what}: line {lineno}, column {} ('{name}'): '{f}' is not a finite number",
                         j + 1
-                    )),
+                    ))
+                    }
                 }
             };
             row.push(v);

@@ -199,19 +199,31 @@ impl WipParams<f64> {
     /// number is an error with its line and column; then [`WipParams::validate`].
     pub fn from_json_str(text: &str) -> Result<Self, ParamError> {
         let given: WipParams<Option<f64>> =
-            serde_json::from_str(text.trim_start_matches('\u{feff}'))
-                .map_err(|e| {
-                    let msg = e.to_string();
-                    match msg.strip_prefix("unknown field `") {
-                        Some(rest) => ParamError::Json(format!(
-                            "unknown parameter '{}' at line {} column {} (`wip params` lists the keys)",
-                            rest.split('`').next().unwrap_or(""),
-                            e.line(),
-                            e.column()
-                        )),
-                        None => ParamError::Json(msg),
-                    }
-                })?;
+            serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| {
+                let msg = e.to_string();
+                match msg.strip_prefix("unknown field `") {
+                    Some(rest) => ParamError::Json(format!(
+                        "unknown parameter '{}' at line {} column {} (`wip params` lists the keys)",
+                        rest.split('`').next().unwrap_or(""),
+                        e.line(),
+                        e.column()
+                    )),
+                    // serde names the line and column; name the key too.
+                    None => match serde_json::from_str::<serde_json::Value>(text) {
+                        Ok(serde_json::Value::Object(m)) => {
+                            match m.iter().find(|(_, v)| !v.is_number()) {
+                                Some((k, v)) => ParamError::Json(format!(
+                                    "parameter '{k}' must be a number, got {v} (line {} column {})",
+                                    e.line(),
+                                    e.column()
+                                )),
+                                None => ParamError::Json(msg),
+                            }
+                        }
+                        _ => ParamError::Json(msg),
+                    },
+                }
+            })?;
         let p = WipParams::default().zip(&given, |d, g| g.unwrap_or(d));
         p.validate()?;
         Ok(p)

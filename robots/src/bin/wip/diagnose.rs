@@ -14,7 +14,8 @@ use std::path::PathBuf;
 /// (docs/formats.md) and the model (tilt_offset, floor_slope, input_delay, voltage_gain,
 /// friction, wheel_radius_asymmetry, payload, dead_zone; pairs when one is not enough),
 /// refits its parameters with their uncertainty and reports the gain. Writes
-/// DIR/diagnosis.json, DIR/report.md and DIR/residual_<channel>.svg. Method:
+/// DIR/diagnosis.json, DIR/params_refit.json (the refitted model as a parameter file that
+/// plan and simulate read), DIR/report.md and DIR/residual_<channel>.svg. Method:
 /// docs/diagnose.md.
 ///
 /// Exit status: 0 diagnosed (whatever the verdict); 1 a malformed log (one line naming the
@@ -64,6 +65,26 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
         }
     };
     let d = diagnose(&log, &p, &opts, &report)?;
+    // A NaN would be written as null: never a result.
+    for (what, v) in [
+        ("error before", d.error_before),
+        ("error after", d.error_after),
+        ("gain", d.gain),
+    ]
+    .into_iter()
+    .chain(
+        d.chosen
+            .fit
+            .theta
+            .iter()
+            .map(|&v| ("a fitted parameter", v)),
+    ) {
+        if !v.is_finite() {
+            return Err(Failure::Run(format!(
+                "the diagnosis produced a non-finite {what} ({v}); nothing written"
+            )));
+        }
+    }
     let json = serde_json::to_string_pretty(&diagnosis_json(&d))
         .map_err(|e| format!("diagnosis.json: {e}"))?;
     files.write("diagnosis.json", (json + "\n").as_bytes())?;
@@ -72,6 +93,21 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
     for (name, svg) in residual_plots(&d, &log) {
         files.write(&name, svg.as_bytes())?;
     }
+    // The refitted model as a parameter file that plan/simulate read.
+    let mut refit = p;
+    let mut left_out = Vec::new();
+    let mut at = 0;
+    for &e in &d.chosen.fit.candidate.effects {
+        let theta = &d.chosen.fit.theta[at..at + e.n_params()];
+        at += e.n_params();
+        if !e.apply_to_params(theta, &mut refit) {
+            left_out.push(e.name());
+        }
+    }
+    refit
+        .validate()
+        .map_err(|e| format!("params_refit.json: {e}"))?;
+    files.write("params_refit.json", refit.to_json().as_bytes())?;
     files.commit()?;
     say!(
         "cause: {}; error {:.3} -> {:.3} (1 = noise floor), gain {:.3}; {:.1} s",
@@ -94,8 +130,14 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
             say!("  {n} = {v:.6e} ± {u:.1e}");
         }
     }
+    if !left_out.is_empty() {
+        say!(
+            "  params_refit.json cannot hold {} (not parameters of the model file; see diagnosis.json)",
+            left_out.join(", ")
+        );
+    }
     say!(
-        "wrote {}/{{diagnosis.json, report.md, residual_*.svg}}",
+        "wrote {}/{{diagnosis.json, params_refit.json, report.md, residual_*.svg}}",
         a.out.display()
     );
     Ok(())

@@ -111,6 +111,30 @@ impl Effect {
         }
     }
 
+    /// Write a refitted effect into a parameter set where the parameter file can hold it
+    /// (friction: `d_v`, `d_c`; payload: `m_b`, `l`; wheel radii: their mean as `r`, the
+    /// asymmetry itself has no key) and say whether it could. Sensor offsets, slopes,
+    /// delays, gains and dead zones are not parameters of the model file.
+    pub fn apply_to_params(self, theta: &[f64], p: &mut WipParams) -> bool {
+        match self {
+            Effect::Friction => {
+                p.d_v = theta[0];
+                p.d_c = theta[1];
+                true
+            }
+            Effect::Payload => {
+                p.m_b = theta[0];
+                p.l = theta[1];
+                true
+            }
+            Effect::WheelRadiusAsymmetry => {
+                p.r = 0.5 * (theta[0] + theta[1]);
+                false
+            }
+            _ => false,
+        }
+    }
+
     /// Whether a parameter vector is physically admissible (the fit projects onto this set).
     pub fn project(self, theta: &mut [f64], p: &WipParams) {
         match self {

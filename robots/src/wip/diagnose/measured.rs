@@ -1,4 +1,4 @@
-//! The measured log that `diagnose` reads (interfaces.md, "Measured data").
+//! The measured log that `diagnose` reads (docs/formats.md, "Measured log").
 
 use crate::io::parse_csv;
 use std::fmt::Write as _;
@@ -44,6 +44,9 @@ impl Channel {
 }
 
 /// A log: uniform time grid, commanded voltages, and the readings (NaN = not measured).
+/// How many interquartile ranges beyond the quartiles a reading must lie to be set aside.
+pub const OUTLIER_FENCE: f64 = 100.0;
+
 #[derive(Clone, Debug)]
 pub struct MeasuredLog {
     pub h: f64,
@@ -188,6 +191,7 @@ impl MeasuredLog {
             }
             log.push_row(t, [row[cr], row[cl]], &data);
         }
+        log.set_aside_gross_outliers(&csv.lines);
         log.channels_present_from_data();
         for &(c, _) in &chan_cols {
             if !log.present[c.index()] {
@@ -198,6 +202,56 @@ impl MeasuredLog {
             }
         }
         Ok(log)
+    }
+
+    /// Readings far outside their channel's range (a glitch such as 1e300, a unit slip)
+    /// are set aside as missing, with a warning naming their lines, instead of being
+    /// fitted: one such reading would dominate every least-squares sum. "Far" is beyond
+    /// the quartiles by [`OUTLIER_FENCE`] interquartile ranges (Tukey's fences use 1.5
+    /// and 3 for outliers of a distribution; this one only catches gross errors, never
+    /// the dynamics: a channel's motion spans a few IQRs).
+    fn set_aside_gross_outliers(&mut self, lines: &[usize]) {
+        for c in Channel::ALL {
+            let i = c.index();
+            let mut v: Vec<f64> = self
+                .data
+                .iter()
+                .map(|r| r[i])
+                .filter(|x| !x.is_nan())
+                .collect();
+            if v.len() < 4 {
+                continue;
+            }
+            v.sort_by(f64::total_cmp);
+            let (q1, q3) = (v[v.len() / 4], v[(3 * v.len()) / 4]);
+            // A constant channel has IQR 0: measure the fence from the level instead.
+            let iqr = (q3 - q1).max(1e-6 * q1.abs().max(q3.abs()).max(1.0));
+            let (lo, hi) = (q1 - OUTLIER_FENCE * iqr, q3 + OUTLIER_FENCE * iqr);
+            let flagged: Vec<usize> = (0..self.len())
+                .filter(|&k| {
+                    let x = self.data[k][i];
+                    !x.is_nan() && (x < lo || x > hi)
+                })
+                .collect();
+            if flagged.is_empty() {
+                continue;
+            }
+            let shown: Vec<String> = flagged
+                .iter()
+                .take(5)
+                .map(|&k| format!("line {} ({:e})", lines[k], self.data[k][i]))
+                .collect();
+            self.warnings.push(format!(
+                "column '{}': {} reading(s) far outside the channel's range [{lo:.4e}, {hi:.4e}] set aside as missing: {}{}",
+                c.name(),
+                flagged.len(),
+                shown.join(", "),
+                if flagged.len() > 5 { ", …" } else { "" }
+            ));
+            for k in flagged {
+                self.data[k][i] = f64::NAN;
+            }
+        }
     }
 
     pub fn read(path: &std::path::Path) -> Result<Self, String> {

@@ -229,6 +229,21 @@ pub fn diagnose(
             opts.window_s
         ));
     }
+    let constant = |c: Channel| {
+        let mut vals = (0..log.len()).filter_map(|k| log.value(k, c));
+        let first = vals.next();
+        first.is_none_or(|v0| vals.all(|v| v == v0))
+    };
+    if Channel::ALL
+        .into_iter()
+        .filter(|c| log.present[c.index()])
+        .all(constant)
+    {
+        return Err(
+            "every measured channel is constant (no motion and no noise): the log carries nothing to compare with the model"
+                .into(),
+        );
+    }
     let mut sigma0 = [f64::INFINITY; 9];
     for c in Channel::ALL {
         if log.present[c.index()] {
@@ -450,7 +465,12 @@ pub fn diagnose(
     let res_after = fitter.residuals(&chosen.fit);
     let (channel_before, error_before) = normalised_error(&res_before, &sigma_final);
     let (channel_after, error_after) = normalised_error(&res_after, &sigma_final);
-    let gain = 1.0 - error_after / error_before;
+    // A log the nominal model already explains to the noise has nothing to gain.
+    let gain = if error_before > 0.0 {
+        1.0 - error_after / error_before
+    } else {
+        0.0
+    };
     let effects = chosen.fit.candidate.effects.clone();
     let explained = error_after <= opts.explained;
     let (cause, verdict) = if effects.is_empty() {
