@@ -34,6 +34,25 @@ enum Command {
     Params(params::ParamsArgs),
 }
 
+/// clap shows the usage with some errors (unknown argument) but not others (invalid value):
+/// add the subcommand's usage line where it is missing, so every usage error says how the
+/// subcommand is called.
+fn print_subcommand_usage(rendered: &str) {
+    use clap::CommandFactory;
+    if rendered.contains("Usage:") {
+        return;
+    }
+    let Some(sub) = std::env::args().nth(1) else {
+        return;
+    };
+    let mut cli = Cli::command();
+    cli.build();
+    if let Some(cmd) = cli.find_subcommand_mut(&sub) {
+        let usage = cmd.render_usage().to_string();
+        robots::progress!("\n{usage}");
+    }
+}
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
@@ -41,6 +60,9 @@ fn main() -> ExitCode {
             // Help and version go to stdout with status 0, usage errors to stderr with 2;
             // printing is best-effort (a closed stream must not turn into a panic).
             let _ = e.print();
+            if e.use_stderr() {
+                print_subcommand_usage(&e.render().to_string());
+            }
             return ExitCode::from(e.exit_code().clamp(0, 255) as u8);
         }
     };
