@@ -1,6 +1,6 @@
 //! `wip generate` and `wip diagnose` from the command line: malformed logs rejected with
 //! exit status 1 and one line naming the problem; a generated log diagnosed end to end,
-//! with every output file written and `diagnosis.json` carrying the keys of interfaces.md.
+//! with every output file written and `diagnosis.json` carrying the keys of docs/formats.md.
 
 use std::path::PathBuf;
 use std::process::Command;

@@ -1,5 +1,5 @@
 //! The WIP with its current dynamics replaced by their steady state: the paper's
-//! "algebraic current" (`model.md`: "constant current") variant,
+//! "algebraic current" (`docs/wip.md`: "constant current") variant,
 //! `0 = u − R_m i − k_e n_wm (φ̇ − α̇)`.
 //!
 //! A principal-kinematic system of its own on SE(2) × R³, shape `s = (α, φR, φL)`: with

@@ -1,4 +1,4 @@
-//! The planning problems of `../shared/spec/benchmarks.md` (`eight`, `zigzag`) and waypoint
+//! The planning problems of `docs/problems.md` (`eight`, `zigzag`) and waypoint
 //! files: the polyline, the boundary poses and the waypoint stages from the trapezoidal
 //! speed profile.
 
@@ -137,7 +137,7 @@ pub fn zigzag(h: f64) -> PlanProblem {
     from_timing("zigzag", points, 19.36, 0.1, h, pi, pi).expect("the benchmark is feasible")
 }
 
-/// A benchmark of benchmarks.md by name (`eight`, `zigzag`) at step `h`.
+/// A benchmark of docs/problems.md by name (`eight`, `zigzag`) at step `h`.
 pub fn by_name(name: &str, h: f64) -> Option<PlanProblem> {
     match name {
         "eight" => Some(eight(h)),
@@ -304,7 +304,7 @@ mod tests {
 
     #[test]
     fn cruise_speed_is_the_smaller_root() {
-        // T = S/v + v/a at v_c = 0.62718 for the eight (benchmarks.md).
+        // T = S/v + v/a at v_c = 0.62718 for the eight (docs/problems.md).
         let s = arc_lengths(&eight(0.005).points);
         let t = trapezoid_times(&s, 21.175, 0.2).unwrap();
         let seg = (t[2] - t[1], s[2] - s[1]); // a cruise segment

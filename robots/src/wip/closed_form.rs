@@ -2,7 +2,7 @@
 //! "Nonlinear state space model"): `M(q) q̈ + K(q, q̇) + P(q, q̇) = 𝓕 + A_cᵀλ`, projected
 //! with `q̇ = S(q) ν` (at `θ = 0`: the equations are SE(2)-invariant). It checks the generic
 //! path (`dmech::continuous`), and `shape_acceleration` is the fast evaluation
-//! `wip diagnose` differentiates. The derivation is in `docs/wip-model.md`.
+//! `wip diagnose` differentiates. The derivation is in `docs/wip.md`.
 
 use super::model::{friction, Wip};
 use super::params::WipParams;

@@ -1,4 +1,4 @@
-//! The wheeled inverted pendulum with motor-charge coordinates (`../shared/spec/model.md`).
+//! The wheeled inverted pendulum with motor-charge coordinates (`docs/wip.md`).
 //!
 //! Configuration `q = (x, y, θ, α, φR, φL, qR, qL)`, group `g = (x, y, θ) ∈ SE(2)`, shape
 //! `s = (α, φR, φL, qR, qL)`, shape velocity `v_s = (v_α, v_φR, v_φL, iR, iL)`. The wheel

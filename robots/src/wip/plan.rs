@@ -1,4 +1,4 @@
-//! The WIP's energy-optimal planning problem (paper eq. (opt), `benchmarks.md`) declared
+//! The WIP's energy-optimal planning problem (paper eq. (opt), `docs/problems.md`) declared
 //! for the generic solver of `dmech-ocp`: cost, bounds, waypoints, boundary states, and a
 //! start along the waypoint polyline.
 //!
@@ -81,7 +81,7 @@ impl PlanModel<3> for WipAlgebraicCurrent {
     fn settle_currents(&self, _v: &mut SVector<f64, 3>) {}
 }
 
-/// The bounds of benchmarks.md.
+/// The bounds of docs/problems.md.
 #[derive(Clone, Copy, Debug)]
 pub struct PlanBounds {
     pub u_max: f64,

@@ -1,4 +1,4 @@
-//! The catalogue of unmodelled effects (interfaces.md, "Effect names") as extensions of the
+//! The catalogue of unmodelled effects (docs/formats.md, "Effect names") as extensions of the
 //! one WIP model: each effect changes a parameter of [`Wip`], the voltage the drivers apply,
 //! an external force, or a sensor reading. Nothing here copies the model; the equations of
 //! motion stay those derived by `dmech` from `ℓ`, `A` and the forcing.

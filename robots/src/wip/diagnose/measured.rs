@@ -97,7 +97,7 @@ impl MeasuredLog {
         (!v.is_nan()).then_some(v)
     }
 
-    /// The log as CSV text (interfaces.md), empty fields for missing samples.
+    /// The log as CSV text (docs/formats.md), empty fields for missing samples.
     pub fn to_csv(&self) -> String {
         let mut s = String::from("t,uR,uL");
         let cols: Vec<Channel> = Channel::ALL

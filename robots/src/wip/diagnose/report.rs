@@ -1,4 +1,4 @@
-//! `diagnose`'s output files: `diagnosis.json` (interfaces.md), `report.md` and residual
+//! `diagnose`'s output files: `diagnosis.json` (docs/formats.md), `report.md` and residual
 //! plots before and after the refit, one per channel.
 
 use super::measured::{Channel, MeasuredLog};
