@@ -222,11 +222,36 @@ pub fn parse_csv(text: &str, what: &str, allow_missing: bool) -> Result<Csv, Str
     })
 }
 
+/// Why a file could not be read: a caller can tell a missing or unreadable file from one
+/// whose contents are wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    /// The file could not be opened or read.
+    #[error("cannot read {what}: {source}")]
+    Io {
+        what: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The contents are malformed or out of range; the message names the file, and the
+    /// line and column where there is one.
+    #[error("{0}")]
+    Content(String),
+}
+
+/// The whole text of a file; `what` names it in the error.
+pub fn read_text(path: &Path, what: &str) -> Result<String, ReadError> {
+    std::fs::read_to_string(path).map_err(|source| ReadError::Io {
+        what: what.to_string(),
+        source,
+    })
+}
+
 /// Read an inputs file (`t,uR,uL`, zero-order hold, starting at t = 0).
-pub fn read_inputs(path: &Path) -> Result<InputSchedule, String> {
+pub fn read_inputs(path: &Path) -> Result<InputSchedule, ReadError> {
     let what = format!("inputs file {}", path.display());
-    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {what}: {e}"))?;
-    parse_inputs(&text, &what)
+    let text = read_text(path, &what)?;
+    parse_inputs(&text, &what).map_err(ReadError::Content)
 }
 
 /// [`read_inputs`] on the file's text; `what` names the file in messages.
@@ -263,4 +288,27 @@ pub fn parse_inputs(text: &str, what: &str) -> Result<InputSchedule, String> {
         ));
     }
     Ok(sched)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_file_and_a_malformed_one_are_different_errors() {
+        let dir = std::env::temp_dir().join(format!("wip-io-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let missing = read_inputs(&dir.join("missing.csv"));
+        assert!(
+            matches!(&missing, Err(ReadError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound),
+            "{missing:?}"
+        );
+        std::fs::write(dir.join("bad.csv"), "t,uR,uL\n0,1,x\n").unwrap();
+        let bad = read_inputs(&dir.join("bad.csv"));
+        assert!(
+            matches!(&bad, Err(ReadError::Content(m)) if m.contains("line 2, column 3")),
+            "{bad:?}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -2,19 +2,8 @@
 //! exit status 1 and one line naming the problem; a generated log diagnosed end to end,
 //! with every output file written and `diagnosis.json` carrying the keys of docs/formats.md.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-fn wip() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_wip"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wip-diagnose-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{scratch, wip};
 
 /// A well-formed log of `n` rows (tilt, rate and one current channel), as text.
 fn good_rows(n: usize) -> String {

@@ -1,20 +1,10 @@
 //! `wip plan`: a small problem solved and checked on the returned trajectory, an
 //! infeasible one reported as such, malformed waypoint files rejected.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
+use common::{scratch, wip};
+
 use std::time::Instant;
-
-fn wip() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_wip"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wip-plan-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn number(json: &serde_json::Value, key: &str) -> f64 {
     json[key]

@@ -2,32 +2,15 @@
 //! clear one-line error (exit 1), a usage error with the subcommand's usage (exit 2), or a
 //! correct result; never a panic (101) or an abort (134).
 
+mod common;
+use common::{fails_with_one_line, scratch, wip};
+
 use std::io::Read;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-
-fn wip() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_wip"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wip-rel-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use std::path::Path;
+use std::process::{Output, Stdio};
 
 fn run(args: &[&str], dir: &Path) -> Output {
     wip().args(args).current_dir(dir).output().unwrap()
-}
-
-/// Exit 1 with one line on stderr that mentions `expect`.
-fn fails_with_one_line(args: &[&str], dir: &Path, expect: &str) {
-    let out = run(args, dir);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "args {args:?}: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
-    assert!(err.contains(expect), "'{err}' should mention '{expect}'");
 }
 
 /// Exit 2 with the usage of `wip <sub>` and a message that mentions `expect`.

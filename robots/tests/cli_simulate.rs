@@ -1,18 +1,7 @@
 //! `wip simulate` through the real binary: a closed-form steady state, and clear failures.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-fn wip() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_wip"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wip-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{fails_with_one_line, scratch, wip};
 
 fn last_row(csv: &str) -> Vec<f64> {
     csv.lines()
@@ -83,18 +72,9 @@ fn steady_state_matches_closed_form() {
             row[6], row[5], row[8]
         );
         for (got, want) in [(row[6], v_d), (row[5], v_alpha), (row[8], i), (row[9], i)] {
-            assert!((got - want).abs() <= 1e-6 * want.abs(), "{got} vs {want}");
+            approx::assert_relative_eq!(got, want, max_relative = 1e-6);
         }
     }
-}
-
-fn fails_with_one_line(args: &[&str], dir: &std::path::Path, expect: &str) {
-    let out = wip().args(args).current_dir(dir).output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "args {args:?}: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
-    assert!(err.contains(expect), "'{err}' should mention '{expect}'");
-    assert!(!err.contains("panicked"), "{err}");
 }
 
 #[test]

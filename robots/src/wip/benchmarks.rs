@@ -240,10 +240,10 @@ pub fn from_json_str(text: &str, h: f64) -> Result<PlanProblem, String> {
 }
 
 /// [`from_json_str`] for a file, with its path in the message.
-pub fn from_file(path: &Path, h: f64) -> Result<PlanProblem, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read waypoint file {}: {e}", path.display()))?;
-    from_json_str(&text, h).map_err(|e| format!("waypoint file {}: {e}", path.display()))
+pub fn from_file(path: &Path, h: f64) -> Result<PlanProblem, crate::io::ReadError> {
+    let what = format!("waypoint file {}", path.display());
+    let text = crate::io::read_text(path, &what)?;
+    from_json_str(&text, h).map_err(|e| crate::io::ReadError::Content(format!("{what}: {e}")))
 }
 
 #[cfg(test)]

@@ -235,10 +235,11 @@ impl WipParams<f64> {
     }
 
     /// Read a parameter file (JSON).
-    pub fn from_file(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read parameter file {}: {e}", path.display()))?;
-        Self::from_json_str(&text).map_err(|e| format!("parameter file {}: {e}", path.display()))
+    pub fn from_file(path: &Path) -> Result<Self, crate::io::ReadError> {
+        let what = format!("parameter file {}", path.display());
+        let text = crate::io::read_text(path, &what)?;
+        Self::from_json_str(&text)
+            .map_err(|e| crate::io::ReadError::Content(format!("{what}: {e}")))
     }
 }
 

@@ -15,6 +15,12 @@ pub enum Failure {
     Run(String),
 }
 
+impl From<robots::io::ReadError> for Failure {
+    fn from(e: robots::io::ReadError) -> Self {
+        Failure::Run(e.to_string())
+    }
+}
+
 impl From<String> for Failure {
     fn from(m: String) -> Self {
         Failure::Run(m)
@@ -41,24 +47,23 @@ fn finite(s: &str) -> Result<f64, String> {
         .ok_or_else(|| format!("'{s}' is not a finite number"))
 }
 
-/// A step `h` for planning: (0, 0.1] s.
-pub fn plan_step(s: &str) -> Result<f64, String> {
+fn step_up_to(s: &str, max: f64) -> Result<f64, String> {
     let h = finite(s)?;
-    if h > 0.0 && h <= 0.1 {
+    if h > 0.0 && h <= max {
         Ok(h)
     } else {
-        Err(format!("the step must be in (0, 0.1] s, got {h}"))
+        Err(format!("the step must be in (0, {max}] s, got {h}"))
     }
+}
+
+/// A step `h` for planning: (0, 0.1] s.
+pub fn plan_step(s: &str) -> Result<f64, String> {
+    step_up_to(s, 0.1)
 }
 
 /// A step `h` for simulation: (0, 1] s.
 pub fn sim_step(s: &str) -> Result<f64, String> {
-    let h = finite(s)?;
-    if h > 0.0 && h <= 1.0 {
-        Ok(h)
-    } else {
-        Err(format!("the step must be in (0, 1] s, got {h}"))
-    }
+    step_up_to(s, 1.0)
 }
 
 /// A positive, finite number of seconds.

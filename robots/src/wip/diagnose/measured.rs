@@ -254,9 +254,9 @@ impl MeasuredLog {
         }
     }
 
-    pub fn read(path: &std::path::Path) -> Result<Self, String> {
+    pub fn read(path: &std::path::Path) -> Result<Self, crate::io::ReadError> {
         let what = format!("{}", path.display());
-        let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {what}: {e}"))?;
-        Self::parse(&text, &what)
+        let text = crate::io::read_text(path, &what)?;
+        Self::parse(&text, &what).map_err(crate::io::ReadError::Content)
     }
 }

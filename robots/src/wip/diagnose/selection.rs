@@ -210,7 +210,7 @@ pub fn diagnose(
     // Fewer samples than this cannot separate an effect's response from the noise (and a
     // silent clamp would change the answer behind the user's back).
     const MIN_WINDOW: f64 = 10.0;
-    if !(window >= MIN_WINDOW) {
+    if window.is_nan() || window < MIN_WINDOW {
         return Err(format!(
             "a window of {} s is {window} samples of {h} s; it needs at least {MIN_WINDOW} \
              samples (--window ≥ {} s)",

@@ -1,0 +1,28 @@
+//! What the command-line tests share: the `wip` binary, a scratch directory, and the
+//! check that a run fails with one clear line.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+pub fn wip() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_wip"))
+}
+
+/// A fresh directory for one test (`name` keeps the tests of one file apart).
+pub fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("wip-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Exit 1 with one line on stderr that mentions `expect`, and no panic.
+pub fn fails_with_one_line(args: &[&str], dir: &Path, expect: &str) {
+    let out = wip().args(args).current_dir(dir).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "args {args:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    assert!(err.contains(expect), "'{err}' should mention '{expect}'");
+    assert!(!err.contains("panicked"), "{err}");
+}
