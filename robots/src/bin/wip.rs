@@ -86,8 +86,10 @@ Compares the model with a measured log (format: interfaces.md), finds which unmo
 effect of the catalogue explains the difference (tilt_offset, floor_slope, input_delay,
 voltage_gain, friction, wheel_radius_asymmetry, payload, dead_zone; pairs of them when one
 is not enough), refits its parameters with their uncertainty and reports the gain.
-Writes DIR/diagnosis.json, DIR/report.md and DIR/residual_<channel>.svg (default DIR:
-out). Method: docs/diagnose.md.
+Writes DIR/diagnosis.json, DIR/report.md, DIR/residual_<channel>.svg and
+DIR/params_refit.json (the refitted model as a --params file) (default DIR: out).
+Readings far outside their channel's range are not fitted (named in the report).
+Method: docs/diagnose.md.
 
   --params   JSON parameter file of the nominal model (model.md's keys)
   --window   length of the prediction windows in seconds (default 0.5)
@@ -496,6 +498,11 @@ fn cmd_diagnose(mut parser: lexopt::Parser) -> Result<(), Failure> {
     for (name, svg) in residual_plots(&d, &log) {
         write(&name, &svg)?;
     }
+    let (refit, _) = robots::wip::diagnose::refit::refit_params(&d, &p);
+    write(
+        "params_refit.json",
+        &robots::wip::diagnose::refit::params_file_json(&refit),
+    )?;
     println!(
         "cause: {}; error {:.3} -> {:.3} (1 = noise floor), gain {:.3}; {:.1} s",
         d.cause, d.error_before, d.error_after, d.gain, d.elapsed_s
@@ -514,7 +521,7 @@ fn cmd_diagnose(mut parser: lexopt::Parser) -> Result<(), Failure> {
         }
     }
     println!(
-        "wrote {}/{{diagnosis.json, report.md, residual_*.svg}}",
+        "wrote {}/{{diagnosis.json, report.md, residual_*.svg, params_refit.json}}",
         out.display()
     );
     Ok(())

@@ -41,7 +41,29 @@ impl Channel {
     pub fn index(self) -> usize {
         self as usize
     }
+
+    /// The largest magnitude a reading of this channel can physically have; a reading
+    /// beyond it is a logging fault, not a measurement. Generous on purpose: a position of
+    /// 10 km, a heading or wheel angle of 10⁶ rad (40 km of a 4 cm wheel), a tilt of 2π,
+    /// a tilt rate of 10³ rad/s (gyros saturate near 35 rad/s), a current of 10³ A.
+    pub fn range(self) -> f64 {
+        [
+            1e4,
+            1e4,
+            1e6,
+            std::f64::consts::TAU,
+            1e3,
+            1e6,
+            1e6,
+            1e3,
+            1e3,
+        ][self.index()]
+    }
 }
+
+/// The largest magnitude of a commanded voltage that can be a command (10³ V; the robots
+/// here run on a few volts).
+pub const COMMAND_RANGE: f64 = 1e3;
 
 /// A log: uniform time grid, commanded voltages, and the readings (NaN = not measured).
 #[derive(Clone, Debug)]
@@ -87,6 +109,41 @@ impl MeasuredLog {
         for c in Channel::ALL {
             self.present[c.index()] = self.data.iter().any(|r| !r[c.index()].is_nan());
         }
+    }
+
+    /// Drop (set to missing) every reading beyond its channel's [`Channel::range`], and
+    /// say which; a command beyond [`COMMAND_RANGE`] cannot be dropped (the model needs
+    /// every input) and is an error.
+    pub fn drop_out_of_range(&mut self) -> Result<Vec<String>, String> {
+        let mut flagged = Vec::new();
+        for k in 0..self.len() {
+            for (j, name) in ["uR", "uL"].into_iter().enumerate() {
+                let u = self.cmd[k][j];
+                if !(u.abs() <= COMMAND_RANGE) {
+                    return Err(format!(
+                        "row {k} (t = {}), column '{name}': command {u} V is outside ±{COMMAND_RANGE} V",
+                        self.t[k]
+                    ));
+                }
+            }
+            for c in Channel::ALL {
+                let v = self.data[k][c.index()];
+                if !v.is_nan() && !(v.abs() <= c.range()) {
+                    flagged.push(format!(
+                        "row {k} (t = {}), column '{}': reading {v} {} is outside ±{} and is not fitted",
+                        self.t[k],
+                        c.name(),
+                        c.unit(),
+                        c.range()
+                    ));
+                    self.data[k][c.index()] = f64::NAN;
+                }
+            }
+        }
+        if !flagged.is_empty() {
+            self.channels_present_from_data();
+        }
+        Ok(flagged)
     }
 
     pub fn value(&self, k: usize, c: Channel) -> Option<f64> {
