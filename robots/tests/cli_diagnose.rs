@@ -132,6 +132,15 @@ fn generate_then_diagnose_end_to_end() {
     let truth: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
     let b_true = truth["effects"][0]["parameters"]["b_rad"].as_f64().unwrap();
+    // One corrupt reading (a logging fault): flagged and not fitted, never a NaN result.
+    let text = std::fs::read_to_string(dir.join("log.csv")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let header = lines.iter().position(|l| l.starts_with("t,")).unwrap();
+    let col = lines[header].split(',').position(|c| c == "alpha").unwrap();
+    let mut f: Vec<String> = lines[header + 100].split(',').map(String::from).collect();
+    f[col] = "1e300".into();
+    lines[header + 100] = f.join(",");
+    std::fs::write(dir.join("log.csv"), lines.join("\n") + "\n").unwrap();
     let out = wip()
         .args(["diagnose", dir.join("log.csv").to_str().unwrap(), "--out"])
         .arg(dir.join("d"))
@@ -143,10 +152,16 @@ fn generate_then_diagnose_end_to_end() {
         stderr.contains("tilt_offset"),
         "progress names the candidates: {stderr}"
     );
-    let d: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("d/diagnosis.json")).unwrap())
-            .unwrap();
+    let text = std::fs::read_to_string(dir.join("d/diagnosis.json")).unwrap();
+    assert!(!text.contains("null"), "every number finite: {text}");
+    let d: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(d["cause"], "tilt_offset");
+    let flagged = d["flagged_readings"].as_array().unwrap();
+    assert_eq!(flagged.len(), 1, "{flagged:?}");
+    assert!(flagged[0].as_str().unwrap().contains("alpha"));
+    // The refitted model is a parameter file `--params` reads.
+    let refit = std::fs::read_to_string(dir.join("d/params_refit.json")).unwrap();
+    robots::wip::WipParams::from_json_str(&refit).unwrap();
     let b = d["parameters"]["b_rad"].as_f64().unwrap();
     let sd = d["uncertainty"]["b_rad"].as_f64().unwrap();
     assert!(
@@ -170,4 +185,18 @@ fn generate_then_diagnose_end_to_end() {
         let svg = std::fs::read_to_string(dir.join(format!("d/residual_{ch}.svg"))).unwrap();
         assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{ch}");
     }
+}
+
+/// A log whose readings never change carries no information: a clear error (exit 1), not
+/// a diagnosis with a score of `ln 0` printed as `null`.
+#[test]
+fn a_constant_log_is_a_clear_error() {
+    let mut s = String::from("t,uR,uL,alpha,v_alpha,phiR_rel\n");
+    for k in 0..400 {
+        s += &format!("{},0,0,0,0,0\n", k as f64 * 0.01);
+    }
+    let (code, err) = diagnose_text("zeros", &s);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("constant"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
 }

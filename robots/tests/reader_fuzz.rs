@@ -5,7 +5,7 @@
 use proptest::prelude::*;
 use robots::io::{parse_csv, parse_inputs};
 use robots::wip::benchmarks;
-use robots::wip::diagnose::measured::MeasuredLog;
+use robots::wip::diagnose::measured::{Channel, MeasuredLog};
 use robots::wip::WipParams;
 
 /// Cases per property: enough to hit every token pool many times, small enough for CI.
@@ -158,10 +158,15 @@ proptest! {
 
     #[test]
     fn the_log_reader_sets_aside_what_it_cannot_fit(text in log_text()) {
-        if let Ok(log) = MeasuredLog::parse(&text, "fuzz") {
-            // Whatever it keeps lies within the outlier fence: finite and not astronomically large.
-            for row in &log.data {
-                prop_assert!(row.iter().all(|v| v.is_nan() || v.abs() < 1e12), "{row:?}");
+        if let Ok(mut log) = MeasuredLog::parse(&text, "fuzz") {
+            // What diagnose keeps lies within each channel's physical range.
+            if log.drop_out_of_range().is_ok() {
+                for row in &log.data {
+                    for c in Channel::ALL {
+                        let v = row[c.index()];
+                        prop_assert!(v.is_nan() || v.abs() <= c.range(), "{row:?}");
+                    }
+                }
             }
         }
     }

@@ -3,6 +3,7 @@
 use crate::common::{load_params, positive_count, positive_number, Failure};
 use robots::io::OutputSet;
 use robots::wip::diagnose::measured::MeasuredLog;
+use robots::wip::diagnose::refit::refit_params;
 use robots::wip::diagnose::report::{diagnosis_json, report_md, residual_plots};
 use robots::wip::diagnose::selection::{diagnose, DiagnoseOptions};
 use robots::{progress, say};
@@ -65,26 +66,6 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
         }
     };
     let d = diagnose(&log, &p, &opts, &report)?;
-    // A NaN would be written as null: never a result.
-    for (what, v) in [
-        ("error before", d.error_before),
-        ("error after", d.error_after),
-        ("gain", d.gain),
-    ]
-    .into_iter()
-    .chain(
-        d.chosen
-            .fit
-            .theta
-            .iter()
-            .map(|&v| ("a fitted parameter", v)),
-    ) {
-        if !v.is_finite() {
-            return Err(Failure::Run(format!(
-                "the diagnosis produced a non-finite {what} ({v}); nothing written"
-            )));
-        }
-    }
     let json = serde_json::to_string_pretty(&diagnosis_json(&d))
         .map_err(|e| format!("diagnosis.json: {e}"))?;
     files.write("diagnosis.json", (json + "\n").as_bytes())?;
@@ -94,16 +75,7 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
         files.write(&name, svg.as_bytes())?;
     }
     // The refitted model as a parameter file that plan/simulate read.
-    let mut refit = p;
-    let mut left_out = Vec::new();
-    let mut at = 0;
-    for &e in &d.chosen.fit.candidate.effects {
-        let theta = &d.chosen.fit.theta[at..at + e.n_params()];
-        at += e.n_params();
-        if !e.apply_to_params(theta, &mut refit) {
-            left_out.push(e.name());
-        }
-    }
+    let (refit, left_out) = refit_params(&d, &p);
     refit
         .validate()
         .map_err(|e| format!("params_refit.json: {e}"))?;
@@ -133,7 +105,7 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
     if !left_out.is_empty() {
         say!(
             "  params_refit.json cannot hold {} (not parameters of the model file; see diagnosis.json)",
-            left_out.join(", ")
+            left_out.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")
         );
     }
     say!(

@@ -111,28 +111,47 @@ impl Effect {
         }
     }
 
-    /// Write a refitted effect into a parameter set where the parameter file can hold it
-    /// (friction: `d_v`, `d_c`; payload: `m_b`, `l`; wheel radii: their mean as `r`, the
-    /// asymmetry itself has no key) and say whether it could. Sensor offsets, slopes,
-    /// delays, gains and dead zones are not parameters of the model file.
-    pub fn apply_to_params(self, theta: &[f64], p: &mut WipParams) -> bool {
+    /// The physically plausible range `[lo, hi]` of each parameter: a fit may wander
+    /// outside while it converges, but a candidate whose parameters end outside is not
+    /// named. The bounds come from what the effect is, for a robot of parameters `p`:
+    /// - tilt offset and floor slope: at most 0.3 rad (17°; a robot mounted or driven
+    ///   further off is not "balancing with an offset");
+    /// - input delay: at most 0.1 s (ten 100 Hz control steps; the robot would not balance);
+    /// - voltage gain: 0.3–3 (a driver or battery off by more is a wiring error);
+    /// - friction: `d_c` up to the motor's stall torque at 12 V, `n_wm k_e 12/R_m` (the
+    ///   wheels could not turn); `d_v` up to ten times the back-EMF damping `n_wm² k_e²/R_m`;
+    /// - wheel radii: within ±25 % of `r` (a different wheel, not an asymmetry);
+    /// - payload: body mass 0.5–2 × `m_b` (a payload cannot weigh more than the robot),
+    ///   height of the centre of mass 0.2–5 × `l` and at most 0.5 m;
+    /// - dead zone: at most 3 V.
+    pub fn plausible(self, p: &WipParams) -> Vec<(f64, f64)> {
         match self {
-            Effect::Friction => {
-                p.d_v = theta[0];
-                p.d_c = theta[1];
-                true
-            }
-            Effect::Payload => {
-                p.m_b = theta[0];
-                p.l = theta[1];
-                true
-            }
-            Effect::WheelRadiusAsymmetry => {
-                p.r = 0.5 * (theta[0] + theta[1]);
-                false
-            }
-            _ => false,
+            Effect::TiltOffset => vec![(-0.3, 0.3)],
+            Effect::FloorSlope => vec![(-0.3, 0.3), (-0.3, 0.3)],
+            Effect::InputDelay => vec![(0.0, 0.1)],
+            Effect::VoltageGain => vec![(0.3, 3.0)],
+            Effect::Friction => vec![
+                (0.0, 10.0 * p.n_wm * p.n_wm * p.k_e * p.k_e / p.R_m),
+                (0.0, p.n_wm * p.k_e * 12.0 / p.R_m),
+            ],
+            Effect::WheelRadiusAsymmetry => vec![(0.75 * p.r, 1.25 * p.r); 2],
+            Effect::Payload => vec![
+                (0.5 * p.m_b, 2.0 * p.m_b),
+                (0.2 * p.l, (5.0 * p.l).min(0.5)),
+            ],
+            Effect::DeadZone => vec![(0.0, 3.0)],
         }
+    }
+
+    /// The parameters of `theta` outside [`Effect::plausible`], in words (empty: plausible).
+    pub fn implausible(self, theta: &[f64], p: &WipParams) -> Vec<String> {
+        self.parameter_names()
+            .iter()
+            .zip(theta)
+            .zip(self.plausible(p))
+            .filter(|((_, v), (lo, hi))| !(**v >= *lo && **v <= *hi))
+            .map(|((n, v), (lo, hi))| format!("{n} = {v:.4e} outside [{lo:.3e}, {hi:.3e}]"))
+            .collect()
     }
 
     /// Whether a parameter vector is physically admissible (the fit projects onto this set).

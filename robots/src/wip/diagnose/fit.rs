@@ -76,6 +76,19 @@ impl Candidate {
     pub fn nominal(&self, p: &WipParams) -> Vec<f64> {
         self.effects.iter().flat_map(|e| e.nominal(p)).collect()
     }
+    /// The parameters of `theta` outside their effect's physically plausible range.
+    pub fn implausible(&self, theta: &[f64], p: &WipParams) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut at = 0;
+        for e in &self.effects {
+            let n = e.n_params();
+            if theta.len() >= at + n {
+                out.extend(e.implausible(&theta[at..at + n], p));
+            }
+            at += n;
+        }
+        out
+    }
     fn scale(&self, p: &WipParams) -> Vec<f64> {
         self.effects.iter().flat_map(|e| e.scale(p)).collect()
     }

@@ -41,12 +41,31 @@ impl Channel {
     pub fn index(self) -> usize {
         self as usize
     }
+
+    /// The largest magnitude a reading of this channel can physically have; a reading
+    /// beyond it is a logging fault, not a measurement. Generous on purpose: a position of
+    /// 10 km, a heading or wheel angle of 10⁶ rad (40 km of a 4 cm wheel), a tilt of 2π,
+    /// a tilt rate of 10³ rad/s (gyros saturate near 35 rad/s), a current of 10³ A.
+    pub fn range(self) -> f64 {
+        [
+            1e4,
+            1e4,
+            1e6,
+            std::f64::consts::TAU,
+            1e3,
+            1e6,
+            1e6,
+            1e3,
+            1e3,
+        ][self.index()]
+    }
 }
 
-/// A log: uniform time grid, commanded voltages, and the readings (NaN = not measured).
-/// How many interquartile ranges beyond the quartiles a reading must lie to be set aside.
-pub const OUTLIER_FENCE: f64 = 100.0;
+/// The largest magnitude of a commanded voltage that can be a command (10³ V; the robots
+/// here run on a few volts).
+pub const COMMAND_RANGE: f64 = 1e3;
 
+/// A log: uniform time grid, commanded voltages, and the readings (NaN = not measured).
 #[derive(Clone, Debug)]
 pub struct MeasuredLog {
     pub h: f64,
@@ -90,6 +109,41 @@ impl MeasuredLog {
         for c in Channel::ALL {
             self.present[c.index()] = self.data.iter().any(|r| !r[c.index()].is_nan());
         }
+    }
+
+    /// Drop (set to missing) every reading beyond its channel's [`Channel::range`], and
+    /// say which; a command beyond [`COMMAND_RANGE`] cannot be dropped (the model needs
+    /// every input) and is an error.
+    pub fn drop_out_of_range(&mut self) -> Result<Vec<String>, String> {
+        let mut flagged = Vec::new();
+        for k in 0..self.len() {
+            for (j, name) in ["uR", "uL"].into_iter().enumerate() {
+                let u = self.cmd[k][j];
+                if !(u.abs() <= COMMAND_RANGE) {
+                    return Err(format!(
+                        "row {k} (t = {}), column '{name}': command {u} V is outside ±{COMMAND_RANGE} V",
+                        self.t[k]
+                    ));
+                }
+            }
+            for c in Channel::ALL {
+                let v = self.data[k][c.index()];
+                if !v.is_nan() && !(v.abs() <= c.range()) {
+                    flagged.push(format!(
+                        "row {k} (t = {}), column '{}': reading {v:e} {} is outside ±{} and is not fitted",
+                        self.t[k],
+                        c.name(),
+                        c.unit(),
+                        c.range()
+                    ));
+                    self.data[k][c.index()] = f64::NAN;
+                }
+            }
+        }
+        if !flagged.is_empty() {
+            self.channels_present_from_data();
+        }
+        Ok(flagged)
     }
 
     pub fn value(&self, k: usize, c: Channel) -> Option<f64> {
@@ -191,7 +245,6 @@ impl MeasuredLog {
             }
             log.push_row(t, [row[cr], row[cl]], &data);
         }
-        log.set_aside_gross_outliers(&csv.lines);
         log.channels_present_from_data();
         for &(c, _) in &chan_cols {
             if !log.present[c.index()] {
@@ -202,56 +255,6 @@ impl MeasuredLog {
             }
         }
         Ok(log)
-    }
-
-    /// Readings far outside their channel's range (a glitch such as 1e300, a unit slip)
-    /// are set aside as missing, with a warning naming their lines, instead of being
-    /// fitted: one such reading would dominate every least-squares sum. "Far" is beyond
-    /// the quartiles by [`OUTLIER_FENCE`] interquartile ranges (Tukey's fences use 1.5
-    /// and 3 for outliers of a distribution; this one only catches gross errors, never
-    /// the dynamics: a channel's motion spans a few IQRs).
-    fn set_aside_gross_outliers(&mut self, lines: &[usize]) {
-        for c in Channel::ALL {
-            let i = c.index();
-            let mut v: Vec<f64> = self
-                .data
-                .iter()
-                .map(|r| r[i])
-                .filter(|x| !x.is_nan())
-                .collect();
-            if v.len() < 4 {
-                continue;
-            }
-            v.sort_by(f64::total_cmp);
-            let (q1, q3) = (v[v.len() / 4], v[(3 * v.len()) / 4]);
-            // A constant channel has IQR 0: measure the fence from the level instead.
-            let iqr = (q3 - q1).max(1e-6 * q1.abs().max(q3.abs()).max(1.0));
-            let (lo, hi) = (q1 - OUTLIER_FENCE * iqr, q3 + OUTLIER_FENCE * iqr);
-            let flagged: Vec<usize> = (0..self.len())
-                .filter(|&k| {
-                    let x = self.data[k][i];
-                    !x.is_nan() && (x < lo || x > hi)
-                })
-                .collect();
-            if flagged.is_empty() {
-                continue;
-            }
-            let shown: Vec<String> = flagged
-                .iter()
-                .take(5)
-                .map(|&k| format!("line {} ({:e})", lines[k], self.data[k][i]))
-                .collect();
-            self.warnings.push(format!(
-                "column '{}': {} reading(s) far outside the channel's range [{lo:.4e}, {hi:.4e}] set aside as missing: {}{}",
-                c.name(),
-                flagged.len(),
-                shown.join(", "),
-                if flagged.len() > 5 { ", …" } else { "" }
-            ));
-            for k in flagged {
-                self.data[k][i] = f64::NAN;
-            }
-        }
     }
 
     pub fn read(path: &std::path::Path) -> Result<Self, crate::io::ReadError> {

@@ -37,6 +37,8 @@ pub fn diagnosis_json(d: &Diagnosis) -> Value {
                 "uncertainty": params_json(c, &c.fit.std),
                 "error": c.error,
                 "fitted": c.fitted,
+                "plausible": c.implausible.is_empty(),
+                "implausible": c.implausible,
             })
         })
         .collect();
@@ -47,6 +49,22 @@ pub fn diagnosis_json(d: &Diagnosis) -> Value {
             noise.insert(c.name().into(), json!(s));
         }
     }
+    let tests = |ts: &[super::adequacy::ChannelTest]| -> Vec<Value> {
+        ts.iter()
+            .map(|t| {
+                json!({
+                    "channel": t.channel.name(),
+                    "n": t.n,
+                    "z_mean": t.z_mean,
+                    "z_level": t.z_level,
+                    "z_white": t.z_white,
+                    "rms_over_noise": t.ratio,
+                    "critical": t.critical,
+                    "passes": t.passes(),
+                })
+            })
+            .collect()
+    };
     json!({
         "cause": d.cause,
         "effects": d.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
@@ -59,6 +77,12 @@ pub fn diagnosis_json(d: &Diagnosis) -> Value {
         "windows": d.windows.len(),
         "elapsed_s": d.elapsed_s,
         "candidates": candidates,
+        "residual_tests": {
+            "false_alarm": super::adequacy::FALSE_ALARM,
+            "before": tests(&d.tests_before),
+            "after": tests(&d.tests_after),
+        },
+        "flagged_readings": d.flagged,
     })
 }
 
@@ -115,6 +139,46 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
         s,
         "\nResidual plots (before and after): `residual_<channel>.svg`.\n"
     );
+    let _ = writeln!(s, "## Is anything left?\n");
+    let _ = writeln!(
+        s,
+        "Per channel, three statistics that are standard normal when the residual is white noise (docs/diagnose.md): the mean `z_M = mean(r)√n/σ`, the level `z_L = (mean(r²)/σ² − 1)√n` and the lag-one autocorrelation `z_W = ρ₁√n`. A channel passes when `|z_M|`, `z_L` and `z_W` are at most the critical value, set by a false-alarm rate of {} per log shared over all tests.\n",
+        super::adequacy::FALSE_ALARM
+    );
+    let _ = writeln!(
+        s,
+        "| channel | n | z_M before | z_L before | z_W before | z_M after | z_L after | z_W after | critical | after |\n|---|---|---|---|---|---|---|---|---|---|"
+    );
+    for a in &d.tests_after {
+        if let Some(b) = d.tests_before.iter().find(|b| b.channel == a.channel) {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {} |",
+                a.channel.name(),
+                a.n,
+                b.z_mean,
+                b.z_level,
+                b.z_white,
+                a.z_mean,
+                a.z_level,
+                a.z_white,
+                a.critical,
+                if a.passes() {
+                    "noise".to_string()
+                } else {
+                    format!("fails: {}", a.failures().join(", "))
+                }
+            );
+        }
+    }
+    let _ = writeln!(s);
+    if !d.flagged.is_empty() {
+        let _ = writeln!(s, "Readings outside their channel's range, not fitted:\n");
+        for f in &d.flagged {
+            let _ = writeln!(s, "- {f}");
+        }
+        let _ = writeln!(s);
+    }
     let _ = writeln!(s, "## Fitted parameters\n");
     if d.effects.is_empty() {
         let _ = writeln!(s, "None: no effect is named.\n");
@@ -136,12 +200,16 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
     let _ = writeln!(s, "## Candidates\n");
     let _ = writeln!(
         s,
+        "`params_refit.json` holds the refitted model in the parameter-file format (`--params`): friction and payload are model parameters and go in; the other effects (sensor offset, floor slope, delay, voltage gain, dead zone, unequal wheels) are not parameters of the model and are only reported here.\n"
+    );
+    let _ = writeln!(
+        s,
         "Selection by the Bayesian information criterion `m ln(RSS/m) + k ln m` over the `m` weighted residuals (`k` effect parameters; the window states are common to all candidates); lower is better. \
 Every effect is screened by one linearisation at the nominal model; the promising ones are fitted to convergence (`fitted`).\n"
     );
     let _ = writeln!(
         s,
-        "| candidate | score | error | fitted | parameters |\n|---|---|---|---|---|"
+        "| candidate | score | error | fitted | parameters | physically plausible |\n|---|---|---|---|---|---|"
     );
     for c in &d.candidates {
         let ps: Vec<String> = c
@@ -155,12 +223,17 @@ Every effect is screened by one linearisation at the nominal model; the promisin
             .collect();
         let _ = writeln!(
             s,
-            "| {} | {:.1} | {:.3} | {} | {} |",
+            "| {} | {:.1} | {:.3} | {} | {} | {} |",
             c.fit.candidate.name(),
             c.score,
             c.error,
             if c.fitted { "yes" } else { "screened" },
-            ps.join(", ")
+            ps.join(", "),
+            if c.implausible.is_empty() {
+                "yes".to_string()
+            } else {
+                format!("no: {}", c.implausible.join("; "))
+            }
         );
     }
     s

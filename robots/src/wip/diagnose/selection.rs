@@ -3,6 +3,7 @@
 //! is kept if it beats the nominal model; if the residual is still above the noise, pairs
 //! with the best are tried. The error measure and the verdict are defined here.
 
+use super::adequacy::{channel_tests, ChannelTest};
 use super::effects::Effect;
 use super::fit::{Candidate, Fit, FitSetup, Fitter, Residuals};
 use super::measured::{Channel, MeasuredLog};
@@ -47,6 +48,9 @@ pub struct Scored {
     pub error: f64,
     /// Fitted to convergence (`false`: only screened, one linearised step).
     pub fitted: bool,
+    /// Parameters outside their physical range ([`Effect::plausible`]); such a candidate
+    /// is never named.
+    pub implausible: Vec<String>,
 }
 
 /// The outcome of `diagnose`.
@@ -73,6 +77,12 @@ pub struct Diagnosis {
     pub residuals_before: Residuals,
     pub residuals_after: Residuals,
     pub windows: Vec<(usize, usize)>,
+    /// "Is anything left" per channel, for the nominal model and the chosen one
+    /// ([`super::adequacy`]).
+    pub tests_before: Vec<ChannelTest>,
+    pub tests_after: Vec<ChannelTest>,
+    /// Readings dropped as far outside their channel's range (row, channel, value).
+    pub flagged: Vec<String>,
     /// A one-paragraph verdict for the report.
     pub verdict: String,
     pub elapsed_s: f64,
@@ -205,6 +215,13 @@ pub fn diagnose(
     progress: &dyn Fn(&str),
 ) -> Result<Diagnosis, String> {
     let t0 = Instant::now();
+    let mut owned = log.clone();
+    let flagged = owned.drop_out_of_range()?;
+    for f in &flagged {
+        progress(&format!("diagnose: warning: {f}"));
+    }
+    let log = &owned;
+    owned_log_informative(log)?;
     let h = log.h;
     let window = (opts.window_s / h).round();
     // Fewer samples than this cannot separate an effect's response from the noise (and a
@@ -228,21 +245,6 @@ pub fn diagnose(
             first_row + window,
             opts.window_s
         ));
-    }
-    let constant = |c: Channel| {
-        let mut vals = (0..log.len()).filter_map(|k| log.value(k, c));
-        let first = vals.next();
-        first.is_none_or(|v0| vals.all(|v| v == v0))
-    };
-    if Channel::ALL
-        .into_iter()
-        .filter(|c| log.present[c.index()])
-        .all(constant)
-    {
-        return Err(
-            "every measured channel is constant (no motion and no noise): the log carries nothing to compare with the model"
-                .into(),
-        );
     }
     let mut sigma0 = [f64::INFINITY; 9];
     for c in Channel::ALL {
@@ -282,6 +284,7 @@ pub fn diagnose(
     let score_of = |fit: Fit, fitter: &Fitter| {
         let (_, error) = normalised_error(&fitter.residuals(&fit), &fitter.setup.sigma);
         Scored {
+            implausible: fit.candidate.implausible(&fit.theta, params),
             score: bic(&fit),
             fit,
             error,
@@ -359,6 +362,7 @@ pub fn diagnose(
                 converged: false,
             };
             candidates.push(Scored {
+                implausible: fit.candidate.implausible(&fit.theta, params),
                 score: bic(&fit),
                 error: nominal.error * (rss / nominal.fit.rss.max(1e-300)).sqrt(),
                 fit,
@@ -368,7 +372,7 @@ pub fn diagnose(
     }
     let best_single = candidates
         .iter()
-        .filter(|c| c.fitted)
+        .filter(|c| c.fitted && c.implausible.is_empty())
         .min_by(|a, b| a.score.total_cmp(&b.score))
         .expect("at least the nominal")
         .clone();
@@ -428,7 +432,7 @@ pub fn diagnose(
             let mut start = single.fit.theta.clone();
             start.extend(e.nominal(params));
             let s = fit_candidate(&fitter, cand, &start, &single.fit.z0);
-            if s.score < chosen.score {
+            if s.score < chosen.score && s.implausible.is_empty() {
                 chosen = s.clone();
             }
             candidates.push(s);
@@ -452,6 +456,15 @@ pub fn diagnose(
         *c = nominal.clone();
     }
     candidates.sort_by(|a, b| a.score.total_cmp(&b.score));
+    // A refit under new weights can move the chosen parameters out of their range.
+    if !chosen.implausible.is_empty() {
+        progress(&format!(
+            "  {} ends outside its physical range ({}): not named",
+            chosen.fit.candidate.name(),
+            chosen.implausible.join("; ")
+        ));
+        chosen = nominal.clone();
+    }
     chosen.fit.std = fitter.final_std(&chosen.fit);
     if let Some(c) = candidates
         .iter_mut()
@@ -472,9 +485,19 @@ pub fn diagnose(
         0.0
     };
     let effects = chosen.fit.candidate.effects.clone();
-    let explained = error_after <= opts.explained;
+    let tests_before = channel_tests(log, &res_before, &fitter.windows, &sigma_final);
+    let tests_after = channel_tests(log, &res_after, &fitter.windows, &sigma_final);
+    let left = |tests: &[ChannelTest]| -> Vec<String> {
+        tests
+            .iter()
+            .filter(|t| !t.passes())
+            .map(|t| format!("{} ({})", t.channel.name(), t.failures().join(", ")))
+            .collect()
+    };
+    let (left_before, left_after) = (left(&tests_before), left(&tests_after));
+    let explained = error_after <= opts.explained && left_after.is_empty();
     let (cause, verdict) = if effects.is_empty() {
-        if error_before <= opts.explained {
+        if error_before <= opts.explained && left_before.is_empty() {
             (
                 "none".to_string(),
                 format!(
@@ -485,7 +508,8 @@ pub fn diagnose(
             (
                 "unexplained".to_string(),
                 format!(
-                    "The nominal model's error is {error_before:.3} times the noise floor, and no effect of the catalogue reduces it by enough to pay for its parameters."
+                    "The nominal model's error is {error_before:.3} times the noise floor and its residual is not noise in {}; no effect of the catalogue reduces it by enough to pay for its parameters.",
+                    if left_before.is_empty() { "the overall level".to_string() } else { left_before.join("; ") }
                 ),
             )
         }
@@ -504,7 +528,7 @@ pub fn diagnose(
                 "the refitted model's error is {error_after:.3} times the noise floor (explained)."
             )
         } else {
-            format!("the residual is still above the noise ({error_after:.3} times the noise floor): a further effect, outside the catalogue or weaker, remains.")
+            format!("the residual is still not noise ({error_after:.3} times the noise floor; failing: {}): a further effect, outside the catalogue or weaker, remains.", if left_after.is_empty() { "the overall level".to_string() } else { left_after.join("; ") })
         };
         (
             effects[0].name().to_string(),
@@ -513,7 +537,7 @@ pub fn diagnose(
             ),
         )
     };
-    Ok(Diagnosis {
+    let d = Diagnosis {
         cause,
         effects,
         chosen,
@@ -529,7 +553,69 @@ pub fn diagnose(
         residuals_before: res_before,
         residuals_after: res_after,
         windows: fitter.windows.clone(),
+        tests_before,
+        tests_after,
+        flagged,
         verdict,
         elapsed_s: t0.elapsed().as_secs_f64(),
-    })
+    };
+    finite_outputs(d)
+}
+
+/// A log whose readings and commands are all constant carries no information about the
+/// model (and its residual noise would be zero): a clear error instead of a score of
+/// `ln 0`.
+fn owned_log_informative(log: &MeasuredLog) -> Result<(), String> {
+    let varies = |c: Channel| {
+        let mut vals = (0..log.len()).filter_map(|k| log.value(k, c));
+        match vals.next() {
+            Some(f) => vals.any(|v| v != f),
+            None => false,
+        }
+    };
+    let readings = Channel::ALL.into_iter().any(varies);
+    if !readings {
+        return Err(
+            "the log carries no information: every reading is constant (nothing to compare the model with)"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
+/// Every number `diagnose` reports must be finite (JSON has no NaN): candidates with a
+/// non-finite score are dropped; a non-finite error, gain or chosen parameter is an error.
+fn finite_outputs(mut d: Diagnosis) -> Result<Diagnosis, String> {
+    d.candidates.retain(|c| {
+        c.score.is_finite()
+            && c.error.is_finite()
+            && c.fit.theta.iter().chain(&c.fit.std).all(|v| v.is_finite())
+    });
+    let mut bad = Vec::new();
+    for (name, v) in [
+        ("error_before", d.error_before),
+        ("error_after", d.error_after),
+        ("gain", d.gain),
+        ("chosen score", d.chosen.score),
+    ] {
+        if !v.is_finite() {
+            bad.push(format!("{name} = {v}"));
+        }
+    }
+    let names = d.chosen.fit.candidate.parameter_names();
+    for values in [&d.chosen.fit.theta, &d.chosen.fit.std] {
+        for (n, v) in names.iter().zip(values) {
+            if !v.is_finite() {
+                bad.push(format!("{n} = {v}"));
+            }
+        }
+    }
+    if bad.is_empty() {
+        Ok(d)
+    } else {
+        Err(format!(
+            "the fit gave non-finite results ({}): the log does not determine the model",
+            bad.join(", ")
+        ))
+    }
 }
