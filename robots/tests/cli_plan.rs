@@ -171,7 +171,7 @@ fn malformed_waypoint_files_exit_1() {
         ),
         (
             r#"{"points": [[0, 0], [1, "a"]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
-            "points",
+            "line 1 column 27",
         ),
         (
             r#"{"points": [[0, 0], [1, 0]], "duration": 1, "start_heading": 0, "end_heading": 0}"#,

@@ -153,71 +153,35 @@ pub fn by_name(name: &str, h: f64) -> Option<PlanProblem> {
 /// ```
 /// `name` and `accel` (default 0.2 m/s²) are optional. Every problem is named in the error.
 pub fn from_json_str(text: &str, h: f64) -> Result<PlanProblem, String> {
-    let v: serde_json::Value =
-        serde_json::from_str(text).map_err(|e| format!("not valid JSON: {e}"))?;
-    let obj = v.as_object().ok_or("expected a JSON object")?;
-    for k in obj.keys() {
-        if ![
-            "name",
-            "points",
-            "duration",
-            "accel",
-            "start_heading",
-            "end_heading",
-        ]
-        .contains(&k.as_str())
-        {
-            return Err(format!("unknown key '{k}'"));
-        }
+    let text = text.trim_start_matches('\u{feff}');
+    if !text.trim_start().starts_with('{') {
+        return Err("expected a JSON object (docs/formats.md, \"Waypoint file\")".into());
     }
-    let num = |k: &str| -> Result<f64, String> {
-        let x = obj.get(k).ok_or_else(|| format!("missing key '{k}'"))?;
-        x.as_f64()
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| format!("'{k}' must be a finite number, got {x}"))
-    };
-    let name = match obj.get("name") {
-        None => "waypoints".to_string(),
-        Some(n) => n.as_str().ok_or("'name' must be a string")?.to_string(),
-    };
-    let pts = obj
-        .get("points")
-        .ok_or("missing key 'points'")?
-        .as_array()
-        .ok_or("'points' must be an array of [x, y] pairs")?;
-    if pts.len() < 2 {
+    // serde names the line and column of a missing, unknown or mistyped key.
+    let file: WaypointFile = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    let name = file.name.unwrap_or_else(|| "waypoints".to_string());
+    let points = file.points;
+    if points.len() < 2 {
         return Err(format!(
             "'points' needs at least 2 points, got {}",
-            pts.len()
+            points.len()
         ));
     }
-    let mut points = Vec::with_capacity(pts.len());
-    for (i, p) in pts.iter().enumerate() {
-        let pair = p
-            .as_array()
-            .filter(|a| a.len() == 2)
-            .ok_or_else(|| format!("points[{i}] must be [x, y]"))?;
-        let x = pair[0].as_f64().filter(|x| x.is_finite());
-        let y = pair[1].as_f64().filter(|x| x.is_finite());
-        match (x, y) {
-            (Some(x), Some(y)) => points.push([x, y]),
-            _ => return Err(format!("points[{i}] must hold two finite numbers")),
+    for (i, p) in points.iter().enumerate() {
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(format!("points[{i}] must hold two finite numbers"));
         }
     }
     let s = arc_lengths(&points);
     if let Some(i) = s.windows(2).position(|w| w[1] - w[0] < 1e-9) {
         return Err(format!("points[{}] repeats points[{i}]", i + 1));
     }
-    let duration = num("duration")?;
-    if duration <= 0.0 {
+    let duration = file.duration;
+    if !(duration > 0.0 && duration.is_finite()) {
         return Err(format!("'duration' must be positive, got {duration}"));
     }
-    let accel = if obj.contains_key("accel") {
-        num("accel")?
-    } else {
-        0.2
-    };
-    if accel <= 0.0 {
+    let accel = file.accel.unwrap_or(0.2);
+    if !(accel > 0.0 && accel.is_finite()) {
         return Err(format!("'accel' must be positive, got {accel}"));
     }
     let problem = from_timing(
@@ -226,8 +190,8 @@ pub fn from_json_str(text: &str, h: f64) -> Result<PlanProblem, String> {
         duration,
         accel,
         h,
-        num("start_heading")?,
-        num("end_heading")?,
+        file.start_heading,
+        file.end_heading,
     )?;
     if let Some(w) = problem.stages.windows(2).position(|w| w[1] <= w[0]) {
         return Err(format!(
@@ -237,6 +201,18 @@ pub fn from_json_str(text: &str, h: f64) -> Result<PlanProblem, String> {
         ));
     }
     Ok(problem)
+}
+
+/// A waypoint file as written (docs/formats.md); unknown keys are an error.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WaypointFile {
+    name: Option<String>,
+    points: Vec<[f64; 2]>,
+    duration: f64,
+    accel: Option<f64>,
+    start_heading: f64,
+    end_heading: f64,
 }
 
 /// [`from_json_str`] for a file, with its path in the message.
@@ -317,7 +293,7 @@ mod tests {
             ("[1,2]", "expected a JSON object"),
             (
                 r#"{"points": [[0,0],[1,0]], "duration": 5, "start_heading": 0}"#,
-                "missing key 'end_heading'",
+                "missing field `end_heading` at line 1",
             ),
             (
                 r#"{"points": [[0,0]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
@@ -325,7 +301,7 @@ mod tests {
             ),
             (
                 r#"{"points": [[0,0],[1,"a"]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
-                "points[1]",
+                "expected f64 at line 1 column 24",
             ),
             (
                 r#"{"points": [[0,0],[0,0]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
@@ -337,9 +313,9 @@ mod tests {
             ),
             (
                 r#"{"points": [[0,0],[1,0]], "duration": 5, "start_heading": 0, "end_heading": 0, "speed": 1}"#,
-                "unknown key 'speed'",
+                "unknown field `speed`",
             ),
-            ("{", "not valid JSON"),
+            ("{", "EOF while parsing an object at line 1 column 1"),
         ];
         for (text, msg) in bad {
             let e = from_json_str(text, 0.005).unwrap_err();
