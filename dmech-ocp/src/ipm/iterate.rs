@@ -1,0 +1,78 @@
+//! The iterate and the result of a solve, and the per-iteration working data: the
+//! eliminated stage equality, the bounds, the Newton step, the residual measures.
+
+use super::{Status, Timings};
+use nalgebra::{SMatrix, SVector};
+
+/// The primal–dual iterate.
+#[derive(Clone, Debug)]
+pub struct Iterate<const NX: usize, const NW: usize, const NC: usize> {
+    pub x: Vec<SVector<f64, NX>>,
+    pub w: Vec<SVector<f64, NW>>,
+    /// `lambda[k]`: multiplier of `x_{k+1} = f_k(x_k, w_k)`.
+    pub lambda: Vec<SVector<f64, NX>>,
+    pub t_lo: Vec<SVector<f64, NC>>,
+    pub t_hi: Vec<SVector<f64, NC>>,
+    pub z_lo: Vec<SVector<f64, NC>>,
+    pub z_hi: Vec<SVector<f64, NC>>,
+    pub y: Vec<f64>,
+}
+
+/// The result of a solve.
+#[derive(Clone, Debug)]
+pub struct SolveResult<const NX: usize, const NW: usize, const NC: usize> {
+    pub status: Status,
+    pub iterate: Iterate<NX, NW, NC>,
+    pub iterations: usize,
+    pub objective: f64,
+    /// Largest constraint violation (dynamics, stage equalities, inequalities, state
+    /// equalities), recomputed at the returned point.
+    pub max_violation: f64,
+    pub timings: Timings,
+}
+
+/// How a stage's decision step follows from the condensed one: `δw = w0 + wx δx + wu δu`.
+#[derive(Clone, Debug)]
+pub(super) struct Elimination<const NX: usize, const NW: usize, const NU: usize> {
+    pub(super) w0: SVector<f64, NW>,
+    pub(super) wx: SMatrix<f64, NW, NX>,
+    pub(super) wu: SMatrix<f64, NW, NU>,
+}
+
+impl<const NX: usize, const NW: usize, const NU: usize> Elimination<NX, NW, NU> {
+    pub(super) fn zeros() -> Self {
+        Elimination {
+            w0: SVector::zeros(),
+            wx: SMatrix::zeros(),
+            wu: SMatrix::zeros(),
+        }
+    }
+}
+
+pub(super) struct Bounds<const NC: usize> {
+    pub(super) lo: SVector<f64, NC>,
+    pub(super) hi: SVector<f64, NC>,
+    pub(super) has_lo: SVector<f64, NC>,
+    pub(super) has_hi: SVector<f64, NC>,
+}
+
+/// The step of the primal–dual iterate.
+pub(super) struct Step<const NX: usize, const NW: usize, const NC: usize> {
+    pub(super) dx: Vec<SVector<f64, NX>>,
+    pub(super) dw: Vec<SVector<f64, NW>>,
+    pub(super) lambda: Vec<SVector<f64, NX>>,
+    pub(super) dt_lo: Vec<SVector<f64, NC>>,
+    pub(super) dt_hi: Vec<SVector<f64, NC>>,
+    pub(super) dz_lo: Vec<SVector<f64, NC>>,
+    pub(super) dz_hi: Vec<SVector<f64, NC>>,
+    pub(super) y: Vec<f64>,
+}
+
+/// Residual measures at an iterate.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Measures {
+    pub(super) theta: f64,     // Σ |constraint residual| (filter)
+    pub(super) theta_max: f64, // max |constraint residual|
+    pub(super) objective: f64,
+    pub(super) barrier: f64, // objective − μ Σ ln t
+}

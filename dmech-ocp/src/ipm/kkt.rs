@@ -1,0 +1,451 @@
+//! The KKT system: a stage condensed (dependent decisions and slacks eliminated), the
+//! state equalities' dual-regularised rows, the KKT error, and the condense-and-sweep pass
+//! with its second-order correction.
+
+use super::*;
+
+/// One stage's part of the KKT error: its dual and primal errors, `Σ|ν|` (if the stage
+/// equality's multiplier estimate exists) and `Σ|λ| + Σz`.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct StageKkt {
+    pub(super) dual: f64,
+    pub(super) primal: f64,
+    pub(super) nu_sum: Option<f64>,
+    pub(super) others: f64,
+}
+
+/// What the derivative pass leaves per stage besides the derivatives.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct StageAux<const NX: usize, const NE: usize, const NC: usize> {
+    pub(super) kkt: StageKkt,
+    pub(super) vals: StageValues<NX, NE, NC>,
+}
+
+impl<const NX: usize, const NE: usize, const NC: usize> StageAux<NX, NE, NC> {
+    pub(super) fn zeros() -> Self {
+        StageAux {
+            kkt: StageKkt::default(),
+            vals: StageValues {
+                f: SVector::zeros(),
+                e: SVector::zeros(),
+                cost: 0.0,
+                c: SVector::zeros(),
+            },
+        }
+    }
+}
+
+/// KKT errors at an iterate: the scaled dual infeasibility, the largest constraint
+/// violation, and IPOPT's dual scaling `s_d` (for the complementarity).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct KktError {
+    pub(super) dual: f64,
+    pub(super) primal: f64,
+    pub(super) s_d: f64,
+}
+
+impl<
+        'a,
+        P,
+        const NX: usize,
+        const NW: usize,
+        const NE: usize,
+        const NU: usize,
+        const NC: usize,
+    > Solver<'a, P, NX, NW, NE, NU, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    /// Condense stage `k`: eliminate the dependent decisions and the inequality slacks,
+    /// into the solver's buffers `lq`, `el` (written in place: returning the 5 kB pair and
+    /// moving it there was part of the memmove share, see `condense_and_sweep`).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn condense(
+        &self,
+        k: usize,
+        it: &Iterate<NX, NW, NC>,
+        d: &StageDerivatives<NX, NW, NE, NC>,
+        qn: Option<&QuasiNewton<NX, NW, NE>>,
+        mu: f64,
+        dc: f64,
+        lq: &mut LqStage<NX, NU>,
+        el: &mut Elimination<NX, NW, NU>,
+    ) -> Result<(), String> {
+        let b = &self.bounds[k];
+        // Inequalities: Σ and the barrier gradient term.
+        let mut sigma = SVector::<f64, NC>::zeros();
+        let mut bc = SVector::<f64, NC>::zeros();
+        for i in 0..NC {
+            if b.has_lo[i] > 0.0 {
+                let s = it.z_lo[k][i] / it.t_lo[k][i];
+                let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
+                sigma[i] += s;
+                bc[i] -= mu / it.t_lo[k][i] - s * r;
+            }
+            if b.has_hi[i] > 0.0 {
+                let s = it.z_hi[k][i] / it.t_hi[k][i];
+                let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
+                sigma[i] += s;
+                bc[i] += mu / it.t_hi[k][i] - s * r;
+            }
+        }
+        let cx_s = SMatrix::<f64, NX, NC>::from_fn(|i, j| d.cx[(j, i)] * sigma[j]);
+        let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
+        let (mut hxx0, mut hxw0, mut hww0) = (d.hxx, d.hxw, d.hww);
+        if let Some(q) = qn {
+            hxx0 += q.bxx;
+            hxw0 += q.bxw;
+            hww0 += q.bww;
+        }
+        let hxx = hxx0 + cx_s * d.cx;
+        let hxw = hxw0 + cx_s * d.cw;
+        let hww = hww0 + cw_s * d.cw;
+        let gx = d.gx + d.cx.transpose() * bc;
+        let gw = d.gw + d.cw.transpose() * bc;
+
+        // δw = w0 + wx δx + wu δu, with δv from the linearised stage equality.
+        let Elimination { w0, wx, wu } = el;
+        wx.fill(0.0);
+        wu.fill(0.0);
+        w0.fill(0.0);
+        for i in 0..NU {
+            wu[(NE + i, i)] = 1.0;
+        }
+        if NE > 0 {
+            let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
+            let eu: SMatrix<f64, NE, NU> = d.ew.fixed_columns::<NU>(NE).into_owned();
+            let lu = Lu::new(&ev).ok_or_else(|| {
+                format!("stage {k}: the stage equality is singular in its dependent decisions")
+            })?;
+            let dx = lu.solve_columns(&(-d.ex));
+            let du = lu.solve_columns(&(-eu));
+            let d0 = lu.solve(&(-d.e));
+            wx.fixed_rows_mut::<NE>(0).copy_from(&dx);
+            wu.fixed_rows_mut::<NE>(0).copy_from(&du);
+            w0.fixed_rows_mut::<NE>(0).copy_from(&d0);
+        }
+        let (w0, wx, wu) = (&*w0, &*wx, &*wu);
+        // Rows `NE..` of `wx` and `w0` are zero (the free inputs do not depend on δx): the
+        // products with them take only their first `NE` rows (the skipped terms were exact
+        // zeros, and the kept ones are summed in the same order).
+        let dx = wx.fixed_rows::<NE>(0);
+        let d0 = w0.fixed_rows::<NE>(0);
+        let hww_v = hww.fixed_columns::<NE>(0);
+        let hww_wx = hww_v * dx;
+        let hww_wu = hww * wu;
+        let hww_w0 = hww_v * d0;
+        let hxw_wx = hxw.fixed_columns::<NE>(0) * dx;
+        let dx_t = dx.transpose();
+        lq.q_mat = hxx + hxw_wx + hxw_wx.transpose() + dx_t * hww_wx.fixed_rows::<NE>(0);
+        lq.s_mat = hxw * wu + dx_t * hww_wu.fixed_rows::<NE>(0);
+        lq.r_mat = wu.transpose() * hww_wu;
+        lq.q = gx
+            + dx_t * gw.fixed_rows::<NE>(0)
+            + hxw.fixed_columns::<NE>(0) * d0
+            + dx_t * hww_w0.fixed_rows::<NE>(0);
+        lq.r = wu.transpose() * (gw + hww_w0);
+        self.add_state_equalities(k, it, dc, &mut lq.q_mat, &mut lq.q);
+        let fw_v = d.fw.fixed_columns::<NE>(0);
+        lq.a = d.fx + fw_v * dx;
+        lq.b = d.fw * wu;
+        lq.c = d.f + fw_v * d0 - it.x[k + 1];
+        Ok(())
+    }
+
+    /// The quadratic terms of the state equalities at stage `k`.
+    pub(super) fn add_state_equalities(
+        &self,
+        k: usize,
+        it: &Iterate<NX, NW, NC>,
+        dc: f64,
+        q_mat: &mut SMatrix<f64, NX, NX>,
+        q: &mut SVector<f64, NX>,
+    ) {
+        for &j in &self.eqs_at[k] {
+            let e = &self.eqs[j];
+            q_mat[(e.index, e.index)] += 1.0 / dc;
+            q[e.index] += it.y[j] + (it.x[k][e.index] - e.value) / dc;
+        }
+    }
+
+    /// Stage `k`'s part of the KKT error at the iterate, from its derivatives `d` (with
+    /// `d.nu` set): computed in the derivative pass, while `d` is still in cache.
+    pub(super) fn kkt_stage(
+        &self,
+        k: usize,
+        it: &Iterate<NX, NW, NC>,
+        d: &StageDerivatives<NX, NW, NE, NC>,
+    ) -> StageKkt {
+        let zeta = it.z_hi[k] - it.z_lo[k];
+        let lam = &it.lambda[k];
+        let mut gx = d.gx + d.fx.transpose() * lam + d.cx.transpose() * zeta;
+        if k > 0 {
+            gx -= it.lambda[k - 1]; // x_k's part in the dynamics row of stage k − 1
+        }
+        let mut gw = d.gw + d.fw.transpose() * lam + d.cw.transpose() * zeta;
+        let nu_sum = d.nu.map(|nu| {
+            gx += d.ex.transpose() * nu;
+            gw += d.ew.transpose() * nu;
+            nu.abs().sum()
+        });
+        // A state equality fixes one component: its multiplier estimate zeroes that
+        // component of the gradient (the iterate's y carries the round-off of the
+        // regularised update, amplified by 1/δ_c).
+        for &j in &self.eqs_at[k] {
+            gx[self.eqs[j].index] = 0.0;
+        }
+        let dual = if k > 0 { gx.amax() } else { 0.0 }.max(gw.amax());
+        let mut primal = (d.f - it.x[k + 1]).amax().max(d.e.amax());
+        let b = &self.bounds[k];
+        for i in 0..NC {
+            if b.has_lo[i] > 0.0 {
+                primal = primal.max((d.c[i] - b.lo[i] - it.t_lo[k][i]).abs());
+            }
+            if b.has_hi[i] > 0.0 {
+                primal = primal.max((b.hi[i] - d.c[i] - it.t_hi[k][i]).abs());
+            }
+        }
+        let others = lam.abs().sum() + it.z_lo[k].sum() + it.z_hi[k].sum();
+        StageKkt {
+            dual,
+            primal,
+            nu_sum,
+            others,
+        }
+    }
+
+    /// Dual and primal errors at the current iterate (independent of μ), from the stages'
+    /// parts ([`Solver::kkt_stage`]) summed in stage order.
+    pub(super) fn kkt_error(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        per_stage: impl Iterator<Item = StageKkt>,
+    ) -> KktError {
+        let n = self.n;
+        let mut dual = 0.0f64;
+        let mut mult_sum = 0.0;
+        let mut mult_cnt = 0.0;
+        let mut primal = 0.0f64;
+        for StageKkt {
+            dual: d_k,
+            primal: p_k,
+            nu_sum,
+            others,
+        } in per_stage
+        {
+            if let Some(v) = nu_sum {
+                mult_sum += v;
+                mult_cnt += NE as f64;
+            }
+            dual = dual.max(d_k);
+            mult_sum += others;
+            mult_cnt += (NX + 2 * NC) as f64;
+            primal = primal.max(p_k);
+        }
+        // x_N's gradient: its part in the dynamics row of stage N − 1.
+        let mut gx_n = if n > 0 {
+            -it.lambda[n - 1]
+        } else {
+            SVector::zeros()
+        };
+        for &j in &self.eqs_at[n] {
+            gx_n[self.eqs[j].index] = 0.0;
+        }
+        dual = dual.max(gx_n.amax());
+        for (j, e) in self.eqs.iter().enumerate() {
+            primal = primal.max((it.x[e.stage][e.index] - e.value).abs());
+            mult_sum += it.y[j].abs();
+            mult_cnt += 1.0;
+        }
+        let s_max = 100.0;
+        let s_d = (mult_sum / mult_cnt.max(1.0)).max(s_max) / s_max;
+        KktError {
+            dual: dual / s_d,
+            primal,
+            s_d,
+        }
+    }
+
+    /// The largest `|t z − μ|` over all bounded sides, scaled by `s_d`.
+    pub(super) fn complementarity(&self, it: &Iterate<NX, NW, NC>, mu: f64, s_d: f64) -> f64 {
+        let mut compl = 0.0f64;
+        for k in 0..self.n {
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    compl = compl.max((it.t_lo[k][i] * it.z_lo[k][i] - mu).abs());
+                }
+                if b.has_hi[i] > 0.0 {
+                    compl = compl.max((it.t_hi[k][i] * it.z_hi[k][i] - mu).abs());
+                }
+            }
+        }
+        compl / s_d
+    }
+
+    /// Every stage condensed by `stage(k)` into `lq[k]`, `elim[k]`, with the Riccati
+    /// backward sweep (primal shift 0) run behind the condensing: chunks of stages are
+    /// condensed from the last one down, in parallel, and one thread sweeps each chunk as
+    /// soon as it and every later one are done (condensing a chunk itself when the next one
+    /// is not). The serial sweep so overlaps the parallel condensing instead of following
+    /// it; every stage sees the same operations in the same order as
+    /// condense-then-[`solve_lq`], so the result is bitwise the same.
+    ///
+    /// `Err` is the condensing error of the first stage that fails; `Ok` carries the sweep's
+    /// outcome (a stage whose `H_uu` is not positive definite stops it; the condensing
+    /// still completes, for the caller's inertia correction) and the seconds spent in it.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn condense_and_sweep<F>(
+        &self,
+        lq: &mut [LqStage<NX, NU>],
+        elim: &mut [Elimination<NX, NW, NU>],
+        sweep: &mut BackwardSweep<NX, NU>,
+        stage: F,
+    ) -> Result<(Result<(), RiccatiError>, f64), String>
+    where
+        F: Fn(usize, &mut LqStage<NX, NU>, &mut Elimination<NX, NW, NU>) -> Result<(), String>
+            + Sync,
+    {
+        let failed = std::sync::Mutex::new(None::<(usize, String)>);
+        let condense_chunk =
+            |ci: usize, pl: &mut [LqStage<NX, NU>], pe: &mut [Elimination<NX, NW, NU>]| {
+                let mut ok = true;
+                for (j, (l, e)) in pl.iter_mut().zip(pe.iter_mut()).enumerate() {
+                    let k = ci * PAR_CHUNK + j;
+                    if let Err(msg) = stage(k, l, e) {
+                        ok = false;
+                        let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
+                        if f.as_ref().is_none_or(|(j, _)| k < *j) {
+                            *f = Some((k, msg));
+                        }
+                    }
+                }
+                ok
+            };
+        let mut sweep_result = Ok(());
+        let mut sweep_time = 0.0;
+        // Sweep one condensed chunk (all of its stages, last first).
+        let mut sweep_chunk =
+            |ci: usize, stages: &[LqStage<NX, NU>], result: &mut Result<(), RiccatiError>| {
+                if result.is_err() {
+                    return;
+                }
+                let t = Instant::now();
+                for (j, st) in stages.iter().enumerate().rev() {
+                    if let Err(e) = sweep.step(ci * PAR_CHUNK + j, st) {
+                        *result = Err(e);
+                        break;
+                    }
+                }
+                sweep_time += t.elapsed().as_secs_f64();
+            };
+        let n_chunks = lq.len().div_ceil(PAR_CHUNK);
+        let chunks = lq
+            .chunks_mut(PAR_CHUNK)
+            .zip(elim.chunks_mut(PAR_CHUNK))
+            .enumerate()
+            .rev();
+        if self.opts.threads <= 1 {
+            // Each chunk swept right after it is condensed (still in cache), until one fails.
+            let mut sweeping = true;
+            for (ci, (pl, pe)) in chunks {
+                sweeping &= condense_chunk(ci, pl, pe);
+                if sweeping {
+                    sweep_chunk(ci, pl, &mut sweep_result);
+                }
+            }
+        } else {
+            let queue = std::sync::Mutex::new(chunks);
+            let take = || queue.lock().unwrap_or_else(|p| p.into_inner()).next();
+            // Condensed chunks travel to the sweeping thread by channel; `None` marks a
+            // chunk whose condensing failed.
+            let (tx, rx) = std::sync::mpsc::channel::<(usize, Option<&[LqStage<NX, NU>]>)>();
+            std::thread::scope(|sc| {
+                for _ in 1..self.opts.threads {
+                    let tx = tx.clone();
+                    let (take, condense_chunk) = (&take, &condense_chunk);
+                    sc.spawn(move || {
+                        while let Some((ci, (pl, pe))) = take() {
+                            let ok = condense_chunk(ci, pl, pe);
+                            let pl: &[LqStage<NX, NU>] = pl;
+                            if tx.send((ci, ok.then_some(pl))).is_err() {
+                                break;
+                            }
+                        }
+                    });
+                }
+                drop(tx);
+                // This thread: sweep the next chunk when it is ready, otherwise condense
+                // one (the queue hands them out last first, so usually the next one).
+                let mut ready: Vec<Option<Option<&[LqStage<NX, NU>]>>> = vec![None; n_chunks];
+                let mut next = n_chunks;
+                // A chunk that failed to condense stops the sweep (its error is reported).
+                let mut sweeping = true;
+                while next > 0 {
+                    if let Some(chunk) = ready[next - 1].take() {
+                        match chunk {
+                            Some(stages) if sweeping => {
+                                sweep_chunk(next - 1, stages, &mut sweep_result)
+                            }
+                            _ => sweeping = false,
+                        }
+                        next -= 1;
+                    } else if let Ok((ci, chunk)) = rx.try_recv() {
+                        ready[ci] = Some(chunk);
+                    } else if let Some((ci, (pl, pe))) = take() {
+                        let ok = condense_chunk(ci, pl, pe);
+                        let pl: &[LqStage<NX, NU>] = pl;
+                        ready[ci] = Some(ok.then_some(pl));
+                    } else {
+                        match rx.recv() {
+                            Ok((ci, chunk)) => ready[ci] = Some(chunk),
+                            Err(_) => break,
+                        }
+                    }
+                }
+            });
+        }
+        match failed.into_inner().unwrap_or_else(|p| p.into_inner()) {
+            Some((_, msg)) => Err(msg),
+            None => Ok((sweep_result, sweep_time)),
+        }
+    }
+
+    /// The second-order correction step: the KKT system of the iterate (same curvature,
+    /// same inertia shift `delta`) with the residuals of the dynamics and the stage
+    /// equalities replaced by `α r(x) + r(x_trial)`, condensed into the iteration's buffers
+    /// `lq`, `elim` (its own step is already recovered from them). `None` if it cannot be
+    /// solved.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn second_order_correction(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ders: &[StageDerivatives<NX, NW, NE, NC>],
+        qn: &[QuasiNewton<NX, NW, NE>],
+        trial_vals: &[StageValues<NX, NE, NC>],
+        trial: &Iterate<NX, NW, NC>,
+        alpha: f64,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+        lq: &mut [LqStage<NX, NU>],
+        elim: &mut [Elimination<NX, NW, NU>],
+    ) -> Option<Step<NX, NW, NC>> {
+        let n = self.n;
+        let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
+        self.add_state_equalities(n, it, dc, &mut q_n, &mut q_vec_n);
+        let mut sweep = BackwardSweep::new(n, &q_n, &q_vec_n, delta);
+        let (swept, _) = self
+            .condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
+                let mut d = ders[k].clone();
+                let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
+                d.f = it.x[k + 1] + r;
+                d.e = d.e * alpha + trial_vals[k].e;
+                self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
+            })
+            .ok()?;
+        swept.ok()?;
+        let sol = sweep.forward(lq, &SVector::zeros());
+        Some(self.recover(it, ders, elim, sol, mu, dc))
+    }
+}

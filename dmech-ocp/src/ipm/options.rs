@@ -1,0 +1,106 @@
+//! The solver's options, how a solve ended, and where its time went.
+
+/// Options of the solver.
+#[derive(Clone, Debug)]
+pub struct IpOptions {
+    /// Convergence tolerance on the scaled KKT error (IPOPT's `tol`).
+    pub tol: f64,
+    /// Largest allowed constraint violation at convergence.
+    pub constr_viol_tol: f64,
+    pub max_iter: usize,
+    pub mu_init: f64,
+    /// Dual regularisation of the state equalities at `μ = mu_init`; it shrinks like `μ²`
+    /// down to `delta_c_min`.
+    pub delta_c: f64,
+    pub delta_c_min: f64,
+    /// Worker threads for the stage derivatives and the line search.
+    pub threads: usize,
+    /// Print an iteration table on stderr.
+    pub verbose: bool,
+    /// Include the curvature of the dynamics and stage equalities in the Hessian
+    /// (exact Newton; expensive with nested duals). Otherwise a Gauss–Newton-type
+    /// Hessian: cost and inequality curvature only.
+    pub exact_hessian: bool,
+    /// Partitioned SR1 approximation of the dynamics' and stage equalities' curvature
+    /// (used when `exact_hessian` is off).
+    pub quasi_newton: bool,
+    /// The SR1 update `B += r rᵀ/(sᵀr)` of a stage is skipped when `|sᵀr| ≤ sr1_skip ‖s‖‖r‖`.
+    /// The update's norm is `‖r‖²/|sᵀr|`, at most `‖r‖/(sr1_skip ‖s‖)`: this bounds how far
+    /// one stage's curvature may leap past what the secant observed. One stage's leap
+    /// into negative curvature forces the inertia shift on all stages, so the bound is
+    /// tight (1e-2, not the textbook 1e-8: measurements in `docs/ocp.md`).
+    pub sr1_skip: f64,
+    /// Wall-clock limit in seconds (reported as `MaxIterations`).
+    pub time_limit: f64,
+}
+
+impl IpOptions {
+    /// The barrier parameter to restart with from a nearby solution.
+    pub fn warm_mu_init(&self) -> f64 {
+        (self.mu_init * 1e-2).max(self.tol)
+    }
+}
+
+impl Default for IpOptions {
+    fn default() -> Self {
+        IpOptions {
+            tol: 1e-6,
+            constr_viol_tol: 1e-8,
+            max_iter: 500,
+            mu_init: 0.1,
+            delta_c: 1e-5,
+            delta_c_min: 1e-10,
+            threads: std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1)
+                .min(8),
+            verbose: false,
+            exact_hessian: false,
+            quasi_newton: true,
+            sr1_skip: 1e-2,
+            time_limit: f64::INFINITY,
+        }
+    }
+}
+
+/// How a solve ended. Callers can tell these apart; only `Solved` carries an optimum.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Status {
+    Solved,
+    /// The constraint violation stopped decreasing far from zero: no feasible point near.
+    Infeasible {
+        violation: f64,
+    },
+    MaxIterations,
+    /// Non-finite values or iterates growing without bound.
+    Diverged,
+    /// The line search or the inertia correction gave up.
+    Failed(String),
+}
+
+impl Status {
+    pub fn code(&self) -> &'static str {
+        match self {
+            Status::Solved => "solved",
+            Status::Infeasible { .. } => "infeasible",
+            Status::MaxIterations => "max_iterations",
+            Status::Diverged => "diverged",
+            Status::Failed(_) => "failed",
+        }
+    }
+}
+
+/// Where the time went.
+#[derive(Clone, Debug, Default)]
+pub struct Timings {
+    pub derivatives: f64,
+    /// All of the KKT solve; of it, the Riccati recursions (`riccati`, one per inertia
+    /// correction trial, counted in `factorizations`).
+    pub kkt: f64,
+    pub riccati: f64,
+    pub factorizations: usize,
+    /// Second-order correction steps tried.
+    pub second_order_corrections: usize,
+    pub line_search: f64,
+    pub total: f64,
+}

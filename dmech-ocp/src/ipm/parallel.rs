@@ -1,0 +1,76 @@
+//! Stage loops on scoped threads: work handed out in chunks from a shared counter.
+
+/// Split `0..n` over `threads` workers and fill `out[k] = f(k)`.
+pub(super) fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads: usize, f: F) {
+    par_update(out, threads, |k, slot| *slot = f(k));
+}
+
+/// Stages per work item of the parallel loops: small enough that two threads finish
+/// together (stage costs differ, e.g. where the friction saturates), large enough that
+/// taking an item costs nothing against its work.
+pub(super) const PAR_CHUNK: usize = 32;
+
+/// `f(k, &mut items[k])` for every `k`, on `threads` scoped threads.
+pub(super) fn par_update<R: Send, F: Fn(usize, &mut R) + Sync>(
+    items: &mut [R],
+    threads: usize,
+    f: F,
+) {
+    let mut none: Vec<()> = vec![(); items.len()];
+    par_zip(items, &mut none, threads, |k, a, _| f(k, a));
+}
+
+/// `f(k, &mut a[k], &mut b[k])` for every `k`, on `threads` scoped threads (see
+/// [`par_zip3`]).
+pub(super) fn par_zip<A: Send, B: Send, F: Fn(usize, &mut A, &mut B) + Sync>(
+    a: &mut [A],
+    b: &mut [B],
+    threads: usize,
+    f: F,
+) {
+    let mut none: Vec<()> = vec![(); a.len()];
+    par_zip3(a, b, &mut none, threads, |k, x, y, _| f(k, x, y));
+}
+
+/// `f(k, &mut a[k], &mut b[k], &mut c[k])` for every `k`, on `threads` scoped threads:
+/// per-stage arrays filled in one pass, so that a stage's data is still in cache for the
+/// later ones. Threads take chunks of [`PAR_CHUNK`] stages from a shared queue.
+pub(super) fn par_zip3<A: Send, B: Send, C: Send, F: Fn(usize, &mut A, &mut B, &mut C) + Sync>(
+    a: &mut [A],
+    b: &mut [B],
+    c: &mut [C],
+    threads: usize,
+    f: F,
+) {
+    assert_eq!(a.len(), b.len());
+    assert_eq!(a.len(), c.len());
+    let chunks = a
+        .chunks_mut(PAR_CHUNK)
+        .zip(b.chunks_mut(PAR_CHUNK))
+        .zip(c.chunks_mut(PAR_CHUNK))
+        .enumerate();
+    let queue = std::sync::Mutex::new(chunks);
+    let work = || loop {
+        let next = queue.lock().unwrap_or_else(|p| p.into_inner()).next();
+        let Some((ci, ((pa, pb), pc))) = next else {
+            break;
+        };
+        for (j, ((sa, sb), sc)) in pa
+            .iter_mut()
+            .zip(pb.iter_mut())
+            .zip(pc.iter_mut())
+            .enumerate()
+        {
+            f(ci * PAR_CHUNK + j, sa, sb, sc);
+        }
+    };
+    if threads <= 1 {
+        work();
+        return;
+    }
+    std::thread::scope(|sc| {
+        for _ in 0..threads {
+            sc.spawn(work);
+        }
+    });
+}

@@ -1,0 +1,159 @@
+//! The partitioned SR1 approximation of each stage's constraint curvature.
+
+use super::*;
+
+/// Partitioned SR1 approximation of one stage's constraint curvature
+/// `∇²(λᵀf + νᵀe)`, updated from the exact Jacobians at consecutive iterates.
+#[derive(Clone, Debug)]
+pub(super) struct QuasiNewton<const NX: usize, const NW: usize, const NE: usize> {
+    pub(super) bxx: SMatrix<f64, NX, NX>,
+    pub(super) bxw: SMatrix<f64, NX, NW>,
+    pub(super) bww: SMatrix<f64, NW, NW>,
+    pub(super) x: SVector<f64, NX>,
+    pub(super) w: SVector<f64, NW>,
+    pub(super) fx: SMatrix<f64, NX, NX>,
+    pub(super) fw: SMatrix<f64, NX, NW>,
+    pub(super) ex: SMatrix<f64, NE, NX>,
+    pub(super) ew: SMatrix<f64, NE, NW>,
+    pub(super) valid: bool,
+}
+
+impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> {
+    pub(super) fn new() -> Self {
+        QuasiNewton {
+            bxx: SMatrix::zeros(),
+            bxw: SMatrix::zeros(),
+            bww: SMatrix::zeros(),
+            x: SVector::zeros(),
+            w: SVector::zeros(),
+            fx: SMatrix::zeros(),
+            fw: SMatrix::zeros(),
+            ex: SMatrix::zeros(),
+            ew: SMatrix::zeros(),
+            valid: false,
+        }
+    }
+
+    pub(super) fn reset(&mut self) {
+        self.bxx.fill(0.0);
+        self.bxw.fill(0.0);
+        self.bww.fill(0.0);
+    }
+
+    /// SR1 update with the multipliers of the new iterate, then remember the new point.
+    /// Skipped when `|sᵀr| ≤ skip ‖s‖‖r‖` ([`IpOptions::sr1_skip`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn update<const NC: usize>(
+        &mut self,
+        skip: f64,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        d: &StageDerivatives<NX, NW, NE, NC>,
+        lam: &SVector<f64, NX>,
+        nu: &SVector<f64, NE>,
+    ) {
+        if self.valid {
+            let (sx, sw) = (x - self.x, w - self.w);
+            let yx = (d.fx - self.fx).transpose() * lam + (d.ex - self.ex).transpose() * nu;
+            let yw = (d.fw - self.fw).transpose() * lam + (d.ew - self.ew).transpose() * nu;
+            let rx = yx - (self.bxx * sx + self.bxw * sw);
+            let rw = yw - (self.bxw.transpose() * sx + self.bww * sw);
+            let den = sx.dot(&rx) + sw.dot(&rw);
+            let ns = (sx.norm_squared() + sw.norm_squared()).sqrt();
+            let nr = (rx.norm_squared() + rw.norm_squared()).sqrt();
+            if den.abs() > skip * ns * nr && ns > 0.0 {
+                self.bxx += rx * rx.transpose() / den;
+                self.bxw += rx * rw.transpose() / den;
+                self.bww += rw * rw.transpose() / den;
+            }
+        }
+        self.x = *x;
+        self.w = *w;
+        self.fx = d.fx;
+        self.fw = d.fw;
+        self.ex = d.ex;
+        self.ew = d.ew;
+        self.valid = true;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    type Der = StageDerivatives<3, 2, 1, 1>;
+
+    /// A deterministic pseudo-random matrix with entries in [−0.5, 0.5).
+    fn mat<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
+        SMatrix::from_fn(|_, _| crate::test_rng::uniform(seed))
+    }
+
+    /// Two stage Jacobians, points and multipliers with `cos∠(s, y) = cos` (y the
+    /// multiplier-weighted change of the Jacobians, `B = 0` before, so `r = y`).
+    fn secant_pair(cos: f64) -> (QuasiNewton<3, 2, 1>, Der, SVector<f64, 3>, SVector<f64, 3>) {
+        let mut seed = 7u64;
+        let (mut d0, mut d1) = (Der::zeros(), Der::zeros());
+        (d0.fx, d0.fw, d0.ex, d0.ew) = (
+            mat(&mut seed),
+            mat(&mut seed),
+            mat(&mut seed),
+            mat(&mut seed),
+        );
+        (d1.fx, d1.fw, d1.ex, d1.ew) = (d0.fx, d0.fw, d0.ex, d0.ew);
+        // Only f_x changes, by M: y = (Mᵀλ, 0) and sᵀy = (M s_x)ᵀλ. λ is built from the
+        // unit vector along M s_x and one orthogonal to it, at the requested angle.
+        let m: SMatrix<f64, 3, 3> = mat(&mut seed);
+        d1.fx += m;
+        let (x0, w0) = (mat::<3, 1>(&mut seed), mat::<2, 1>(&mut seed));
+        let x1 = x0 + mat::<3, 1>(&mut seed);
+        let sx = x1 - x0;
+        let a = (m * sx).normalize();
+        let o = {
+            let t = mat::<3, 1>(&mut seed);
+            (t - a * a.dot(&t)).normalize()
+        };
+        // sᵀy = (M s_x)ᵀλ and ‖y‖ = ‖Mᵀλ‖: pick λ's angle to M s_x by bisection on cos.
+        let cos_of = |phi: f64| {
+            let lam = a * phi.cos() + o * phi.sin();
+            sx.dot(&(m.transpose() * lam)) / (sx.norm() * (m.transpose() * lam).norm())
+        };
+        assert!(cos_of(0.0) > cos && cos_of(std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        let (mut lo, mut hi) = (0.0, std::f64::consts::FRAC_PI_2);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if cos_of(mid) > cos {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let lam = a * lo.cos() + o * lo.sin();
+        let mut q = QuasiNewton::<3, 2, 1>::new();
+        q.update(1e-8, &x0, &w0, &d0, &lam, &SVector::zeros());
+        (q, d1, x1, lam)
+    }
+
+    /// An applied SR1 update satisfies the secant equation `B⁺ s = y`.
+    #[test]
+    fn sr1_update_satisfies_the_secant_equation() {
+        let (mut q, d1, x1, lam) = secant_pair(0.05);
+        let w1 = q.w;
+        let (sx, y) = (x1 - q.x, (d1.fx - q.fx).transpose() * lam);
+        q.update(1e-2, &x1, &w1, &d1, &lam, &SVector::zeros());
+        let bs = q.bxx * sx; // s_w = 0
+        let err = (bs - y).amax().max((q.bxw.transpose() * sx).amax());
+        // One rank-one product and one division: round-off of a few ε; bound ≈ 500 ε.
+        assert!(err < 1e-13 * y.amax().max(1.0), "B s − y = {err:e}");
+    }
+
+    /// Below the skip threshold the update is skipped; above it, it is applied.
+    #[test]
+    fn sr1_update_skipped_below_threshold() {
+        for (cos, skip, applied) in [(5e-3, 1e-2, false), (5e-3, 1e-8, true), (2e-2, 1e-2, true)] {
+            let (mut q, d1, x1, lam) = secant_pair(cos);
+            let w1 = q.w;
+            q.update(skip, &x1, &w1, &d1, &lam, &SVector::zeros());
+            assert_eq!(q.bxx.amax() > 0.0, applied, "cos {cos}, threshold {skip}");
+        }
+    }
+}

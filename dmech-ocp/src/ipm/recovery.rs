@@ -1,0 +1,132 @@
+//! Ending a solve: the returned point, its recomputed violation, and the recovery of
+//! multipliers; the affine-declaration check.
+
+use super::*;
+
+impl<
+        'a,
+        P,
+        const NX: usize,
+        const NW: usize,
+        const NE: usize,
+        const NU: usize,
+        const NC: usize,
+    > Solver<'a, P, NX, NW, NE, NU, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    /// If the problem declares its cost and inequalities affine in the state, check it at
+    /// the first, middle and last stage of the start (with unit inequality multipliers).
+    pub(super) fn check_affine_declaration(&self, it: &Iterate<NX, NW, NC>) -> Option<String> {
+        if !self.p.affine_in_state() || self.n == 0 {
+            return None;
+        }
+        let ones = SVector::<f64, NC>::repeat(1.0);
+        for k in [0, self.n / 2, self.n - 1] {
+            let (hxx, hxw) =
+                crate::derivatives::state_curvature(self.p, k, &it.x[k], &it.w[k], &ones);
+            let worst = hxx.amax().max(hxw.amax());
+            if worst != 0.0 {
+                return Some(format!(
+                    "the problem declares its cost and inequalities affine in the state, but at \
+                     stage {k} their state Hessian has an entry {worst:.3e}"
+                ));
+            }
+        }
+        None
+    }
+
+    pub(super) fn finish(
+        &self,
+        status: Status,
+        it: Iterate<NX, NW, NC>,
+        iterations: usize,
+        mut tm: Timings,
+        t_start: Instant,
+    ) -> SolveResult<NX, NW, NC> {
+        tm.total = t_start.elapsed().as_secs_f64();
+        let objective = (0..self.n)
+            .map(|k| self.p.cost(k, &it.x[k], &it.w[k]))
+            .sum();
+        let max_violation = self.max_violation(&it.x, &it.w);
+        SolveResult {
+            status,
+            iterate: it,
+            iterations,
+            objective,
+            max_violation,
+            timings: tm,
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn recover(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ders: &[StageDerivatives<NX, NW, NE, NC>],
+        elim: &[Elimination<NX, NW, NU>],
+        sol: LqSolution<NX, NU>,
+        mu: f64,
+        dc: f64,
+    ) -> Step<NX, NW, NC> {
+        let LqSolution {
+            x: dx,
+            u: du,
+            lambda,
+        } = sol;
+        let n = self.n;
+        // Per stage (δw, δt_lo, δt_hi, δz_lo, δz_hi), in parallel.
+        type StageStep<const NW: usize, const NC: usize> =
+            (SVector<f64, NW>, [SVector<f64, NC>; 4]);
+        let mut per_stage: Vec<StageStep<NW, NC>> =
+            vec![(SVector::zeros(), [SVector::zeros(); 4]); n];
+        par_update(
+            &mut per_stage,
+            self.opts.threads,
+            |k, (dwk, [dt_lo, dt_hi, dz_lo, dz_hi])| {
+                let c = &elim[k];
+                *dwk = c.w0 + c.wx * dx[k] + c.wu * du[k];
+                let d = &ders[k];
+                let cd = d.cx * dx[k] + d.cw * *dwk;
+                let b = &self.bounds[k];
+                for i in 0..NC {
+                    if b.has_lo[i] > 0.0 {
+                        let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
+                        dt_lo[i] = cd[i] + r;
+                        dz_lo[i] = mu / it.t_lo[k][i]
+                            - it.z_lo[k][i]
+                            - it.z_lo[k][i] / it.t_lo[k][i] * dt_lo[i];
+                    }
+                    if b.has_hi[i] > 0.0 {
+                        let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
+                        dt_hi[i] = r - cd[i];
+                        dz_hi[i] = mu / it.t_hi[k][i]
+                            - it.z_hi[k][i]
+                            - it.z_hi[k][i] / it.t_hi[k][i] * dt_hi[i];
+                    }
+                }
+            },
+        );
+        let dw = per_stage.iter().map(|s| s.0).collect();
+        let dt_lo = per_stage.iter().map(|s| s.1[0]).collect();
+        let dt_hi = per_stage.iter().map(|s| s.1[1]).collect();
+        let dz_lo = per_stage.iter().map(|s| s.1[2]).collect();
+        let dz_hi = per_stage.iter().map(|s| s.1[3]).collect();
+        let y = self
+            .eqs
+            .iter()
+            .enumerate()
+            .map(|(j, e)| it.y[j] + (dx[e.stage][e.index] + it.x[e.stage][e.index] - e.value) / dc)
+            .collect();
+        Step {
+            dx,
+            dw,
+            lambda,
+            dt_lo,
+            dt_hi,
+            dz_lo,
+            dz_hi,
+            y,
+        }
+    }
+}
