@@ -480,9 +480,11 @@ fn cmd_diagnose(mut parser: lexopt::Parser) -> Result<(), Failure> {
             eprintln!("wip: warning: {w}");
         }
     }
+    // Never panics when stderr is closed (eprintln! would).
     let progress = |line: &str| {
         if !quiet {
-            eprintln!("{line}");
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stderr(), "{line}");
         }
     };
     let d = diagnose(&log, &p, &opts, &progress).map_err(Failure::Run)?;

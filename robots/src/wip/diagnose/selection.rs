@@ -268,12 +268,14 @@ pub fn diagnose(
     let z_init = fitter.initial_states();
     // The first fit only sets the noise levels: a few iterations suffice.
     fitter.setup.max_iterations = opts.max_iterations.min(5);
-    let first = fitter.fit(&none, &[], &z_init, None, &quiet);
+    progress("  first fit of the nominal model (sets the noise levels)");
+    let first = fitter.fit(&none, &[], &z_init, None, progress);
     fitter.setup.max_iterations = opts.max_iterations;
     // The noise floor of each channel, from the nominal fit's residuals; weights from here on.
     let sigma = residual_noise(log, &fitter.residuals(&first), &fitter.windows);
     fitter.setup.sigma = sigma.map(|s| if s.is_nan() { f64::INFINITY } else { s });
-    let nominal_fit = fitter.fit(&none, &[], &first.z0, None, &quiet);
+    progress("  nominal model under the noise weights");
+    let nominal_fit = fitter.fit(&none, &[], &first.z0, None, progress);
     let z_nom = nominal_fit.z0.clone();
     // Scores and errors under the fitter's current weights.
     let score_of = |fit: Fit, fitter: &Fitter| {
