@@ -67,3 +67,35 @@ fn a_hidden_dead_zone_is_unexplained_with_its_conditions() {
         "{conds:?}"
     );
 }
+
+/// The first case: a small systematic sensor error, 1.2 × the tilt's noise in RMS
+/// (a 2 Hz sinusoid of amplitude `√(2·0.44)·σ_α` on the tilt reading, σ_α = 0.003 rad),
+/// moves the overall error by a few percent only; over thousands of samples the
+/// per-channel tests must see it: the verdict is not `none` and the tilt fails.
+#[test]
+fn a_small_systematic_error_over_a_long_log_is_not_none() {
+    let p = WipParams::default();
+    let seed = Rng::new(20261125).next_u64();
+    let settings = RunSettings {
+        duration: 10.0,
+        ..Default::default()
+    };
+    let mut g = generate(&p, &[], seed, &settings).expect("the nominal LQR keeps the robot up");
+    let a = (2.0f64 * 0.44).sqrt() * 0.003;
+    let alpha = robots::wip::diagnose::measured::Channel::Alpha.index();
+    for (row, t) in g.log.data.iter_mut().zip(&g.log.t) {
+        row[alpha] += a * (std::f64::consts::TAU * 2.0 * t).sin();
+    }
+    let d = diagnose(&g.log, &p, &DiagnoseOptions::default(), &|_| {}).unwrap();
+    let alpha_test = d
+        .tests_before
+        .iter()
+        .find(|t| t.channel.name() == "alpha")
+        .unwrap();
+    println!(
+        "seed {seed}: cause {}, E {:.3} -> {:.3}; alpha {alpha_test:?}",
+        d.cause, d.error_before, d.error_after
+    );
+    assert_ne!(d.cause, "none", "{}", d.verdict);
+    assert!(!alpha_test.passes(), "{alpha_test:?}");
+}
