@@ -149,7 +149,7 @@ impl Effect {
             .iter()
             .zip(theta)
             .zip(self.plausible(p))
-            .filter(|((_, v), (lo, hi))| !(**v >= *lo && **v <= *hi))
+            .filter(|((_, v), (lo, hi))| v.is_nan() || **v < *lo || **v > *hi)
             .map(|((n, v), (lo, hi))| format!("{n} = {v:.4e} outside [{lo:.3e}, {hi:.3e}]"))
             .collect()
     }

@@ -119,7 +119,7 @@ impl MeasuredLog {
         for k in 0..self.len() {
             for (j, name) in ["uR", "uL"].into_iter().enumerate() {
                 let u = self.cmd[k][j];
-                if !(u.abs() <= COMMAND_RANGE) {
+                if u.is_nan() || u.abs() > COMMAND_RANGE {
                     return Err(format!(
                         "row {k} (t = {}), column '{name}': command {u} V is outside ±{COMMAND_RANGE} V",
                         self.t[k]
@@ -128,7 +128,7 @@ impl MeasuredLog {
             }
             for c in Channel::ALL {
                 let v = self.data[k][c.index()];
-                if !v.is_nan() && !(v.abs() <= c.range()) {
+                if v.abs() > c.range() {
                     flagged.push(format!(
                         "row {k} (t = {}), column '{}': reading {v:e} {} is outside ±{} and is not fitted",
                         self.t[k],

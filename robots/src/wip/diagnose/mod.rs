@@ -2,6 +2,7 @@
 //! explains the difference, refit, report the gain (method: `docs/diagnose.md`).
 
 pub mod adequacy;
+pub mod conditions;
 pub mod effects;
 pub mod fit;
 pub mod generate;

@@ -46,9 +46,11 @@ mod tests {
     /// The file reads back as the same parameters (the keys are exactly the model's).
     #[test]
     fn params_file_reads_back() {
-        let mut p = WipParams::default();
-        p.d_c = 0.0123;
-        p.m_b = 0.345;
+        let p = WipParams {
+            d_c: 0.0123,
+            m_b: 0.345,
+            ..Default::default()
+        };
         let q = WipParams::from_json_str(&params_file_json(&p)).unwrap();
         assert_eq!(p, q);
     }

@@ -83,6 +83,14 @@ pub fn diagnosis_json(d: &Diagnosis) -> Value {
             "after": tests(&d.tests_after),
         },
         "flagged_readings": d.flagged,
+        "conditions": d.conditions.iter().map(|c| json!({
+            "channel": c.channel.name(),
+            "condition": c.condition,
+            "measure": c.measure,
+            "inside": c.inside,
+            "outside": c.outside,
+            "z": c.z,
+        })).collect::<Vec<_>>(),
     })
 }
 
@@ -172,6 +180,30 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
         }
     }
     let _ = writeln!(s);
+    if !d.conditions.is_empty() {
+        let _ = writeln!(s, "## Where the model fails\n");
+        let _ = writeln!(
+            s,
+            "The operating conditions that the remaining residual follows, in the channels that fail their tests: `(r/σ)²` (level) or `r/σ` (mean) inside and outside the condition, and the Welch statistic with effective sample counts (docs/diagnose.md). This is where an effect is missing.\n"
+        );
+        let _ = writeln!(
+            s,
+            "| channel | condition | measure | inside | outside | z |\n|---|---|---|---|---|---|"
+        );
+        for c in d.conditions.iter().take(20) {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.2} | {:.2} | {:.1} |",
+                c.channel.name(),
+                c.condition,
+                c.measure,
+                c.inside,
+                c.outside,
+                c.z
+            );
+        }
+        let _ = writeln!(s);
+    }
     if !d.flagged.is_empty() {
         let _ = writeln!(s, "Readings outside their channel's range, not fitted:\n");
         for f in &d.flagged {

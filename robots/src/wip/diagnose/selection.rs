@@ -23,6 +23,9 @@ pub struct DiagnoseOptions {
     pub pairs: bool,
     /// At most this many single effects are fitted to convergence after screening.
     pub max_full_fits: usize,
+    /// Effects of the catalogue left out (to test what the tool says about an effect it
+    /// does not know).
+    pub exclude: Vec<Effect>,
 }
 
 impl Default for DiagnoseOptions {
@@ -34,6 +37,7 @@ impl Default for DiagnoseOptions {
             explained: 1.2,
             pairs: true,
             max_full_fits: Effect::ALL.len(),
+            exclude: Vec::new(),
         }
     }
 }
@@ -81,6 +85,9 @@ pub struct Diagnosis {
     /// ([`super::adequacy`]).
     pub tests_before: Vec<ChannelTest>,
     pub tests_after: Vec<ChannelTest>,
+    /// The operating conditions that the chosen model's residual follows, in the channels
+    /// that fail their tests ([`super::conditions`]).
+    pub conditions: Vec<super::conditions::Condition>,
     /// Readings dropped as far outside their channel's range (row, channel, value).
     pub flagged: Vec<String>,
     /// A one-paragraph verdict for the report.
@@ -273,12 +280,14 @@ pub fn diagnose(
     let z_init = fitter.initial_states();
     // The first fit only sets the noise levels: a few iterations suffice.
     fitter.setup.max_iterations = opts.max_iterations.min(5);
-    let first = fitter.fit(&none, &[], &z_init, None, &quiet);
+    progress("  first fit of the nominal model (sets the noise levels)");
+    let first = fitter.fit(&none, &[], &z_init, None, progress);
     fitter.setup.max_iterations = opts.max_iterations;
     // The noise floor of each channel, from the nominal fit's residuals; weights from here on.
     let sigma = residual_noise(log, &fitter.residuals(&first), &fitter.windows);
     fitter.setup.sigma = sigma.map(|s| if s.is_nan() { f64::INFINITY } else { s });
-    let nominal_fit = fitter.fit(&none, &[], &first.z0, None, &quiet);
+    progress("  nominal model under the noise weights");
+    let nominal_fit = fitter.fit(&none, &[], &first.z0, None, progress);
     let z_nom = nominal_fit.z0.clone();
     // Scores and errors under the fitter's current weights.
     let score_of = |fit: Fit, fitter: &Fitter| {
@@ -331,7 +340,10 @@ pub fn diagnose(
     let screened = fitter
         .screen(&nominal.fit.z0, nominal.fit.rss, nominal.fit.m)
         .ok_or("the nominal model cannot be simulated over the log (the linearisation failed)")?;
-    let mut order: Vec<&super::fit::Screened> = screened.iter().collect();
+    let mut order: Vec<&super::fit::Screened> = screened
+        .iter()
+        .filter(|s| !opts.exclude.contains(&s.effect))
+        .collect();
     order.sort_by(|a, b| {
         let net = |s: &super::fit::Screened| s.reduction - s.effect.n_params() as f64 * m.ln();
         net(b).total_cmp(&net(a))
@@ -423,7 +435,7 @@ pub fn diagnose(
         let e1 = single.fit.candidate.effects[0];
         best_rss.set(single.fit.rss);
         for e in Effect::ALL {
-            if e == e1 {
+            if e == e1 || opts.exclude.contains(&e) {
                 continue;
             }
             let cand = Candidate {
@@ -496,6 +508,12 @@ pub fn diagnose(
     };
     let (left_before, left_after) = (left(&tests_before), left(&tests_after));
     let explained = error_after <= opts.explained && left_after.is_empty();
+    let failing: Vec<Channel> = tests_after
+        .iter()
+        .filter(|t| !t.passes())
+        .map(|t| t.channel)
+        .collect();
+    let conditions = super::conditions::conditions(log, &res_after, &sigma_final, &failing);
     let (cause, verdict) = if effects.is_empty() {
         if error_before <= opts.explained && left_before.is_empty() {
             (
@@ -513,12 +531,17 @@ pub fn diagnose(
                 ),
             )
         }
-    } else if !explained && (error_after - 1.0) > 0.5 * (error_before - 1.0) {
+    } else if !explained && error_after > opts.explained {
+        // A candidate is named only when it brings the log to the noise: its residual
+        // passes every channel's test, or its overall error is within `explained` of the
+        // floor (the residual tests then say what is still left). A partial improvement
+        // that leaves structured residuals is not a cause.
         (
             "unexplained".to_string(),
             format!(
-                "The best candidate ({}) reduces the error only from {error_before:.3} to {error_after:.3} times the noise floor, less than half of the excess: no effect of the catalogue explains the log.",
-                chosen.fit.candidate.name()
+                "The best candidate ({}) reduces the error from {error_before:.3} to {error_after:.3} times the noise floor, but its residual is not noise in {}: no effect of the catalogue explains the log.",
+                chosen.fit.candidate.name(),
+                if left_after.is_empty() { "the overall level".to_string() } else { left_after.join("; ") }
             ),
         )
     } else {
@@ -555,6 +578,7 @@ pub fn diagnose(
         windows: fitter.windows.clone(),
         tests_before,
         tests_after,
+        conditions,
         flagged,
         verdict,
         elapsed_s: t0.elapsed().as_secs_f64(),
