@@ -6,7 +6,8 @@
 //! derivatives:
 //! - [`variational`]: the variational integrator of the discrete reduced
 //!   Lagrange–d'Alembert–Pontryagin principle (group update, shape update, and the
-//!   momentum-matching equation solved by Newton's method with an exact Jacobian);
+//!   momentum-matching equation solved by Newton's method with an exact Jacobian), in the
+//!   paper's first-order form or the symmetric, second-order [`midpoint`] form;
 //! - [`continuous`]: the continuous-time equations of motion and RK1/RK2/RK4 on them;
 //! - [`energy`]: the energy function `E = v·∂ℓ/∂v + ξ·∂ℓ/∂ξ − ℓ`.
 //!
@@ -55,6 +56,8 @@
 pub mod continuous;
 pub mod energy;
 pub mod linalg;
+pub mod midpoint;
+pub mod newton;
 pub mod partials;
 pub mod system;
 pub mod variational;
@@ -63,5 +66,6 @@ pub use continuous::{ContinuousModel, RungeKutta};
 pub use energy::energy;
 pub use system::{Lift, Param, PrincipalKinematicSystem};
 pub use variational::{
-    ForcingQuadrature, JacobianPolicy, NewtonCache, StepError, VariationalIntegrator, ViState,
+    Discretisation, ForcingQuadrature, JacobianPolicy, NewtonCache, StepError,
+    VariationalIntegrator, ViState,
 };

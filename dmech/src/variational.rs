@@ -12,7 +12,8 @@
 //! with `ℓ_k = ℓ(s_k, v_k, ξ_k)`, `μ = ∂ℓ/∂ξ`, `dexp⁻¹` the right-trivialised one of
 //! `dmech-lie`, and `F̄_k` the discrete force of the chosen [`ForcingQuadrature`].
 
-use crate::linalg::Lu;
+use crate::newton::{solve_momentum_matching, NewtonSettings};
+pub use crate::newton::{JacobianPolicy, NewtonCache};
 use crate::partials::{
     momenta_and_jacobians, pulled_back_gradient, pulled_back_gradient_dual, value_and_jacobian,
 };
@@ -309,41 +310,25 @@ impl fmt::Display for StepError {
 }
 impl std::error::Error for StepError {}
 
-/// Newton switches to chord steps (the last exact Jacobian reused) once an update is below
-/// this fraction of `1 + ‖v‖∞` (≈ √tol: from there one chord step reaches the tolerance);
-/// a chord step that does not contract 10× goes back to full Newton.
-const CHORD_SWITCH: f64 = 3e-7;
-
-/// When Newton's method evaluates the exact Jacobian.
+/// Which discretisation of the reduced LDAP principle a [`VariationalIntegrator`] steps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum JacobianPolicy {
-    /// At every iterate until the update is below ≈ √tol, then chord polishing (default).
+pub enum Discretisation {
+    /// The paper's: rectangle-rule Lagrangian `h ℓ(s_k, v_k, ξ_k)`, connection at `s_k`,
+    /// one-sided forcing ([`ForcingQuadrature`]). First order. Default.
     #[default]
-    Exact,
-    /// Carry the Jacobian across steps: evaluated exactly (by autodiff) at the first step
-    /// and again, at the current iterate, whenever a step contracts less than 10×; between
-    /// refreshes it is kept current by Broyden's secant updates. Modified Newton, as stiff
-    /// ODE codes do; the converged state satisfies the same tolerance.
-    ReuseAcrossSteps,
+    FirstOrder,
+    /// Lagrangian, connection and forcing at the interval midpoints `s_k + ½h v_k`
+    /// ([`crate::midpoint`]): second order and time-reversible. The forcing quadrature
+    /// setting is not used (the midpoint rule is part of the scheme).
+    Midpoint,
 }
 
-/// Carries Newton's last exact Jacobian from one step to the next.
-#[derive(Clone, Copy, Debug)]
-pub struct NewtonCache<const NS: usize> {
-    /// The Jacobian and its factorisation.
-    pub jacobian: Option<(SMatrix<f64, NS, NS>, Lu<f64, NS>)>,
-}
-
-impl<const NS: usize> Default for NewtonCache<NS> {
-    fn default() -> Self {
-        NewtonCache { jacobian: None }
-    }
-}
-
-/// The variational integrator: step size, forcing quadrature, Newton settings.
+/// The variational integrator: step size, discretisation, forcing quadrature, Newton
+/// settings.
 #[derive(Clone, Copy, Debug)]
 pub struct VariationalIntegrator {
     pub h: f64,
+    pub discretisation: Discretisation,
     pub quadrature: ForcingQuadrature,
     pub jacobian: JacobianPolicy,
     /// Newton stops when `‖Δv‖∞ ≤ tol · (1 + ‖v‖∞)`, or when the updates stall within 100×
@@ -356,11 +341,16 @@ impl VariationalIntegrator {
     pub fn new(h: f64) -> Self {
         VariationalIntegrator {
             h,
+            discretisation: Discretisation::default(),
             quadrature: ForcingQuadrature::default(),
             jacobian: JacobianPolicy::default(),
             newton_tol: 1e-13,
             max_newton_iterations: 30,
         }
+    }
+    pub fn with_discretisation(mut self, d: Discretisation) -> Self {
+        self.discretisation = d;
+        self
     }
     pub fn with_quadrature(mut self, q: ForcingQuadrature) -> Self {
         self.quadrature = q;
@@ -369,6 +359,26 @@ impl VariationalIntegrator {
     pub fn with_jacobian(mut self, j: JacobianPolicy) -> Self {
         self.jacobian = j;
         self
+    }
+
+    /// The first interval velocity `v_0` of a run that starts with the continuous shape
+    /// velocity `v(0)` and input `u_0`. For [`Discretisation::Midpoint`] the discrete
+    /// Legendre transform at node 0 (needed for second order: `v_0 ≈ v(h/2)`); for the
+    /// first-order scheme `v(0)` itself (its O(h) error is not improved by more).
+    pub fn start<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+        &self,
+        sys: &S,
+        s0: &SVector<f64, NS>,
+        v0: &SVector<f64, NS>,
+        u0: &SVector<f64, NU>,
+    ) -> Result<SVector<f64, NS>, StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        match self.discretisation {
+            Discretisation::FirstOrder => Ok(*v0),
+            Discretisation::Midpoint => self.midpoint_start(sys, s0, v0, u0),
+        }
     }
 
     /// One step `(g_k, s_k, v_k) → (g_{k+1}, s_{k+1}, v_{k+1})` with `u_k` on `[t_k, t_{k+1})`
@@ -423,6 +433,9 @@ impl VariationalIntegrator {
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
+        if self.discretisation == Discretisation::Midpoint {
+            return self.midpoint_step(sys, x, u_k, u_next, guess, cache);
+        }
         let h = self.h;
         let xi = -(sys.connection(&x.s) * x.v);
         let g_next =
@@ -486,77 +499,26 @@ impl VariationalIntegrator {
             (out - incoming) / h - f
         };
 
-        let reuse = self.jacobian == JacobianPolicy::ReuseAcrossSteps;
-        let mut v = *guess;
-        let mut jac: Option<(SMatrix<f64, NS, NS>, Lu<f64, NS>)> =
-            if reuse { cache.jacobian } else { None };
-        let mut last: Option<(SVector<f64, NS>, SVector<f64, NS>)> = None;
-        let mut last_step = f64::INFINITY;
-        for it in 1..=self.max_newton_iterations {
-            let scale = 1.0 + v.amax();
-            let (r, jm, lu, exact_here) = match jac {
-                Some((mut jm, mut lu)) => {
-                    let r = residual(&v);
-                    // Broyden's secant update of the carried Jacobian with the last step,
-                    // while that step is well above the residual's round-off.
-                    if let Some((r_prev, dv_prev)) = last {
-                        if dv_prev.amax() > 1e4 * self.newton_tol * scale {
-                            let y = r - r_prev;
-                            let corr = (y - jm * dv_prev) / dv_prev.dot(&dv_prev);
-                            jm += corr * dv_prev.transpose();
-                            lu = Lu::new(&jm).ok_or(StepError::Singular)?;
-                        }
-                    }
-                    (r, jm, lu, false)
-                }
-                None => {
-                    let (r, j) = full(&v);
-                    if !j.iter().all(|z| z.is_finite()) {
-                        return Err(StepError::NonFinite);
-                    }
-                    (r, j, Lu::new(&j).ok_or(StepError::Singular)?, true)
-                }
-            };
-            if !r.iter().all(|z| z.is_finite()) {
-                return Err(StepError::NonFinite);
-            }
-            let dv = lu.solve(&(-r));
-            v += dv;
-            if !v.iter().all(|z| z.is_finite()) {
-                return Err(StepError::NonFinite);
-            }
-            let step = dv.amax();
-            let scale = 1.0 + v.amax();
-            // Converged: below the tolerance, or stalled within 100× of it (the round-off
-            // floor of the residual, ≈ ε‖P‖/h, can sit just above a tight tolerance).
-            let stalled = step <= 100.0 * self.newton_tol * scale && step > 0.5 * last_step;
-            if step <= self.newton_tol * scale || stalled {
-                if reuse {
-                    cache.jacobian = Some((jm, lu));
-                }
-                return Ok((
-                    ViState {
-                        g: g_next,
-                        s: s_next,
-                        v,
-                    },
-                    it,
-                ));
-            }
-            // Keep the Jacobian for chord steps while they contract 10× per step; a fresh
-            // exact one otherwise. Without reuse, chord steps start only below ≈ √tol.
-            let contracting = exact_here || step < 0.1 * last_step;
-            let close = reuse || step <= CHORD_SWITCH * scale;
-            jac = (contracting && close).then_some((jm, lu));
-            last = Some((r, dv));
-            last_step = step;
-            if it == self.max_newton_iterations {
-                return Err(StepError::NoConvergence {
-                    iterations: it,
-                    step_norm: step,
-                });
-            }
-        }
-        unreachable!("the loop returns on its last iteration")
+        solve_momentum_matching(
+            NewtonSettings {
+                policy: self.jacobian,
+                tol: self.newton_tol,
+                max_iterations: self.max_newton_iterations,
+            },
+            guess,
+            cache,
+            full,
+            residual,
+        )
+        .map(|(v, it)| {
+            (
+                ViState {
+                    g: g_next,
+                    s: s_next,
+                    v,
+                },
+                it,
+            )
+        })
     }
 }

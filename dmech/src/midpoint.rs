@@ -1,0 +1,287 @@
+//! The symmetric (midpoint) discretisation of the reduced Lagrange–d'Alembert–Pontryagin
+//! principle: second order and time-reversible (derivation: `docs/integrator.md`,
+//! "The midpoint discretisation").
+//!
+//! Discrete path `(g_k, s_k, v_k)`, `v_k` the shape velocity on `[t_k, t_{k+1})`,
+//! `s_{k+½} = s_k + ½h v_k`:
+//! ```text
+//! g_{k+1} = g_k exp(h ξ_k),   ξ_k = −A(s_{k+½}) v_k
+//! s_{k+1} = s_k + h v_k
+//! momentum matching at node k (unknown v_k, given s_{k−1}, v_{k−1}, s_k):
+//!   ∂ℓ_k/∂v − ½h ∂ℓ_k/∂s − A(s_k)ᵀ dexp⁻¹(hξ_k)ᵀ μ_k
+//!     = ∂ℓ_{k−1}/∂v + ½h ∂ℓ_{k−1}/∂s − A(s_k)ᵀ dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}
+//!       + ½h (F_{k−½} + F_{k+½})
+//! ```
+//! with `ℓ_k = ℓ(s_{k+½}, v_k, ξ_k)`, `μ = ∂ℓ/∂ξ` and `F_{k+½} = F(s_{k+½}, v_k, u_k)`.
+//! Everything is evaluated at interval midpoints except the variations `η_k = −A(s_k)δs_k`,
+//! which live at the nodes; swapping the two intervals and flipping the velocities maps
+//! the equation onto itself (the source of reversibility).
+
+use crate::newton::{solve_momentum_matching, NewtonCache, NewtonSettings};
+use crate::partials::{pulled_back_gradient, value_and_jacobian};
+use crate::system::{Lift, PrincipalKinematicSystem};
+use crate::variational::{StepError, VariationalIntegrator, ViState};
+use dmech_lie::LieGroup;
+use nalgebra::{SMatrix, SVector};
+use num_dual::{DualSVec64, DualVec};
+
+type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
+
+/// `s_{k+½} = s_k + ½h v_k`: where the interval's Lagrangian, connection and force are
+/// evaluated.
+pub fn interval_midpoint<T: dmech_lie::Real, const NS: usize>(
+    h: f64,
+    s: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+) -> SVector<T, NS> {
+    s + v * T::from(0.5 * h)
+}
+
+/// `ξ_k = −A(s_{k+½}) v_k`: the body velocity of interval `k` (the discrete constraint).
+pub fn interval_body_velocity<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    h: f64,
+    s: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+) -> SVector<T, DOF>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+{
+    -(sys.connection(&interval_midpoint(h, s, v)) * v)
+}
+
+/// `F_{k+½} = F(s_{k+½}, v_k, u_k)`: the force of interval `k`.
+pub fn interval_force<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    sys: &S,
+    h: f64,
+    s: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+    u: &SVector<T, NU>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+{
+    sys.forcing(&interval_midpoint(h, s, v), v, u)
+}
+
+/// The discrete momentum leaving node `k` (forces excluded):
+/// `∂ℓ_k/∂v − ½h ∂ℓ_k/∂s − A(s_k)ᵀ dexp⁻¹(hξ_k)ᵀ μ_k` at `(s_{k+½}, v_k, ξ_k)`, one
+/// vector-dual evaluation of `ℓ` along `(δs, δv, δξ) = (−½hν, ν, −dexp⁻¹(hξ_k) A(s_k) ν)`.
+/// `a_k = A(s_k)`.
+pub fn midpoint_outgoing_momentum<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_k: &SVector<T, NS>,
+    v_k: &SVector<T, NS>,
+    a_k: &SMatrix<T, DOF, NS>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+{
+    let s_mid = interval_midpoint(h, s_k, v_k);
+    let xi = -(sys.connection(&s_mid) * v_k);
+    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi * T::from(h)));
+    let d = -(dinv * a_k);
+    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, &s_mid, -0.5 * h, v_k, &xi, &d)
+}
+
+/// The discrete momentum arriving at node `k` (forces excluded):
+/// `∂ℓ_{k−1}/∂v + ½h ∂ℓ_{k−1}/∂s − A(s_k)ᵀ dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}` at
+/// `(s_{k−½}, v_{k−1}, ξ_{k−1})`. `a_k = A(s_k)`.
+pub fn midpoint_incoming_momentum<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_prev: &SVector<T, NS>,
+    v_prev: &SVector<T, NS>,
+    a_k: &SMatrix<T, DOF, NS>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+{
+    let s_mid = interval_midpoint(h, s_prev, v_prev);
+    let xi = -(sys.connection(&s_mid) * v_prev);
+    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi * T::from(-h)));
+    let d = -(dinv * a_k);
+    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, &s_mid, 0.5 * h, v_prev, &xi, &d)
+}
+
+/// The midpoint momentum-matching residual at node `k`, divided by `h` (force units, as
+/// [`crate::variational::momentum_matching_residual`]):
+/// `(outgoing_k − incoming_k)/h − ½(F_{k−½} + F_{k+½})`.
+///
+/// `prev = (s_{k−1}, v_{k−1}, u_{k−1})`, `cur = (s_k, v_k, u_k)`; `s_k` is passed separately
+/// so that a transcription can keep it as its own variable. Generic over the scalar.
+#[allow(clippy::too_many_arguments)]
+pub fn midpoint_momentum_matching_residual<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_prev: &SVector<T, NS>,
+    v_prev: &SVector<T, NS>,
+    u_prev: &SVector<T, NU>,
+    s_k: &SVector<T, NS>,
+    v_k: &SVector<T, NS>,
+    u_k: &SVector<T, NU>,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+{
+    let a_k = sys.connection(s_k);
+    let inc = midpoint_incoming_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, &a_k);
+    let out = midpoint_outgoing_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_k, v_k, &a_k);
+    let f_prev = interval_force::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, u_prev);
+    let f_k = interval_force::<S, T, DOF, DIM, NS, NU>(sys, h, s_k, v_k, u_k);
+    (out - inc) / T::from(h) - (f_prev + f_k) * T::from(0.5)
+}
+
+impl VariationalIntegrator {
+    /// One step of the midpoint discretisation (see [`VariationalIntegrator::step_cached`]
+    /// for the arguments): `g_{k+1}`, `s_{k+1}` explicitly from `v_k`, then `v_{k+1}` from
+    /// the momentum matching at node `k+1`.
+    pub(crate) fn midpoint_step<
+        S,
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+    >(
+        &self,
+        sys: &S,
+        x: &ViState<S::Group<f64>, NS>,
+        u_k: &SVector<f64, NU>,
+        u_next: &SVector<f64, NU>,
+        guess: &SVector<f64, NS>,
+        cache: &mut NewtonCache<NS>,
+    ) -> Result<(ViState<S::Group<f64>, NS>, usize), StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let h = self.h;
+        let xi = interval_body_velocity::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v);
+        let g_next =
+            x.g.compose(&<S::Group<f64> as LieGroup<DOF, DIM>>::exp(&(xi * h)));
+        let s_next = x.s + x.v * h;
+        // What does not depend on the unknown v_{k+1}: once, in f64.
+        let a_next = sys.connection(&s_next);
+        let incoming =
+            midpoint_incoming_momentum::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v, &a_next);
+        let f_prev = interval_force::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v, u_k);
+        let known = incoming / h + f_prev * 0.5;
+        let (v, it) = self.solve_outgoing(sys, &s_next, u_next, &known, guess, cache)?;
+        Ok((
+            ViState {
+                g: g_next,
+                s: s_next,
+                v,
+            },
+            it,
+        ))
+    }
+
+    /// The midpoint scheme's first interval velocity `v_0` for a start at rest or in
+    /// motion with the *continuous* shape velocity `v(0)`: the discrete Legendre transform
+    /// at node 0, `outgoing_0(v_0) − ½h F_{½} = P − A(s_0)ᵀ μ` at `(s_0, v(0))`. `v_0` is
+    /// the velocity on `[0, h)`, ≈ `v(h/2)`; starting from `v_0 = v(0)` instead would cost
+    /// an O(h) error for the whole run (the scheme would be first order).
+    pub(crate) fn midpoint_start<
+        S,
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+    >(
+        &self,
+        sys: &S,
+        s0: &SVector<f64, NS>,
+        v0: &SVector<f64, NS>,
+        u0: &SVector<f64, NU>,
+    ) -> Result<SVector<f64, NS>, StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let a0 = sys.connection(s0);
+        let xi0 = -(a0 * v0);
+        let p0 = pulled_back_gradient::<S, f64, DOF, DIM, NS, NU>(sys, s0, 0.0, v0, &xi0, &-a0);
+        let known = p0 / self.h;
+        let mut cache = NewtonCache::default();
+        Ok(self.solve_outgoing(sys, s0, u0, &known, v0, &mut cache)?.0)
+    }
+
+    /// Solves `outgoing_k(v)/h − ½ F(s_{k+½}, v, u_k) = known` for `v` by Newton's method.
+    /// The Jacobian is taken by vector duals through the whole outgoing side (ℓ's gradient
+    /// in nested duals): unlike the first-order scheme, `v` also moves the point `s_{k+½}`
+    /// where ℓ, `A` and `F` are evaluated.
+    fn solve_outgoing<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+        &self,
+        sys: &S,
+        s_k: &SVector<f64, NS>,
+        u_k: &SVector<f64, NU>,
+        known: &SVector<f64, NS>,
+        guess: &SVector<f64, NS>,
+        cache: &mut NewtonCache<NS>,
+    ) -> Result<(SVector<f64, NS>, usize), StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        type D<const N: usize> = DualSVec64<N>;
+        let h = self.h;
+        let a_k = sys.connection(s_k);
+        let outgoing_side = |v: &SVector<D<NS>, NS>| {
+            let (sk, ak) = (s_k.map(D::<NS>::from), a_k.map(D::<NS>::from));
+            let uk = u_k.map(D::<NS>::from);
+            let out = midpoint_outgoing_momentum::<S, D<NS>, DOF, DIM, NS, NU>(sys, h, &sk, v, &ak);
+            let f = interval_force::<S, D<NS>, DOF, DIM, NS, NU>(sys, h, &sk, v, &uk);
+            out / D::<NS>::from(h) - f * D::<NS>::from(0.5)
+        };
+        let full = |v: &SVector<f64, NS>| {
+            let (r, j) = value_and_jacobian(outgoing_side, v);
+            (r - known, j)
+        };
+        let residual = |v: &SVector<f64, NS>| {
+            let out = midpoint_outgoing_momentum::<S, f64, DOF, DIM, NS, NU>(sys, h, s_k, v, &a_k);
+            let f = interval_force::<S, f64, DOF, DIM, NS, NU>(sys, h, s_k, v, u_k);
+            out / h - f * 0.5 - known
+        };
+        let settings = NewtonSettings {
+            policy: self.jacobian,
+            tol: self.newton_tol,
+            max_iterations: self.max_newton_iterations,
+        };
+        solve_momentum_matching(settings, guess, cache, full, residual)
+    }
+}
