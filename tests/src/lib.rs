@@ -1,5 +1,7 @@
 //! Systems other than the WIP, with known answers, for testing the generic machinery.
 
+pub mod random_system;
+
 use dmech::{Lift, PrincipalKinematicSystem};
 use dmech_lie::{Real, Se2};
 use nalgebra::{SMatrix, SVector};
@@ -94,5 +96,80 @@ impl PrincipalKinematicSystem<3, 2, 3, 0> for VariableRadiusRobot {
         _u: &SVector<T, 0>,
     ) -> SVector<T, 3> {
         SVector::zeros()
+    }
+}
+
+/// A front-wheel-steered car (bicycle model): `G = SE(2)` (pose of the rear-axle midpoint),
+/// shape `(φ, ψ)` = (steering angle, front-wheel rolling angle); the front wheel rolls
+/// without slipping, so `ξ = (r ψ̇ cos φ, 0, r ψ̇ sin φ / L)`: a connection that depends on
+/// the steering angle.
+/// `ℓ = ½ m (ξ₁² + (ξ₂ + b ξ₃)²) + ½ j ξ₃² + ½ i_s (ξ₃ + φ̇)² + ½ i_w ψ̇² − ½ k φ²`
+/// (a steering spring `k`), forcing `u − c ⊙ (φ̇, ψ̇)`.
+pub struct SteeredCar {
+    pub m: f64,
+    pub b: f64,
+    pub j: f64,
+    pub wheelbase: f64,
+    pub r: f64,
+    pub i_w: f64,
+    pub i_s: f64,
+    pub k: f64,
+    pub c: [f64; 2],
+}
+
+impl SteeredCar {
+    /// The car: m = 2 kg, b = 0.1 m, j = 0.02 kg m², L = 0.25 m, r = 0.05 m,
+    /// i_w = 5e-4, i_s = 1e-3 kg m², with a steering spring `k` and damping `c`.
+    pub fn new(k: f64, c: [f64; 2]) -> Self {
+        SteeredCar {
+            m: 2.0,
+            b: 0.1,
+            j: 0.02,
+            wheelbase: 0.25,
+            r: 0.05,
+            i_w: 5e-4,
+            i_s: 1e-3,
+            k,
+            c,
+        }
+    }
+}
+
+impl PrincipalKinematicSystem<3, 2, 2, 2> for SteeredCar {
+    type Param = f64;
+    type Group<T: Real> = Se2<T>;
+    fn reduced_lagrangian<T: Lift<f64>>(
+        &self,
+        s: &SVector<T, 2>,
+        v: &SVector<T, 2>,
+        xi: &SVector<T, 3>,
+    ) -> T {
+        let lateral = xi[1] + xi[2] * self.b;
+        let steer = xi[2] + v[0];
+        (xi[0] * xi[0] + lateral * lateral) * (0.5 * self.m)
+            + xi[2] * xi[2] * (0.5 * self.j)
+            + steer * steer * (0.5 * self.i_s)
+            + v[1] * v[1] * (0.5 * self.i_w)
+            - s[0] * s[0] * (0.5 * self.k)
+    }
+    fn connection<T: Lift<f64>>(&self, s: &SVector<T, 2>) -> SMatrix<T, 3, 2> {
+        let z = T::zero();
+        let (sin, cos) = (s[0].sin(), s[0].cos());
+        SMatrix::<T, 3, 2>::new(
+            z,
+            -(cos * self.r),
+            z,
+            z,
+            z,
+            -(sin * (self.r / self.wheelbase)),
+        )
+    }
+    fn forcing<T: Lift<f64>>(
+        &self,
+        _s: &SVector<T, 2>,
+        v: &SVector<T, 2>,
+        u: &SVector<T, 2>,
+    ) -> SVector<T, 2> {
+        SVector::<T, 2>::new(u[0] - v[0] * self.c[0], u[1] - v[1] * self.c[1])
     }
 }
