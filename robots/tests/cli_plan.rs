@@ -33,8 +33,19 @@ fn plans_a_short_waypoint_problem_through_a_refined_mesh() {
     plan_short_problem("dynamic", 0.01);
 }
 
+/// The midpoint (second-order, reversible) transcription through mesh sequencing: the same
+/// checks on its trajectory.
+#[test]
+fn plans_a_short_waypoint_problem_with_the_midpoint_integrator() {
+    plan_short_problem_with("dynamic", 0.01, "midpoint");
+}
+
 fn plan_short_problem(current: &str, h: f64) {
-    let dir = scratch(&format!("short-{current}-{h}"));
+    plan_short_problem_with(current, h, "varint");
+}
+
+fn plan_short_problem_with(current: &str, h: f64, integrator: &str) {
+    let dir = scratch(&format!("short-{current}-{h}-{integrator}"));
     let file = dir.join("wp.json");
     std::fs::write(
         &file,
@@ -50,6 +61,8 @@ fn plan_short_problem(current: &str, h: f64) {
             &h.to_string(),
             "--current",
             current,
+            "--integrator",
+            integrator,
             "--quiet",
             "--out",
         ])
@@ -63,6 +76,7 @@ fn plan_short_problem(current: &str, h: f64) {
     println!("{summary}");
     assert_eq!(summary["status"], "solved");
     assert_eq!(summary["current"], current);
+    assert_eq!(summary["integrator"], integrator);
     // The solver's tolerance on constraints is 1e-8; the issue asks for 1e-6.
     assert!(number(&summary, "max_violation") <= 1e-6);
     assert!(number(&summary, "waypoint_error_max") <= 1e-6);

@@ -1,11 +1,11 @@
 //! The VI transcription's structured equality Jacobian (each block seeded alone, only the
 //! terms that read it) against the generic path (all of `x` and `w` seeded through
-//! `VarIntStages::equality`), for the three force quadratures; and the RK transcriptions'
+//! `VarIntStages::equality`), for the three force quadratures and the midpoint scheme; and the RK transcriptions'
 //! dynamics Jacobian (implicit-function accelerations) against theirs, for RK1/2/4 and
 //! both current models; at the eight's start and at perturbed points.
 
 use dmech::partials::{grad_part, seeded};
-use dmech::{ForcingQuadrature, RungeKutta};
+use dmech::{Discretisation, ForcingQuadrature, RungeKutta};
 use dmech_ocp::runge_kutta::RkStages;
 use dmech_ocp::varint::VarIntStages;
 use nalgebra::{SMatrix, SVector};
@@ -25,12 +25,13 @@ fn structured_equality_jacobian_equals_generic() {
     let p = eight(0.005);
     let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
     let mut rand = lcg(12345);
-    for q in [
-        ForcingQuadrature::Left,
-        ForcingQuadrature::Right,
-        ForcingQuadrature::Midpoint,
+    for (d, q) in [
+        (Discretisation::FirstOrder, ForcingQuadrature::Left),
+        (Discretisation::FirstOrder, ForcingQuadrature::Right),
+        (Discretisation::FirstOrder, ForcingQuadrature::Midpoint),
+        (Discretisation::Midpoint, ForcingQuadrature::Right),
     ] {
-        let st = VarIntStages::new::<3, 2, 5, 2>(&wip, p.h, q);
+        let st = VarIntStages::new::<3, 2, 5, 2>(&wip, p.h, q).with_discretisation(d);
         for k in [0, 1, 700, 2100, 4234] {
             for perturb in [0.0, 0.3] {
                 let x: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
@@ -54,7 +55,7 @@ fn structured_equality_jacobian_equals_generic() {
                     .max((e - e_ref).amax());
                 assert!(
                     err <= ROUND_OFF * scale,
-                    "{q:?}, stage {k}, perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
+                    "{d:?} {q:?}, stage {k}, perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
                 );
             }
         }

@@ -2,7 +2,7 @@
 //! and their stage Jacobians by dual numbers agree with central differences.
 
 use dmech::continuous::{ContinuousModel, ContinuousState};
-use dmech::{ForcingQuadrature, RungeKutta, VariationalIntegrator, ViState};
+use dmech::{Discretisation, ForcingQuadrature, RungeKutta, VariationalIntegrator, ViState};
 use dmech_lie::LieGroup;
 use dmech_ocp::runge_kutta::RkStages;
 use dmech_ocp::varint::VarIntStages;
@@ -32,14 +32,22 @@ fn u_at(k: usize) -> SVector<f64, 2> {
 /// the stage equality to Newton's tolerance times the Jacobian's scale
 /// (‖J‖ ≈ I_m n_wm²/h² ≈ 30, tol·(1 + ‖v‖) ≈ 1e-11 → 3e-10; 1e-8 leaves room for the
 /// round-off of recomputing s_{k−1} = s_k − h v_{k−1}).
+/// Both discretisations.
 #[test]
 fn vi_trajectory_satisfies_the_vi_transcription() {
+    for d in [Discretisation::FirstOrder, Discretisation::Midpoint] {
+        vi_trajectory_satisfies_its_transcription(d);
+    }
+}
+
+fn vi_trajectory_satisfies_its_transcription(d: Discretisation) {
     let w = Wip::default();
     let h = 0.005;
-    let st = VarIntStages::new::<3, 2, 5, 2>(&w, h, ForcingQuadrature::Right);
+    let st =
+        VarIntStages::new::<3, 2, 5, 2>(&w, h, ForcingQuadrature::Right).with_discretisation(d);
     let x0 = ReducedState::from_column_slice(&[0.5, 0.2, 0.3, 0.05, 0.1, 0.2, 0.3, 0.1, 0.0]);
     let (g, s, v) = from_reduced(&w.params, &x0, [0.0; 4]);
-    let vi = VariationalIntegrator::new(h);
+    let vi = VariationalIntegrator::new(h).with_discretisation(d);
     let mut traj = vec![ViState { g, s, v }];
     for k in 0..400 {
         let next = vi
@@ -58,7 +66,7 @@ fn vi_trajectory_satisfies_the_vi_transcription() {
         worst_dyn = worst_dyn.max((got - want).amax() / (1.0 + want.amax()));
         worst_eq = worst_eq.max(st.equality::<f64, 3, 2, 5, 2, 15, 7>(&xk, &wk).amax());
     }
-    println!("VI transcription: dynamics {worst_dyn:.2e} (relative), equality {worst_eq:.2e}");
+    println!("{d:?} transcription: dynamics {worst_dyn:.2e} (relative), equality {worst_eq:.2e}");
     assert!(worst_dyn < 4.0 * f64::EPSILON);
     assert!(worst_eq < 1e-8);
 }

@@ -13,7 +13,7 @@ use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::{arc_lengths, PlanProblem};
 use super::simulate::Integrator;
 use super::Wip;
-use dmech::{ForcingQuadrature, PrincipalKinematicSystem, RungeKutta};
+use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult, Solver};
 use dmech_ocp::problem::{StageProblem, StateEquality};
@@ -240,6 +240,11 @@ impl<'a, M: PlanModel<NS>, const NS: usize> VarIntPlan<'a, M, NS> {
             },
             stages: VarIntStages::new::<3, 2, NS, 2>(model, problem.h, ForcingQuadrature::Right),
         }
+    }
+    /// The same plan on another discretisation of the LDAP principle.
+    pub fn with_discretisation(mut self, discretisation: Discretisation) -> Self {
+        self.stages = self.stages.with_discretisation(discretisation);
+        self
     }
 }
 
@@ -575,16 +580,17 @@ pub struct PlannedTrajectory {
 /// Which transcription a plan uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Transcription {
-    VarInt,
+    /// The variational integrator: the paper's first-order scheme or the midpoint one.
+    VarInt(Discretisation),
     Rk(RungeKutta),
 }
 
-/// The same names as the simulator's integrators (`varint`, `rk1`, `rk2`, `rk4`).
+/// The same names as the simulator's integrators (`varint`, `midpoint`, `rk1`, `rk2`, `rk4`).
 impl std::str::FromStr for Transcription {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
         Ok(match s.parse::<Integrator>()? {
-            Integrator::VarInt { .. } => Transcription::VarInt,
+            Integrator::VarInt { discretisation, .. } => Transcription::VarInt(discretisation),
             Integrator::Rk(rk) => Transcription::Rk(rk),
         })
     }
@@ -729,8 +735,8 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
     let models = friction_continuation(model, stiff_explicit && M::CURRENT_DYNAMICS);
     let h = problem.h;
     match transcription {
-        Transcription::VarInt => {
-            let r = mesh_sequence::<M, NS, NX, NW>(model, &models, problem, bounds, opts);
+        Transcription::VarInt(disc) => {
+            let r = mesh_sequence::<M, NS, NX, NW>(model, &models, problem, bounds, disc, opts);
             outcome::<M, NS, NX, NW>(model, r, h, true)
         }
         Transcription::Rk(rk) => {
@@ -780,6 +786,7 @@ fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: u
     models: &[M],
     problem: &PlanProblem,
     bounds: PlanBounds,
+    disc: Discretisation,
     opts: IpOptions,
 ) -> SolveResult<NX, NW, NC> {
     // Coarsest first, the problem itself last.
@@ -814,7 +821,7 @@ fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: u
         let (xs, ws) = varint_start::<M, NS, NX, NW>(model, mesh);
         let plans: Vec<_> = models
             .iter()
-            .map(|m| VarIntPlan::<M, NS>::new(m, mesh, bounds))
+            .map(|m| VarIntPlan::<M, NS>::new(m, mesh, bounds).with_discretisation(disc))
             .collect();
         continuation::<_, NX, NW, NS, 2>(&plans, xs, ws, o)
     };
@@ -828,7 +835,7 @@ fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: u
         }
         announce(j);
         let mesh = &meshes[j];
-        let plan = VarIntPlan::<M, NS>::new(model, mesh, bounds);
+        let plan = VarIntPlan::<M, NS>::new(model, mesh, bounds).with_discretisation(disc);
         // The cost is summed over stages without a factor h: the cost-to-go, and with it
         // λ and the waypoints' multipliers, scale with the number of stages.
         let dual_scale = mesh.n as f64 / meshes[j - 1].n as f64;
