@@ -1,10 +1,10 @@
 //! One variational-integrator step of the WIP, and 20 s (4,000 steps at h = 5 ms) with the
-//! VI and with RK4 on the continuous model. Scenario: default parameters, released at a
+//! VI (first-order and midpoint) and with RK4 on the continuous model. Scenario: default parameters, released at a
 //! tilt of 0.05 rad with time-varying voltages: the robot falls and swings about its axle,
 //! so every step does real Newton work.
 use criterion::{criterion_group, criterion_main, Criterion};
 use dmech::continuous::RungeKutta;
-use dmech::{ForcingQuadrature, JacobianPolicy, VariationalIntegrator, ViState};
+use dmech::{Discretisation, ForcingQuadrature, JacobianPolicy, VariationalIntegrator, ViState};
 use nalgebra::SVector;
 use robots::wip::simulate::{simulate, InputSchedule, Integrator};
 use robots::wip::state::from_reduced;
@@ -44,6 +44,7 @@ fn bench(c: &mut Criterion) {
         (
             "varint h=5ms, exact Jacobian at every Newton iterate",
             Integrator::VarInt {
+                discretisation: Discretisation::FirstOrder,
                 quadrature: ForcingQuadrature::Right,
                 jacobian: JacobianPolicy::Exact,
             },
@@ -53,6 +54,12 @@ fn bench(c: &mut Criterion) {
         (
             "varint h=5ms, exact Jacobian reused across steps (default)",
             Integrator::varint(),
+            0.005,
+            4000,
+        ),
+        (
+            "midpoint h=5ms, exact Jacobian reused across steps",
+            Integrator::midpoint(),
             0.005,
             4000,
         ),

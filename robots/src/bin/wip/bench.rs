@@ -94,6 +94,7 @@ fn paper_time(i: IntegratorArg, c: CurrentModel) -> Option<f64> {
         (Rk2, Algebraic) => Some(710.0),
         (Rk4, Algebraic) => Some(776.0),
         (Varint, Algebraic) => Some(688.0),
+        (Midpoint, _) => None,
     }
 }
 

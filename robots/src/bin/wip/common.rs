@@ -89,6 +89,8 @@ pub fn positive_count(s: &str) -> Result<usize, String> {
 pub enum IntegratorArg {
     /// The variational integrator (first order, right-point forcing).
     Varint,
+    /// The symmetric variational integrator (midpoint: second order, reversible).
+    Midpoint,
     /// Explicit Euler on the continuous model.
     Rk1,
     /// Explicit midpoint on the continuous model.
@@ -101,6 +103,7 @@ impl IntegratorArg {
     pub fn name(self) -> &'static str {
         match self {
             IntegratorArg::Varint => "varint",
+            IntegratorArg::Midpoint => "midpoint",
             IntegratorArg::Rk1 => "rk1",
             IntegratorArg::Rk2 => "rk2",
             IntegratorArg::Rk4 => "rk4",
