@@ -119,7 +119,9 @@ impl<F, const DOF: usize, const DIM: usize, const NS: usize> RandomSystem<F, DOF
                     .collect()
             })
             .collect();
-        let phase = (0..NS).map(|_| rng.range(0.0, std::f64::consts::TAU)).collect();
+        let phase = (0..NS)
+            .map(|_| rng.range(0.0, std::f64::consts::TAU))
+            .collect();
         let k = (0..NS)
             .map(|i| if cyclic(i) { 0.0 } else { rng.range(0.5, 2.0) })
             .collect();
