@@ -14,6 +14,9 @@
 //! - [`runge_kutta`]: `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`; the dynamics
 //!   are one RK1/RK2/RK4 step of the continuous model; no stage equality.
 //!
+//! - [`transcription`]: a robot's problem in typed terms ([`transcription::Stage`],
+//!   [`transcription::Condition`]) transcribed once for every discretisation: what a robot
+//!   implements to plan.
 //! - [`refine`]: a VI iterate carried to a finer mesh, the start of mesh sequencing.
 //!
 //! All stage functions are generic over the scalar, so their exact Jacobians and Hessians
@@ -28,4 +31,5 @@ pub mod riccati;
 pub mod runge_kutta;
 #[cfg(test)]
 mod test_rng;
+pub mod transcription;
 pub mod varint;

@@ -13,14 +13,15 @@ use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::{arc_lengths, PlanProblem};
 use super::simulate::Integrator;
 use super::Wip;
-use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem, RungeKutta};
+use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult, Solver};
-use dmech_ocp::problem::{StageProblem, StateEquality};
+use dmech_ocp::problem::StageProblem;
 use dmech_ocp::refine::refine_varint_iterate;
-use dmech_ocp::runge_kutta::RkStages;
-use dmech_ocp::varint::VarIntStages;
-use nalgebra::{SMatrix, SVector};
+use dmech_ocp::transcription::{
+    Condition, PlanningProblem, Quantity, RkTranscription, Stage, StartState, VarIntTranscription,
+};
+use nalgebra::SVector;
 
 /// Stage state size of the full model (`NS = 5`).
 pub const NX: usize = 15;
@@ -112,14 +113,6 @@ pub struct WipPlan<'a, M> {
 }
 
 impl<M> WipPlan<'_, M> {
-    fn x0<const NX: usize>(&self) -> SVector<f64, NX> {
-        let mut x = SVector::zeros();
-        x[0] = self.problem.points[0][0];
-        x[1] = self.problem.points[0][1];
-        x[2] = self.problem.start_heading;
-        x
-    }
-
     fn bounds_vec(&self) -> (SVector<f64, NC>, SVector<f64, NC>) {
         let b = &self.bounds;
         let hi = SVector::<f64, NC>::from_column_slice(&[
@@ -135,39 +128,39 @@ impl<M> WipPlan<'_, M> {
         (-hi, hi)
     }
 
-    /// Waypoint positions at their stages; at the end the full pose, `α = 0` and the shape
-    /// velocity zero (velocities and, in the full model, currents), `v` at `3 + NS`.
-    fn equalities<const NS: usize>(&self) -> Vec<StateEquality> {
+    /// Waypoint positions at their stages; at the end the full pose, `α = 0` and the
+    /// arriving shape velocity zero (velocities and, in the full model, currents).
+    fn conditions<const NS: usize>(&self) -> Vec<Condition> {
         let p = self.problem;
-        let mut eqs = Vec::new();
+        let mut conds = Vec::new();
         for (pt, &k) in p.points.iter().zip(&p.stages) {
             if k == 0 || k == p.n {
                 continue;
             }
             for (i, &value) in pt.iter().enumerate() {
-                eqs.push(StateEquality {
+                conds.push(Condition {
                     stage: k,
-                    index: i,
+                    quantity: Quantity::Pose(i),
                     value,
                 });
             }
         }
         let end = p.points.last().expect("at least two points");
-        let mut fix = |index, value| {
-            eqs.push(StateEquality {
+        let mut fix = |quantity, value| {
+            conds.push(Condition {
                 stage: p.n,
-                index,
+                quantity,
                 value,
             })
         };
-        fix(0, end[0]);
-        fix(1, end[1]);
-        fix(2, p.end_heading);
-        fix(3, 0.0);
+        fix(Quantity::Pose(0), end[0]);
+        fix(Quantity::Pose(1), end[1]);
+        fix(Quantity::Pose(2), p.end_heading);
+        fix(Quantity::Shape(0), 0.0);
         for i in 0..NS {
-            fix(3 + NS + i, 0.0);
+            fix(Quantity::Velocity(i), 0.0);
         }
-        eqs
+        conds
     }
 }
 
@@ -219,173 +212,73 @@ impl<M> WipPlan<'_, M> {
     }
 }
 
-/// Compile-time check of the stage layout `NX = 2 NS + 5`.
-const fn layout_ok(ns: usize, nx: usize) -> bool {
-    nx == 2 * ns + 5
-}
-
-/// The VI transcription: `NW = NS + 2` (`v_k`, `u_k`), `NE = NS` (momentum matching).
-pub struct VarIntPlan<'a, M, const NS: usize> {
-    pub plan: WipPlan<'a, M>,
-    pub stages: VarIntStages<'a, M>,
-}
-
-impl<'a, M: PlanModel<NS>, const NS: usize> VarIntPlan<'a, M, NS> {
-    pub fn new(model: &'a M, problem: &'a PlanProblem, bounds: PlanBounds) -> Self {
-        VarIntPlan {
-            plan: WipPlan {
-                model,
-                problem,
-                bounds,
-            },
-            stages: VarIntStages::new::<3, 2, NS, 2>(model, problem.h, ForcingQuadrature::Right),
-        }
-    }
-    /// The same plan on another discretisation of the LDAP principle.
-    pub fn with_discretisation(mut self, discretisation: Discretisation) -> Self {
-        self.stages = self.stages.with_discretisation(discretisation);
-        self
-    }
-}
-
-impl<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>
-    StageProblem<NX, NW, NS, NC> for VarIntPlan<'_, M, NS>
-{
+/// The WIP's problem in the toolkit's terms: cost and inequalities read the stage's
+/// velocity, tilt, inputs and previous inputs; waypoints and the end state are conditions.
+impl<M: PlanModel<NS>, const NS: usize> PlanningProblem<3, NS, 2, NC> for WipPlan<'_, M> {
     fn horizon(&self) -> usize {
-        const { assert!(layout_ok(NS, NX) && NW == NS + 2) };
-        self.plan.problem.n
+        self.problem.n
     }
-    fn initial_state(&self) -> SVector<f64, NX> {
-        self.plan.x0()
+    fn start(&self) -> StartState<3, NS, 2> {
+        let p = self.problem;
+        StartState::at_rest(
+            SVector::<f64, 3>::new(p.points[0][0], p.points[0][1], p.start_heading),
+            SVector::zeros(),
+        )
     }
-    fn dynamics<T: Real>(
-        &self,
-        _k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NX> {
-        self.stages.dynamics::<T, 3, 2, NS, 2, NX, NW>(x, w)
+    fn cost<T: Real>(&self, _k: usize, stage: &Stage<T, 3, NS, 2>) -> T {
+        self.cost(&stage.velocity, &stage.input)
     }
-    fn equality<T: Real>(
-        &self,
-        _k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NS> {
-        self.stages.equality::<T, 3, 2, NS, 2, NX, NW>(x, w)
+    fn constraints<T: Real>(&self, _k: usize, stage: &Stage<T, 3, NS, 2>) -> SVector<T, NC> {
+        let u_prev = [stage.previous_input[0], stage.previous_input[1]];
+        self.constraints(&stage.velocity, stage.shape[0], &stage.input, u_prev)
     }
-    fn affine_in_state(&self) -> bool {
-        // The cost reads w only; the inequalities read α and u_{k−1} linearly.
+    fn bounds(&self, _k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
+        self.bounds_vec()
+    }
+    fn conditions(&self) -> Vec<Condition> {
+        self.conditions::<NS>()
+    }
+    fn affine_in_configuration(&self) -> bool {
+        // The cost reads velocity and input only; the inequalities read α and u_{k−1}
+        // linearly.
         true
     }
-    fn equality_jacobian(
-        &self,
-        _k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
-        self.stages.equality_jacobian::<3, 2, NS, 2, NX, NW>(x, w)
-    }
-    fn cost<T: Real>(&self, _k: usize, _x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
-        let (v, u) = (
-            w.fixed_rows::<NS>(0).into_owned(),
-            w.fixed_rows::<2>(NS).into_owned(),
-        );
-        self.plan.cost(&v, &u)
-    }
-    fn constraints<T: Real>(
-        &self,
-        _k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NC> {
-        let (v, u) = (
-            w.fixed_rows::<NS>(0).into_owned(),
-            w.fixed_rows::<2>(NS).into_owned(),
-        );
-        let u_prev = [x[3 + 2 * NS], x[4 + 2 * NS]];
-        self.plan.constraints(&v, x[3], &u, u_prev)
-    }
-    fn bounds(&self, _k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
-        self.plan.bounds_vec()
-    }
-    fn state_equalities(&self) -> Vec<StateEquality> {
-        self.plan.equalities::<NS>()
-    }
 }
 
-/// The Runge–Kutta transcriptions: `NW = 2` (`u_k`), no stage equality.
-pub struct RkPlan<'a, M, const NS: usize> {
-    pub plan: WipPlan<'a, M>,
-    pub stages: RkStages<'a, M>,
+/// The WIP on a variational integrator (first order or midpoint).
+pub type VarIntPlan<'a, M> = VarIntTranscription<'a, M, WipPlan<'a, M>, 3, 2, 3, 2>;
+
+/// The WIP on a Runge–Kutta step.
+pub type RkPlan<'a, M, const NS: usize> = RkTranscription<'a, M, WipPlan<'a, M>, 3, 2, 3, NS>;
+
+/// The first-order VI plan of `problem` for `model` (the paper's transcription).
+pub fn varint_plan<'a, M: PlanModel<NS>, const NS: usize>(
+    model: &'a M,
+    problem: &'a PlanProblem,
+    bounds: PlanBounds,
+    discretisation: Discretisation,
+) -> VarIntPlan<'a, M> {
+    let plan = WipPlan {
+        model,
+        problem,
+        bounds,
+    };
+    VarIntTranscription::new::<NS>(model, plan, problem.h, discretisation)
 }
 
-impl<'a, M: PlanModel<NS>, const NS: usize> RkPlan<'a, M, NS> {
-    pub fn new(model: &'a M, problem: &'a PlanProblem, bounds: PlanBounds, rk: RungeKutta) -> Self {
-        RkPlan {
-            plan: WipPlan {
-                model,
-                problem,
-                bounds,
-            },
-            stages: RkStages::new::<3, 2, NS, 2>(model, problem.h, rk),
-        }
-    }
-}
-
-impl<M: PlanModel<NS>, const NS: usize, const NX: usize> StageProblem<NX, 2, 0, NC>
-    for RkPlan<'_, M, NS>
-{
-    fn horizon(&self) -> usize {
-        const { assert!(layout_ok(NS, NX)) };
-        self.plan.problem.n
-    }
-    fn initial_state(&self) -> SVector<f64, NX> {
-        self.plan.x0()
-    }
-    fn dynamics<T: Real>(
-        &self,
-        _k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, 2>,
-    ) -> SVector<T, NX> {
-        self.stages.dynamics::<T, 3, 2, NS, 2, NX, 2>(x, w)
-    }
-    fn dynamics_jacobian(
-        &self,
-        _k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, 2>,
-    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, 2>) {
-        self.stages.dynamics_jacobian::<3, 2, NS, 2, NX, 2>(x, w)
-    }
-    fn equality<T: Real>(
-        &self,
-        _k: usize,
-        _x: &SVector<T, NX>,
-        _w: &SVector<T, 2>,
-    ) -> SVector<T, 0> {
-        SVector::<T, 0>::zeros()
-    }
-    fn cost<T: Real>(&self, _k: usize, x: &SVector<T, NX>, w: &SVector<T, 2>) -> T {
-        self.plan.cost(&x.fixed_rows::<NS>(3 + NS).into_owned(), w)
-    }
-    fn constraints<T: Real>(
-        &self,
-        _k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, 2>,
-    ) -> SVector<T, NC> {
-        let v = x.fixed_rows::<NS>(3 + NS).into_owned();
-        let u_prev = [x[3 + 2 * NS], x[4 + 2 * NS]];
-        self.plan.constraints(&v, x[3], w, u_prev)
-    }
-    fn bounds(&self, _k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
-        self.plan.bounds_vec()
-    }
-    fn state_equalities(&self) -> Vec<StateEquality> {
-        self.plan.equalities::<NS>()
-    }
+/// The RK plan of `problem` for `model`.
+pub fn rk_plan<'a, M: PlanModel<NS>, const NS: usize>(
+    model: &'a M,
+    problem: &'a PlanProblem,
+    bounds: PlanBounds,
+    rk: RungeKutta,
+) -> RkPlan<'a, M, NS> {
+    let plan = WipPlan {
+        model,
+        problem,
+        bounds,
+    };
+    RkTranscription::new::<2>(model, plan, problem.h, rk)
 }
 
 /// A start along the waypoint polyline: the arc length is a monotone cubic in time through
@@ -743,7 +636,7 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
             let (xs, ws) = rk_start::<M, NS, NX>(model, problem);
             let plans: Vec<_> = models
                 .iter()
-                .map(|m| RkPlan::<M, NS>::new(m, problem, bounds, rk))
+                .map(|m| rk_plan::<M, NS>(m, problem, bounds, rk))
                 .collect();
             let r = continuation::<_, NX, 2, 0, 2>(&plans, xs, ws, opts);
             outcome::<M, NS, NX, 2>(model, r, h, false)
@@ -821,7 +714,7 @@ fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: u
         let (xs, ws) = varint_start::<M, NS, NX, NW>(model, mesh);
         let plans: Vec<_> = models
             .iter()
-            .map(|m| VarIntPlan::<M, NS>::new(m, mesh, bounds).with_discretisation(disc))
+            .map(|m| varint_plan::<M, NS>(m, mesh, bounds, disc))
             .collect();
         continuation::<_, NX, NW, NS, 2>(&plans, xs, ws, o)
     };
@@ -835,7 +728,7 @@ fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: u
         }
         announce(j);
         let mesh = &meshes[j];
-        let plan = VarIntPlan::<M, NS>::new(model, mesh, bounds).with_discretisation(disc);
+        let plan = varint_plan::<M, NS>(model, mesh, bounds, disc);
         // The cost is summed over stages without a factor h: the cost-to-go, and with it
         // λ and the waypoints' multipliers, scale with the number of stages.
         let dual_scale = mesh.n as f64 / meshes[j - 1].n as f64;

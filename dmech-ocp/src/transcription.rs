@@ -1,0 +1,409 @@
+//! A robot's planning problem in typed terms, and its transcription into a
+//! [`StageProblem`] for every discretisation: the first-order and midpoint variational
+//! integrators ([`VarIntTranscription`]) and RK1/2/4 ([`RkTranscription`]).
+//!
+//! A robot supplies a [`PlanningProblem`]: its cost and path constraints over a [`Stage`]
+//! (pose, shape, velocity, input, previous input: named fields, no offsets), their
+//! bounds, the start, and [`Condition`]s on any pose, shape or velocity component at any
+//! stage (waypoints, the end state). The transcription owns the stage layout: where each
+//! quantity sits in the solver's `x_k` and `w_k`, which differs between the
+//! discretisations (the variational integrators decide `w_k = (v_k, u_k)` and carry
+//! `v_{k−1}` in the state; Runge–Kutta carries `v_k` in the state and decides `w_k = u_k`).
+//!
+//! Sizes: `NP` pose coordinates (`coords(g)`), `NS` shape, `NU` inputs, `NC` path
+//! constraints. The solver's `NX = NP + 2 NS + NU`; `NW = NS + NU` (variational) or `NU`
+//! (Runge–Kutta).
+
+use crate::layout::{segment, Layout};
+use crate::problem::{StageProblem, StateEquality};
+use crate::runge_kutta::RkStages;
+use crate::varint::VarIntStages;
+use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem, RungeKutta};
+use dmech_lie::Real;
+use nalgebra::{SMatrix, SVector};
+use std::marker::PhantomData;
+
+/// What a robot's cost and constraints read at stage `k`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stage<T, const NP: usize, const NS: usize, const NU: usize> {
+    /// `coords(g_k)`: the pose's coordinates (SE(2): `x, y, θ`).
+    pub pose: SVector<T, NP>,
+    /// `s_k`.
+    pub shape: SVector<T, NS>,
+    /// The shape velocity leaving stage `k`: `v_k` on `[t_k, t_{k+1})` (variational) or
+    /// `v(t_k)` (Runge–Kutta).
+    pub velocity: SVector<T, NS>,
+    /// `u_k`, held on `[t_k, t_{k+1})`.
+    pub input: SVector<T, NU>,
+    /// `u_{k−1}` (zero before the start), for rate limits.
+    pub previous_input: SVector<T, NU>,
+}
+
+/// The state a plan starts from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StartState<const NP: usize, const NS: usize, const NU: usize> {
+    pub pose: SVector<f64, NP>,
+    pub shape: SVector<f64, NS>,
+    /// The velocity the robot has arrived with (zero: at rest).
+    pub velocity: SVector<f64, NS>,
+    /// The input before the start.
+    pub previous_input: SVector<f64, NU>,
+}
+
+impl<const NP: usize, const NS: usize, const NU: usize> StartState<NP, NS, NU> {
+    /// At rest at `pose` and `shape`, no input before the start.
+    pub fn at_rest(pose: SVector<f64, NP>, shape: SVector<f64, NS>) -> Self {
+        StartState {
+            pose,
+            shape,
+            velocity: SVector::zeros(),
+            previous_input: SVector::zeros(),
+        }
+    }
+}
+
+/// A state component a [`Condition`] fixes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Quantity {
+    /// Pose coordinate `i`.
+    Pose(usize),
+    /// Shape component `i`.
+    Shape(usize),
+    /// Velocity component `i` *arriving* at the stage: `v_{k−1}` (variational) or `v(t_k)`
+    /// (Runge–Kutta). `Velocity(i) = 0` at the last stage says "arrive at rest" in both.
+    Velocity(usize),
+    /// Component `i` of the input before the stage, `u_{k−1}`.
+    PreviousInput(usize),
+}
+
+/// `quantity = value` at `stage` (`stage = N` is the end).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Condition {
+    pub stage: usize,
+    pub quantity: Quantity,
+    pub value: f64,
+}
+
+/// A robot's planning problem, in the terms of [`Stage`].
+pub trait PlanningProblem<const NP: usize, const NS: usize, const NU: usize, const NC: usize>:
+    Sync
+{
+    /// The number of steps `N`.
+    fn horizon(&self) -> usize;
+    /// The start state.
+    fn start(&self) -> StartState<NP, NS, NU>;
+    /// The running cost of stage `k` (`k < N`).
+    fn cost<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>) -> T;
+    /// The path constraints of stage `k`, bounded by [`PlanningProblem::bounds`].
+    fn constraints<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>) -> SVector<T, NC>;
+    /// `(lo, hi)`; infinite entries mean "no bound".
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>);
+    /// Waypoints and the end state, any order.
+    fn conditions(&self) -> Vec<Condition>;
+    /// `true` if the cost and the constraints are affine in the pose, the shape and the
+    /// previous input, and those multiply neither the velocity nor the input. A variational
+    /// transcription then tells the solver its cost is affine in the state (which saves
+    /// two of three second-order passes). Default `false`.
+    fn affine_in_configuration(&self) -> bool {
+        false
+    }
+}
+
+/// Where each quantity of a stage state sits in the solver's `x_k`: the same for every
+/// transcription (`coords(g)`, `s`, the state's velocity, `u_{k−1}`).
+pub fn state_index(layout: Layout, quantity: Quantity) -> usize {
+    let (offset, i, n) = match quantity {
+        Quantity::Pose(i) => (0, i, layout.nc),
+        Quantity::Shape(i) => (layout.s_at(), i, layout.ns),
+        Quantity::Velocity(i) => (layout.v_at(), i, layout.ns),
+        Quantity::PreviousInput(i) => (layout.u_at(), i, layout.nu),
+    };
+    assert!(
+        i < n,
+        "{quantity:?} is out of range for the system ({n} components)"
+    );
+    offset + i
+}
+
+/// The conditions as the solver's state equalities, in the problem's order.
+pub fn state_equalities(layout: Layout, conditions: &[Condition]) -> Vec<StateEquality> {
+    conditions
+        .iter()
+        .map(|c| StateEquality {
+            stage: c.stage,
+            index: state_index(layout, c.quantity),
+            value: c.value,
+        })
+        .collect()
+}
+
+/// `x_0` from the start state.
+fn initial_state<const NP: usize, const NS: usize, const NU: usize, const NX: usize>(
+    layout: Layout,
+    start: &StartState<NP, NS, NU>,
+) -> SVector<f64, NX> {
+    let mut x = SVector::<f64, NX>::zeros();
+    x.fixed_rows_mut::<NP>(0).copy_from(&start.pose);
+    x.fixed_rows_mut::<NS>(layout.s_at())
+        .copy_from(&start.shape);
+    x.fixed_rows_mut::<NS>(layout.v_at())
+        .copy_from(&start.velocity);
+    x.fixed_rows_mut::<NU>(layout.u_at())
+        .copy_from(&start.previous_input);
+    x
+}
+
+/// A robot's problem on a variational integrator (first order or midpoint):
+/// `x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`, `w_k = (v_k, u_k)`, stage equality = the
+/// momentum matching of node `k`.
+pub struct VarIntTranscription<
+    'a,
+    S,
+    P,
+    const DOF: usize,
+    const DIM: usize,
+    const NP: usize,
+    const NU: usize,
+> {
+    pub stages: VarIntStages<'a, S>,
+    pub problem: P,
+    _sizes: PhantomData<[(); DOF]>,
+    _dim: PhantomData<[(); DIM]>,
+}
+
+impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: usize>
+    VarIntTranscription<'a, S, P, DOF, DIM, NP, NU>
+{
+    /// `problem` on `sys` at step `h`, right-point forcing (the first-order scheme's
+    /// default), with the given discretisation.
+    pub fn new<const NS: usize>(
+        sys: &'a S,
+        problem: P,
+        h: f64,
+        discretisation: Discretisation,
+    ) -> Self
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let stages = VarIntStages::new::<DOF, DIM, NS, NU>(sys, h, ForcingQuadrature::Right)
+            .with_discretisation(discretisation);
+        assert_eq!(
+            stages.layout.nc, NP,
+            "NP must be the group's number of coordinates"
+        );
+        VarIntTranscription {
+            stages,
+            problem,
+            _sizes: PhantomData,
+            _dim: PhantomData,
+        }
+    }
+
+    /// The typed view of `(x_k, w_k)`.
+    pub fn stage<T: Real, const NS: usize, const NX: usize, const NW: usize>(
+        &self,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> Stage<T, NP, NS, NU> {
+        let l = self.stages.layout;
+        Stage {
+            pose: segment(x, 0),
+            shape: segment(x, l.s_at()),
+            velocity: segment(w, 0),
+            input: segment(w, NS),
+            previous_input: segment(x, l.u_at()),
+        }
+    }
+}
+
+impl<
+        S,
+        P,
+        const DOF: usize,
+        const DIM: usize,
+        const NP: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+        const NC: usize,
+    > StageProblem<NX, NW, NS, NC> for VarIntTranscription<'_, S, P, DOF, DIM, NP, NU>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+    P: PlanningProblem<NP, NS, NU, NC>,
+{
+    fn horizon(&self) -> usize {
+        self.stages.layout.check(NX, NW, NS + NU);
+        self.problem.horizon()
+    }
+    fn initial_state(&self) -> SVector<f64, NX> {
+        initial_state(self.stages.layout, &self.problem.start())
+    }
+    fn dynamics<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NX> {
+        self.stages.dynamics::<T, DOF, DIM, NS, NU, NX, NW>(x, w)
+    }
+    fn equality<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NS> {
+        self.stages.equality::<T, DOF, DIM, NS, NU, NX, NW>(x, w)
+    }
+    fn equality_jacobian(
+        &self,
+        _k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
+        self.stages
+            .equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w)
+    }
+    fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
+        self.problem.cost(k, &self.stage::<T, NS, NX, NW>(x, w))
+    }
+    fn constraints<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NC> {
+        self.problem
+            .constraints(k, &self.stage::<T, NS, NX, NW>(x, w))
+    }
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
+        self.problem.bounds(k)
+    }
+    fn state_equalities(&self) -> Vec<StateEquality> {
+        state_equalities(self.stages.layout, &self.problem.conditions())
+    }
+    fn affine_in_state(&self) -> bool {
+        // The state holds pose, shape, v_{k−1} and u_{k−1}; the view exposes no v_{k−1}.
+        self.problem.affine_in_configuration()
+    }
+}
+
+/// A robot's problem on an explicit Runge–Kutta step of the continuous model:
+/// `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`, no stage equality.
+pub struct RkTranscription<
+    'a,
+    S,
+    P,
+    const DOF: usize,
+    const DIM: usize,
+    const NP: usize,
+    const NS: usize,
+> {
+    pub stages: RkStages<'a, S>,
+    pub problem: P,
+    _sizes: PhantomData<[(); DOF]>,
+    _dim: PhantomData<[(); DIM]>,
+}
+
+impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NS: usize>
+    RkTranscription<'a, S, P, DOF, DIM, NP, NS>
+{
+    pub fn new<const NU: usize>(sys: &'a S, problem: P, h: f64, method: RungeKutta) -> Self
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let stages = RkStages::new::<DOF, DIM, NS, NU>(sys, h, method);
+        assert_eq!(
+            stages.layout.nc, NP,
+            "NP must be the group's number of coordinates"
+        );
+        RkTranscription {
+            stages,
+            problem,
+            _sizes: PhantomData,
+            _dim: PhantomData,
+        }
+    }
+
+    /// The typed view of `(x_k, w_k = u_k)`.
+    pub fn stage<T: Real, const NU: usize, const NX: usize>(
+        &self,
+        x: &SVector<T, NX>,
+        u: &SVector<T, NU>,
+    ) -> Stage<T, NP, NS, NU> {
+        let l = self.stages.layout;
+        Stage {
+            pose: segment(x, 0),
+            shape: segment(x, l.s_at()),
+            velocity: segment(x, l.v_at()),
+            input: *u,
+            previous_input: segment(x, l.u_at()),
+        }
+    }
+}
+
+impl<
+        S,
+        P,
+        const DOF: usize,
+        const DIM: usize,
+        const NP: usize,
+        const NS: usize,
+        const NX: usize,
+        const NU: usize,
+        const NC: usize,
+    > StageProblem<NX, NU, 0, NC> for RkTranscription<'_, S, P, DOF, DIM, NP, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+    P: PlanningProblem<NP, NS, NU, NC>,
+{
+    fn horizon(&self) -> usize {
+        self.stages.layout.check(NX, NU, NU);
+        self.problem.horizon()
+    }
+    fn initial_state(&self) -> SVector<f64, NX> {
+        initial_state(self.stages.layout, &self.problem.start())
+    }
+    fn dynamics<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, NX>,
+        u: &SVector<T, NU>,
+    ) -> SVector<T, NX> {
+        self.stages.dynamics::<T, DOF, DIM, NS, NU, NX, NU>(x, u)
+    }
+    fn dynamics_jacobian(
+        &self,
+        _k: usize,
+        x: &SVector<f64, NX>,
+        u: &SVector<f64, NU>,
+    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NU>) {
+        self.stages
+            .dynamics_jacobian::<DOF, DIM, NS, NU, NX, NU>(x, u)
+    }
+    fn equality<T: Real>(
+        &self,
+        _k: usize,
+        _x: &SVector<T, NX>,
+        _u: &SVector<T, NU>,
+    ) -> SVector<T, 0> {
+        SVector::zeros()
+    }
+    fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, u: &SVector<T, NU>) -> T {
+        self.problem.cost(k, &self.stage::<T, NU, NX>(x, u))
+    }
+    fn constraints<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        u: &SVector<T, NU>,
+    ) -> SVector<T, NC> {
+        self.problem.constraints(k, &self.stage::<T, NU, NX>(x, u))
+    }
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
+        self.problem.bounds(k)
+    }
+    fn state_equalities(&self) -> Vec<StateEquality> {
+        state_equalities(self.stages.layout, &self.problem.conditions())
+    }
+}
