@@ -17,6 +17,8 @@
 //! - [`transcription`]: a robot's problem in typed terms ([`transcription::Stage`],
 //!   [`transcription::Condition`]) transcribed once for every discretisation: what a robot
 //!   implements to plan.
+//! - [`kinematic_start`]: a start from a geometric pose path, with the shape motion that
+//!   realises it through the connection (a nonholonomic robot cannot follow any path).
 //! - [`refine`]: a VI iterate carried to a finer mesh, the start of mesh sequencing.
 //!
 //! All stage functions are generic over the scalar, so their exact Jacobians and Hessians
@@ -24,6 +26,7 @@
 
 pub mod derivatives;
 pub mod ipm;
+pub mod kinematic_start;
 pub mod layout;
 pub mod problem;
 pub mod refine;

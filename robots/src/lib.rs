@@ -1,6 +1,7 @@
-//! Robots built on `dmech`: the wheeled inverted pendulum (WIP) with DC motors, and the
-//! file formats of the `wip` tool.
+//! Robots built on `dmech`: the wheeled inverted pendulum (WIP) with DC motors, a
+//! front-wheel-steered car, and the file formats of their tools (`wip`, `car`).
 
+pub mod car;
 pub mod io;
 pub mod plot;
 pub mod wip;

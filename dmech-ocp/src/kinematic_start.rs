@@ -1,0 +1,241 @@
+//! A start for planning from a geometric pose path: the shape motion that realises the
+//! path through the connection, found by the solver itself, and the variational
+//! transcription's start built from it.
+//!
+//! A nonholonomic robot cannot follow an arbitrary pose path: its body velocity is
+//! `ξ = −A(s) v`. Given the path's poses `g_k` (e.g. a smooth curve with the heading along
+//! its tangent), the path's body velocities are `ξ̄_k = log(g_k⁻¹ g_{k+1})/h`, and the shape
+//! path is the least-squares solution of
+//! ```text
+//! min Σ_k |ξ̄_k + A(s_k + ½h v_k) v_k|² + Σ_i ρ_i v_{k,i}²,    s_{k+1} = s_k + h v_k,  s_0 given,
+//! ```
+//! a stage-structured problem with no constraints, solved by the same interior point
+//! (Riccati recursion, exact derivatives). Shape variables that do not enter `A` (a
+//! steering angle, say) are still determined where they change `A` along the path: the
+//! residual at stage `k` depends on `s_k` through `A`. The weights `ρ_i` (the robot's:
+//! they carry its units) keep the rest smooth and at rest where the path says nothing (a
+//! charge, or the steering while standing), and a variable that `A` reads through a
+//! periodic function (a steering angle through `tan`) on the branch it starts on.
+//!
+//! The start then rolls the poses forward from `g_0` with the solved shape motion, so it
+//! satisfies the transcription's dynamics exactly and the path only approximately; the
+//! inputs are zero.
+
+use crate::ipm::{IpOptions, SolveResult, Solver, Status};
+use crate::problem::{StageProblem, StateEquality};
+use dmech::PrincipalKinematicSystem;
+use dmech_lie::{LieGroup, Real};
+use nalgebra::SVector;
+use std::marker::PhantomData;
+
+/// The least-squares problem of the module's documentation: `x_k = s_k`, `w_k = v_k`.
+pub struct KinematicPath<'a, S, const DOF: usize, const DIM: usize, const NU: usize> {
+    pub sys: &'a S,
+    pub h: f64,
+    /// `ξ̄_k`, one per step.
+    pub body_velocities: Vec<SVector<f64, DOF>>,
+    pub regularisation: Vec<f64>,
+    s0: Vec<f64>,
+    _dim: PhantomData<[(); DIM]>,
+    _nu: PhantomData<[(); NU]>,
+}
+
+impl<'a, S, const DOF: usize, const DIM: usize, const NU: usize>
+    KinematicPath<'a, S, DOF, DIM, NU>
+{
+    /// The problem for the pose path `poses` (`N + 1` poses at step `h`) from shape `s0`.
+    pub fn new<const NS: usize>(
+        sys: &'a S,
+        h: f64,
+        poses: &[S::Group<f64>],
+        s0: &SVector<f64, NS>,
+        regularisation: &SVector<f64, NS>,
+    ) -> Self
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let body_velocities = poses
+            .windows(2)
+            .map(|p| p[0].inverse().compose(&p[1]).log() / h)
+            .collect();
+        KinematicPath {
+            sys,
+            h,
+            body_velocities,
+            regularisation: regularisation.iter().copied().collect(),
+            s0: s0.iter().copied().collect(),
+            _dim: PhantomData,
+            _nu: PhantomData,
+        }
+    }
+}
+
+impl<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>
+    StageProblem<NS, NS, 0, 0> for KinematicPath<'_, S, DOF, DIM, NU>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+{
+    fn horizon(&self) -> usize {
+        self.body_velocities.len()
+    }
+    fn initial_state(&self) -> SVector<f64, NS> {
+        SVector::from_fn(|i, _| self.s0[i])
+    }
+    fn dynamics<T: Real>(
+        &self,
+        _k: usize,
+        s: &SVector<T, NS>,
+        v: &SVector<T, NS>,
+    ) -> SVector<T, NS> {
+        s + v * T::from(self.h)
+    }
+    fn equality<T: Real>(
+        &self,
+        _k: usize,
+        _s: &SVector<T, NS>,
+        _v: &SVector<T, NS>,
+    ) -> SVector<T, 0> {
+        SVector::zeros()
+    }
+    fn cost<T: Real>(&self, k: usize, s: &SVector<T, NS>, v: &SVector<T, NS>) -> T {
+        let mid = s + v * T::from(0.5 * self.h);
+        let r = self.body_velocities[k].map(T::from) + self.sys.connection(&mid) * v;
+        let mut c = r.dot(&r);
+        for i in 0..NS {
+            c += v[i] * v[i] * self.regularisation[i];
+        }
+        c
+    }
+    fn constraints<T: Real>(
+        &self,
+        _k: usize,
+        _s: &SVector<T, NS>,
+        _v: &SVector<T, NS>,
+    ) -> SVector<T, 0> {
+        SVector::zeros()
+    }
+    fn bounds(&self, _k: usize) -> (SVector<f64, 0>, SVector<f64, 0>) {
+        (SVector::zeros(), SVector::zeros())
+    }
+    fn state_equalities(&self) -> Vec<StateEquality> {
+        Vec::new()
+    }
+}
+
+/// Why a kinematic start could not be built.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KinematicStartError {
+    pub status: Status,
+}
+
+impl std::fmt::Display for KinematicStartError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the shape motion along the start path was not found ({})",
+            self.status.code()
+        )
+    }
+}
+impl std::error::Error for KinematicStartError {}
+
+/// Solves [`KinematicPath`] for `poses` and returns the shape path `s_0 … s_N` and the
+/// velocities `v_0 … v_{N−1}`.
+#[allow(clippy::type_complexity)]
+pub fn shape_motion<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    sys: &S,
+    h: f64,
+    poses: &[S::Group<f64>],
+    s0: &SVector<f64, NS>,
+    regularisation: &SVector<f64, NS>,
+) -> Result<(Vec<SVector<f64, NS>>, Vec<SVector<f64, NS>>), KinematicStartError>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+{
+    let problem = KinematicPath::<S, DOF, DIM, NU>::new(sys, h, poses, s0, regularisation);
+    let n = problem.body_velocities.len();
+    let opts = IpOptions {
+        verbose: false,
+        ..IpOptions::default()
+    };
+    let solver: Solver<_, NS, NS, 0, NS, 0> = Solver::new(&problem, opts);
+    // The solver starts from the stage-wise answer: `v_k` the regularised least-squares
+    // solution at `s_k` alone, `s_{k+1} = s_k + h v_k`. From `v = 0` the residual does not
+    // see the shape variables that act through `A` (their derivative multiplies `v`), and
+    // the first Newton step moves them almost freely (a steering angle jumped a branch).
+    let mut xs = vec![*s0; n + 1];
+    let mut ws = vec![SVector::<f64, NS>::zeros(); n];
+    for k in 0..n {
+        let a = sys.connection(&xs[k]);
+        let normal = a.transpose() * a
+            + nalgebra::SMatrix::<f64, NS, NS>::from_diagonal(&SVector::from_fn(|i, _| {
+                regularisation[i]
+            }));
+        let rhs = -(a.transpose() * problem.body_velocities[k]);
+        ws[k] = dmech::linalg::Lu::new(&normal).map_or_else(SVector::zeros, |lu| lu.solve(&rhs));
+        xs[k + 1] = xs[k] + ws[k] * h;
+    }
+    let r: SolveResult<NS, NS, 0> = solver.solve(solver.initial_iterate(xs, ws));
+    if r.status != Status::Solved {
+        return Err(KinematicStartError { status: r.status });
+    }
+    Ok((r.iterate.x, r.iterate.w))
+}
+
+/// The variational transcription's start (`x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`,
+/// `w_k = (v_k, u_k)`, inputs zero) from the pose path `poses`: the shape motion of
+/// [`shape_motion`], and poses rolled forward from `poses[0]` with it by the scheme's group
+/// update (`ξ_k = −A(s_k + c h v_k) v_k`, `c = 0` first order, `½` midpoint).
+#[allow(clippy::type_complexity)]
+pub fn varint_start_from_path<
+    S,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+    const NX: usize,
+    const NW: usize,
+>(
+    sys: &S,
+    h: f64,
+    poses: &[S::Group<f64>],
+    s0: &SVector<f64, NS>,
+    regularisation: &SVector<f64, NS>,
+    discretisation: dmech::Discretisation,
+) -> Result<(Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>), KinematicStartError>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+{
+    let (s, v) = shape_motion::<S, DOF, DIM, NS, NU>(sys, h, poses, s0, regularisation)?;
+    let shift = match discretisation {
+        dmech::Discretisation::FirstOrder => 0.0,
+        dmech::Discretisation::Midpoint => 0.5 * h,
+    };
+    let mut g = poses[0];
+    let mut xs = Vec::with_capacity(s.len());
+    for k in 0..s.len() {
+        let coords = g.coordinates();
+        let nc = coords.len();
+        assert_eq!(NX, nc + 2 * NS + NU, "NX must be coords + 2 NS + NU");
+        let mut x = SVector::<f64, NX>::zeros();
+        for (i, c) in coords.iter().enumerate() {
+            x[i] = *c;
+        }
+        for i in 0..NS {
+            x[nc + i] = s[k][i];
+            if k > 0 {
+                x[nc + NS + i] = v[k - 1][i];
+            }
+        }
+        xs.push(x);
+        if k < v.len() {
+            let xi = -(sys.connection(&(s[k] + v[k] * shift)) * v[k]);
+            g = g.compose(&<S::Group<f64> as LieGroup<DOF, DIM>>::exp(&(xi * h)));
+        }
+    }
+    let ws = v
+        .iter()
+        .map(|vk| SVector::<f64, NW>::from_fn(|i, _| if i < NS { vk[i] } else { 0.0 }))
+        .collect();
+    Ok((xs, ws))
+}

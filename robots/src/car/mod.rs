@@ -1,0 +1,8 @@
+//! A front-wheel-steered, rear-wheel-driven car with a DC drive motor (`docs/car.md`): the
+//! second robot, built on the system traits and the planning toolkit alone.
+
+pub mod model;
+pub mod plan;
+pub mod problems;
+
+pub use model::{Car, CarParams};
