@@ -256,12 +256,25 @@ pub fn read_inputs(path: &Path) -> Result<InputSchedule, ReadError> {
 
 /// [`read_inputs`] on the file's text; `what` names the file in messages.
 pub fn parse_inputs(text: &str, what: &str) -> Result<InputSchedule, String> {
+    parse_input_columns(text, what, ["uR", "uL"])
+}
+
+/// An inputs file with columns `t` and the two named inputs (zero-order hold, from t = 0).
+pub fn parse_input_columns(
+    text: &str,
+    what: &str,
+    names: [&str; 2],
+) -> Result<InputSchedule, String> {
     let csv = parse_csv(text, what, false)?;
     let col = |n: &str| {
-        csv.column(n)
-            .ok_or_else(|| format!("{what}: missing column '{n}' (expected t,uR,uL)"))
+        csv.column(n).ok_or_else(|| {
+            format!(
+                "{what}: missing column '{n}' (expected t,{},{})",
+                names[0], names[1]
+            )
+        })
     };
-    let (ct, cr, cl) = (col("t")?, col("uR")?, col("uL")?);
+    let (ct, cr, cl) = (col("t")?, col(names[0])?, col(names[1])?);
     if csv.rows.is_empty() {
         return Err(format!("{what}: no data rows"));
     }

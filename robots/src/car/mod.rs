@@ -4,5 +4,7 @@
 pub mod model;
 pub mod plan;
 pub mod problems;
+pub mod report;
+pub mod simulate;
 
 pub use model::{Car, CarParams};

@@ -258,6 +258,8 @@ pub struct CarOutcome {
     pub max_violation: f64,
     pub solve_time_s: f64,
     pub h: f64,
+    /// The stage of every pose of the problem.
+    pub stages: Vec<usize>,
     pub x: Vec<SVector<f64, NX>>,
     pub w: Vec<SVector<f64, NW>>,
 }
@@ -272,7 +274,7 @@ pub fn plan(
     opts: IpOptions,
 ) -> Result<CarOutcome, String> {
     let plan = CarPlan::new(problem, bounds, h)?;
-    let n = plan.n;
+    let (n, stages) = (plan.n, plan.stages.clone());
     let path = start_path(problem, n);
     // ρ: the wheel rate shrinks by ρ/(ρ + r²) where the path sets it (r² = 2.5e-3):
     // 1e-6 is a 0.04 % shrink, and holds the charge at rest. The steering rate's 1e-4
@@ -299,6 +301,7 @@ pub fn plan(
         max_violation,
         solve_time_s: r.timings.total,
         h,
+        stages,
         x: r.iterate.x,
         w: r.iterate.w,
     })

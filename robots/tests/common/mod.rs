@@ -9,6 +9,10 @@ pub fn wip() -> Command {
     Command::new(env!("CARGO_BIN_EXE_wip"))
 }
 
+pub fn car() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_car"))
+}
+
 /// A fresh directory for one test (`name` keeps the tests of one file apart).
 pub fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("wip-test-{}-{name}", std::process::id()));

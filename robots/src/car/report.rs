@@ -1,0 +1,178 @@
+//! The car's result files: trajectory.csv, summary.json and the plots (`docs/car.md`).
+
+use super::model::{NS, NU};
+use super::plan::{CarBounds, CarOutcome};
+use super::problems::CarProblem;
+use crate::plot::{Plot, Series};
+use nalgebra::SVector;
+
+/// One row per stage: time, pose, shape, the velocity leaving the stage, the input held
+/// from it.
+#[derive(Clone, Debug, Default)]
+pub struct CarTrajectory {
+    pub t: Vec<f64>,
+    pub pose: Vec<[f64; 3]>,
+    pub shape: Vec<SVector<f64, NS>>,
+    pub velocity: Vec<SVector<f64, NS>>,
+    pub input: Vec<SVector<f64, NU>>,
+}
+
+/// The columns of trajectory.csv.
+pub const CSV_HEADER: &str = "t,x,y,theta,phi,psi,q,v_phi,v_psi,i,tau_s,u_d";
+
+impl CarTrajectory {
+    /// A plan's trajectory: `x_k = (pose, s_k, v_{k−1}, u_{k−1})`, `w_k = (v_k, u_k)`; the
+    /// last row at rest with the last input repeated.
+    pub fn from_plan(o: &CarOutcome) -> Self {
+        let n = o.w.len();
+        let mut t = CarTrajectory::default();
+        for k in 0..=n {
+            let x = &o.x[k];
+            let w = &o.w[k.min(n - 1)];
+            t.t.push(k as f64 * o.h);
+            t.pose.push([x[0], x[1], x[2]]);
+            t.shape.push(x.fixed_rows::<NS>(3).into_owned());
+            t.velocity.push(if k < n {
+                w.fixed_rows::<NS>(0).into_owned()
+            } else {
+                x.fixed_rows::<NS>(3 + NS).into_owned()
+            });
+            t.input.push(w.fixed_rows::<NU>(NS).into_owned());
+        }
+        t
+    }
+
+    /// trajectory.csv; an error naming the time and column of a non-finite value.
+    pub fn csv(&self) -> Result<String, String> {
+        let names: Vec<&str> = CSV_HEADER.split(',').collect();
+        let mut s = String::from(CSV_HEADER);
+        s.push('\n');
+        for k in 0..self.t.len() {
+            let row: Vec<f64> = std::iter::once(self.t[k])
+                .chain(self.pose[k].iter().copied())
+                .chain(self.shape[k].iter().copied())
+                .chain(self.velocity[k].iter().copied())
+                .chain(self.input[k].iter().copied())
+                .collect();
+            if let Some(j) = row.iter().position(|v| !v.is_finite()) {
+                return Err(format!(
+                    "non-finite value in column '{}' at t = {}",
+                    names[j], self.t[k]
+                ));
+            }
+            let fields: Vec<String> = row.iter().map(|v| format!("{v:.17e}")).collect();
+            s.push_str(&fields.join(","));
+            s.push('\n');
+        }
+        Ok(s)
+    }
+
+    /// The largest distance between a problem pose and the trajectory's pose at its stage.
+    pub fn pose_error_max(&self, stages: &[usize], problem: &CarProblem) -> f64 {
+        problem
+            .poses()
+            .iter()
+            .zip(stages)
+            .map(|(p, &k)| {
+                let q = self.pose[k];
+                (p[0] - q[0]).hypot(p[1] - q[1]).max((p[2] - q[2]).abs())
+            })
+            .fold(0.0, f64::max)
+    }
+}
+
+/// summary.json of `car plan`: the same fields as `wip plan`'s where they apply.
+pub fn summary_json(
+    problem: &CarProblem,
+    integrator: &str,
+    o: &CarOutcome,
+    pose_error: f64,
+) -> String {
+    let num = |v: f64| {
+        if v.is_finite() {
+            serde_json::json!(v)
+        } else {
+            serde_json::Value::Null
+        }
+    };
+    let summary = serde_json::json!({
+        "problem": problem.name,
+        "integrator": integrator,
+        "h": o.h,
+        "N": o.w.len(),
+        "status": o.status.code(),
+        "iterations": o.iterations,
+        "solve_time_s": num(o.solve_time_s),
+        "objective": num(o.objective),
+        "max_violation": num(o.max_violation),
+        "pose_error_max": num(pose_error),
+    });
+    serde_json::to_string_pretty(&summary).expect("a JSON value serialises") + "\n"
+}
+
+/// path.svg, steering.svg, drive.svg.
+pub fn plots(problem: &CarProblem, t: &CarTrajectory, b: &CarBounds) -> Vec<(String, String)> {
+    let xs: Vec<f64> = t.pose.iter().map(|p| p[0]).collect();
+    let ys: Vec<f64> = t.pose.iter().map(|p| p[1]).collect();
+    let path = Plot {
+        title: "rear-axle path (problem poses: circles)",
+        xlabel: "x [m]",
+        ylabel: "y [m]",
+        series: vec![Series {
+            label: "planned",
+            x: &xs,
+            y: &ys,
+            color: "#1f77b4",
+        }],
+        bounds: vec![],
+        markers: problem.poses().iter().map(|p| (p[0], p[1])).collect(),
+        equal_axes: true,
+    }
+    .to_svg();
+    let phi: Vec<f64> = t.shape.iter().map(|s| s[0]).collect();
+    let steering = Plot {
+        title: "steering angle",
+        xlabel: "t [s]",
+        ylabel: "phi [rad]",
+        series: vec![Series {
+            label: "phi",
+            x: &t.t,
+            y: &phi,
+            color: "#2ca02c",
+        }],
+        bounds: vec![-b.steer_angle, b.steer_angle],
+        markers: vec![],
+        equal_axes: false,
+    }
+    .to_svg();
+    let u: Vec<f64> = t.input.iter().map(|u| u[1]).collect();
+    let i: Vec<f64> = t.velocity.iter().map(|v| v[2]).collect();
+    let drive = Plot {
+        title: "drive voltage and current",
+        xlabel: "t [s]",
+        ylabel: "u_d [V], i [A]",
+        series: vec![
+            Series {
+                label: "u_d",
+                x: &t.t,
+                y: &u,
+                color: "#d62728",
+            },
+            Series {
+                label: "i",
+                x: &t.t,
+                y: &i,
+                color: "#9467bd",
+            },
+        ],
+        bounds: vec![-b.current, b.current],
+        markers: vec![],
+        equal_axes: false,
+    }
+    .to_svg();
+    vec![
+        ("path.svg".into(), path),
+        ("steering.svg".into(), steering),
+        ("drive.svg".into(), drive),
+    ]
+}

@@ -1,0 +1,90 @@
+//! Open-loop simulation of the car with zero-order-hold inputs `(τ_s, u_d)`.
+
+use super::model::{Car, NS};
+use super::report::CarTrajectory;
+use crate::wip::simulate::InputSchedule;
+use dmech::continuous::{ContinuousModel, RungeKutta};
+use dmech::{Discretisation, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
+use dmech_lie::Se2;
+use nalgebra::SVector;
+
+/// The schemes `car simulate` offers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CarIntegrator {
+    Variational(Discretisation),
+    Rk4,
+}
+
+/// A state of the car: pose `(x, y, θ)`, shape `(φ, ψ, q)`, shape velocity `(φ̇, ψ̇, i)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CarState {
+    pub pose: [f64; 3],
+    pub shape: SVector<f64, NS>,
+    pub velocity: SVector<f64, NS>,
+}
+
+/// Simulates `n` steps of `h` from `start`. The midpoint scheme starts from the discrete
+/// Legendre transform and reports `(v_{k−1} + v_k)/2` at node `k`.
+pub fn simulate(
+    car: &Car,
+    scheme: CarIntegrator,
+    h: f64,
+    start: &CarState,
+    inputs: &InputSchedule,
+    n: usize,
+) -> Result<CarTrajectory, String> {
+    let (pose0, s0, v0) = (start.pose, start.shape, start.velocity);
+    let u_at = |k: usize| {
+        let u = inputs.at(k as f64 * h);
+        SVector::<f64, 2>::new(u[0], u[1])
+    };
+    let mut x = ViState {
+        g: Se2::new(pose0[0], pose0[1], pose0[2]),
+        s: s0,
+        v: v0,
+    };
+    let midpoint = scheme == CarIntegrator::Variational(Discretisation::Midpoint);
+    let vi = match scheme {
+        CarIntegrator::Variational(d) => VariationalIntegrator::new(h)
+            .with_discretisation(d)
+            .with_jacobian(JacobianPolicy::ReuseAcrossSteps),
+        CarIntegrator::Rk4 => VariationalIntegrator::new(h),
+    };
+    if midpoint {
+        x.v = vi
+            .start(car, &s0, &v0, &u_at(0))
+            .map_err(|e| format!("the midpoint scheme's start failed: {e}"))?;
+    }
+    let mut cache = NewtonCache::default();
+    let mut traj = CarTrajectory::default();
+    let mut v_before = v0;
+    for k in 0..=n {
+        let v_node = match (midpoint, k) {
+            (true, 0) => v0,
+            (true, _) => (v_before + x.v) * 0.5,
+            _ => x.v,
+        };
+        v_before = x.v;
+        traj.t.push(k as f64 * h);
+        traj.pose.push([x.g.x, x.g.y, x.g.theta]);
+        traj.shape.push(x.s);
+        traj.velocity.push(v_node);
+        traj.input.push(u_at(k));
+        if k == n {
+            break;
+        }
+        let fail =
+            |e: dmech::StepError| format!("step {k} (t = {:.4} s) failed: {e}", k as f64 * h);
+        x = match scheme {
+            CarIntegrator::Variational(_) => {
+                vi.step_cached(car, &x, &u_at(k), &u_at(k + 1), &x.v.clone(), &mut cache)
+                    .map_err(fail)?
+                    .0
+            }
+            CarIntegrator::Rk4 => {
+                ContinuousModel::step(car, RungeKutta::Rk4, h, &x, &u_at(k)).map_err(fail)?
+            }
+        };
+    }
+    Ok(traj)
+}

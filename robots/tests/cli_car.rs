@@ -1,0 +1,107 @@
+//! `car plan` and `car simulate`: the built-in problems solve from the generic start, and
+//! every constraint holds on the written trajectory.csv (re-measured from the file).
+
+mod common;
+use common::{car, scratch};
+
+fn rows(csv: &str) -> Vec<Vec<f64>> {
+    csv.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect()
+}
+
+#[test]
+fn car_plans_the_built_in_problems() {
+    for (problem, integrator, end) in [
+        ("parallel-park", "varint", [-0.8, -0.2, 0.0]),
+        ("lane-change", "midpoint", [3.0, 0.35, 0.0]),
+    ] {
+        let dir = scratch(&format!("car-{problem}"));
+        let out = car()
+            .args([
+                "plan",
+                problem,
+                "--integrator",
+                integrator,
+                "--quiet",
+                "--out",
+            ])
+            .arg(&dir)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "car plan {problem}: {stderr}");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(summary["status"], "solved");
+        assert_eq!(summary["integrator"], integrator);
+        assert!(
+            summary["max_violation"].as_f64().unwrap() <= 1e-9,
+            "{summary}"
+        );
+        let r = rows(&std::fs::read_to_string(dir.join("trajectory.csv")).unwrap());
+        // Columns t,x,y,theta,phi,psi,q,v_phi,v_psi,i,tau_s,u_d; bounds of docs/car.md, to
+        // the solver's constraint tolerance (an interior point stays inside them).
+        let tol = 1e-8;
+        let h = 0.02;
+        let mut u_prev = 0.0;
+        for row in &r[..r.len() - 1] {
+            assert!(row[4].abs() <= 0.6 + tol, "steering angle {row:?}");
+            assert!(row[7].abs() <= 2.0 + tol, "steering rate {row:?}");
+            assert!(row[9].abs() <= 2.0 + tol, "current {row:?}");
+            assert!(row[10].abs() <= 0.05 + tol, "steering torque {row:?}");
+            assert!(row[11].abs() <= 6.0 + tol, "voltage {row:?}");
+            assert!(
+                (row[11] - u_prev).abs() <= 20.0 * h + tol,
+                "voltage rate {row:?}"
+            );
+            u_prev = row[11];
+        }
+        let last = r.last().unwrap();
+        for i in 0..3 {
+            assert!((last[1 + i] - end[i]).abs() < 1e-9, "end pose {last:?}");
+        }
+        assert!(
+            last[7..10].iter().all(|v| v.abs() < 1e-9),
+            "at rest: {last:?}"
+        );
+        for svg in ["path.svg", "steering.svg", "drive.svg"] {
+            assert!(std::fs::read_to_string(dir.join(svg))
+                .unwrap()
+                .starts_with("<svg"));
+        }
+    }
+}
+
+/// A constant drive voltage from rest, no steering torque: straight ahead, the heading and
+/// the lateral position stay zero, the speed builds up.
+#[test]
+fn car_simulates_a_straight_start() {
+    let dir = scratch("car-simulate");
+    std::fs::write(dir.join("in.csv"), "t,tau_s,u_d\n0,0,2\n1.0,0,2\n").unwrap();
+    let out = car()
+        .args([
+            "simulate",
+            "--x0",
+            "0,0,0,0,0,0,0,0,0",
+            "--inputs",
+            "in.csv",
+            "--out",
+            ".",
+        ])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r = rows(&std::fs::read_to_string(dir.join("trajectory.csv")).unwrap());
+    assert_eq!(r.len(), 201);
+    let last = r.last().unwrap();
+    assert!(last[1] > 0.05, "moved forward: {last:?}");
+    assert!(last[2].abs() < 1e-12 && last[3].abs() < 1e-12, "{last:?}");
+}
