@@ -5,9 +5,9 @@
 //! [`StageProblem::dynamics_jacobian`] and [`StageProblem::equality_jacobian`]. The Hessian of
 //! `Φ = ℓ_k + ζᵀ c_k` (cost plus inequality curvature, `ζ` the inequality multipliers)
 //! comes from three second-order passes (`xx`, `ww` by `Dual2`, `xw` by hyper-duals).
-//! The curvature of the dynamics and of the stage equality is not formed: with the WIP's
-//! variational integrator it costs 2.5 ms per stage by nested duals (50× the Jacobian),
-//! see `docs/ocp.md`.
+//! The curvature of the dynamics and of the stage equality is not formed: for the first
+//! robot of the project (five shape variables, variational integrator) it costs 2.5 ms
+//! per stage by nested duals (50× the Jacobian), see `docs/ocp.md`.
 
 use crate::problem::StageProblem;
 use dmech::linalg::Lu;

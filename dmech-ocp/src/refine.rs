@@ -1,8 +1,8 @@
 //! Mesh refinement of a variational-integrator iterate: the start of a plan at step `h`
 //! from the solution of the same problem at a coarser step (mesh sequencing).
 //!
-//! Why: an interior point moves the switch of a bang-bang input (the WIP's voltage rate
-//! where it leaves and reaches rest) by one or two stages per iteration, so a plan whose
+//! Why: an interior point moves the switch of a bang-bang input (a rate-limited voltage
+//! where the robot leaves and reaches rest) by one or two stages per iteration, so a plan whose
 //! start has the switch a fixed *time* away needs iterations in proportion to `1/h`
 //! (`docs/ocp.md`, "Why the iteration count grows with N"). From the coarse solution the
 //! switch is within one coarse step of its place.
