@@ -21,7 +21,10 @@
 //!   `(u_k − u_{k−1})/h` a ramp at the limit is `u_k = r (k + 1) h`, so the fine rates equal
 //!   the coarse ones (a constraint active on the coarse mesh stays satisfied);
 //! - multipliers: `λ` (piecewise constant: it belongs to a step, and jumps at a waypoint)
-//!   and the state equalities' `y` times `dual_scale` (the caller's: how
+//!   and the state equalities' `y` times `dual_scale`, each fine equality taking the
+//!   multiplier of the coarse equality on the same state component at the nearest time
+//!   (matched by what they constrain, not by their position in the list; `dual_scale` is
+//!   the caller's: how
 //!   the cost-to-go scales from the coarse to the fine problem, `N_f/N_c` for a cost summed
 //!   over stages without a factor `h`); bound multipliers and slacks interpolated as they
 //!   are (a pointwise bound's multiplier balances one stage's cost gradient, whose size does
@@ -33,13 +36,52 @@
 
 use crate::ipm::Iterate;
 use crate::layout::Layout;
+use crate::problem::StateEquality;
 use nalgebra::SVector;
+
+/// The state equalities of the coarse and the fine problem (each in its own problem's
+/// order: the solver's `y` follows it).
+pub struct EqualityLists<'a> {
+    pub coarse: &'a [StateEquality],
+    pub fine: &'a [StateEquality],
+}
+
+/// The fine problem's equality multipliers from the coarse ones: for each fine equality,
+/// the coarse equality on the same state component whose stage is nearest in time
+/// (stage fraction `k/N`), times `dual_scale`; zero where the coarse problem had none.
+pub fn match_equality_multipliers(
+    lists: &EqualityLists,
+    coarse_y: &[f64],
+    n_coarse: usize,
+    n_fine: usize,
+    dual_scale: f64,
+) -> Vec<f64> {
+    lists
+        .fine
+        .iter()
+        .map(|f| {
+            let t = f.stage as f64 / n_fine as f64;
+            lists
+                .coarse
+                .iter()
+                .zip(coarse_y)
+                .filter(|(c, _)| c.index == f.index)
+                .min_by(|(a, _), (b, _)| {
+                    let da = (a.stage as f64 / n_coarse as f64 - t).abs();
+                    let db = (b.stage as f64 / n_coarse as f64 - t).abs();
+                    da.total_cmp(&db)
+                })
+                .map_or(0.0, |(_, y)| y * dual_scale)
+        })
+        .collect()
+}
 
 /// The fine iterate on `n_fine` steps of length `h_fine` from the coarse one (of
 /// `coarse.w.len()` steps), for the layout `layout` (see the module's documentation).
 pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
     layout: Layout,
     coarse: &Iterate<NX, NW, NC>,
+    equalities: &EqualityLists,
     n_fine: usize,
     h_fine: f64,
     dual_scale: f64,
@@ -138,7 +180,7 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
         t_hi: bound(&coarse.t_hi),
         z_lo: bound(&coarse.z_lo),
         z_hi: bound(&coarse.z_hi),
-        y: coarse.y.iter().map(|y| y * dual_scale).collect(),
+        y: match_equality_multipliers(equalities, &coarse.y, nc, n_fine, dual_scale),
     }
 }
 
@@ -181,6 +223,20 @@ mod tests {
         }
     }
 
+    /// A waypoint on component 0 half-way and the end on component 1 (coarse order), and
+    /// the same on the fine mesh listed end first, plus one the coarse problem did not have.
+    fn equalities(nc: usize, nf: usize) -> (Vec<StateEquality>, Vec<StateEquality>) {
+        let eq = |stage, index| StateEquality {
+            stage,
+            index,
+            value: 0.0,
+        };
+        (
+            vec![eq(nc / 2, 0), eq(nc, 1)],
+            vec![eq(nf, 1), eq(nf / 2, 0), eq(nf, 2)],
+        )
+    }
+
     /// Catmull–Rom reproduces a quadratic: away from the ends (where the clamped
     /// neighbours break it) the fine positions are the quadratic's values and the fine
     /// velocities its exact differences; the input ramp keeps its rate (a doubled rate at
@@ -192,7 +248,14 @@ mod tests {
         let r = 1.25;
         let c = coarse(nc, big_h, p, r);
         let (nf, h) = (40, big_h / 4.0);
-        let f = refine_varint_iterate::<4, 2, 1>(L, &c, nf, h, 4.0);
+        // The fine problem lists its equalities in another order: multipliers follow what
+        // each equality constrains, not its position.
+        let (coarse_eqs, fine_eqs) = equalities(nc, nf);
+        let lists = EqualityLists {
+            coarse: &coarse_eqs,
+            fine: &fine_eqs,
+        };
+        let f = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, h, 4.0);
         // Positions: exact on the interior intervals [1, nc − 1] of the coarse mesh.
         let tol = 64.0 * f64::EPSILON;
         let mut worst: f64 = 0.0;
@@ -218,7 +281,7 @@ mod tests {
         }
         // Multipliers: λ and y scaled, bound multipliers and slacks kept.
         assert!(f.lambda.iter().all(|l| (l[0] - 2.0).abs() < 1e-15));
-        assert_eq!(f.y, vec![6.0, -8.0]);
+        assert_eq!(f.y, vec![-8.0, 6.0, 0.0]);
         assert!(f.z_lo.iter().all(|z| z[0] == 2.0) && f.t_hi.iter().all(|t| t[0] == 0.75));
         // A jump of λ at coarse node 5 (a waypoint) lands at fine node 20, whole: with λ
         // interpolated, half of it sat on fine stage 19.
@@ -226,7 +289,7 @@ mod tests {
         for k in 5..nc {
             c_jump.lambda[k] = SVector::repeat(1.5);
         }
-        let f_jump = refine_varint_iterate::<4, 2, 1>(L, &c_jump, nf, h, 4.0);
+        let f_jump = refine_varint_iterate::<4, 2, 1>(L, &c_jump, &lists, nf, h, 4.0);
         for (j, l) in f_jump.lambda.iter().enumerate() {
             let want = if j < 20 { 2.0 } else { 6.0 };
             assert_eq!(l[0], want, "λ at fine interval {j}");
@@ -246,7 +309,12 @@ mod tests {
             let big_h = 2.0 / nc as f64;
             let c = coarse(nc, big_h, p, 0.0);
             let nf = 4 * nc;
-            let f = refine_varint_iterate::<4, 2, 1>(L, &c, nf, big_h / 4.0, 1.0);
+            let (ce, fe) = equalities(nc, nf);
+            let lists = EqualityLists {
+                coarse: &ce,
+                fine: &fe,
+            };
+            let f = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, big_h / 4.0, 1.0);
             (4..=nf - 4)
                 .map(|j| (f.x[j][1] - p(j as f64 * big_h / 4.0)).abs())
                 .fold(0.0f64, f64::max)

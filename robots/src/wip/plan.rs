@@ -17,7 +17,7 @@ use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult, Solver};
 use dmech_ocp::problem::StageProblem;
-use dmech_ocp::refine::refine_varint_iterate;
+use dmech_ocp::refine::{refine_varint_iterate, EqualityLists};
 use dmech_ocp::transcription::{
     Condition, PlanningProblem, Quantity, RkTranscription, Stage, StartState, VarIntTranscription,
 };
@@ -732,8 +732,21 @@ fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: u
         // The cost is summed over stages without a factor h: the cost-to-go, and with it
         // λ and the waypoints' multipliers, scale with the number of stages.
         let dual_scale = mesh.n as f64 / meshes[j - 1].n as f64;
-        let start =
-            refine_varint_iterate(plan.stages.layout, &r.iterate, mesh.n, mesh.h, dual_scale);
+        let coarse_plan = varint_plan::<M, NS>(model, &meshes[j - 1], bounds, disc);
+        let coarse_eqs = StageProblem::<NX, NW, NS, NC>::state_equalities(&coarse_plan);
+        let fine_eqs = StageProblem::<NX, NW, NS, NC>::state_equalities(&plan);
+        let lists = EqualityLists {
+            coarse: &coarse_eqs,
+            fine: &fine_eqs,
+        };
+        let start = refine_varint_iterate(
+            plan.stages.layout,
+            &r.iterate,
+            &lists,
+            mesh.n,
+            mesh.h,
+            dual_scale,
+        );
         let mut o = opts.clone();
         o.tol = tol(j);
         o.mu_init = MESH_RESTART_BARRIER;
