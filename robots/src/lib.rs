@@ -5,3 +5,8 @@ pub mod car;
 pub mod io;
 pub mod plot;
 pub mod wip;
+
+/// The tutorial `docs/add-a-robot.md`: its code blocks are compiled and run as doc tests.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/add-a-robot.md")]
+pub struct AddARobotTutorial;
