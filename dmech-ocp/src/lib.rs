@@ -20,6 +20,8 @@
 //! - [`kinematic_start`]: a start from a geometric pose path, with the shape motion that
 //!   realises it through the connection (a nonholonomic robot cannot follow any path).
 //! - [`refine`]: a VI iterate carried to a finer mesh, the start of mesh sequencing.
+//! - [`sequencing`]: continuation over a list of problems, and mesh sequencing for any
+//!   robot's variational plan.
 //!
 //! All stage functions are generic over the scalar, so their exact Jacobians and Hessians
 //! come from dual numbers, stage by stage. The design is written up in `docs/ocp.md`.
@@ -32,6 +34,7 @@ pub mod problem;
 pub mod refine;
 pub mod riccati;
 pub mod runge_kutta;
+pub mod sequencing;
 #[cfg(test)]
 mod test_rng;
 pub mod transcription;

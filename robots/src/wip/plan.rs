@@ -15,9 +15,9 @@ use super::simulate::Integrator;
 use super::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult, Solver};
-use dmech_ocp::problem::StageProblem;
-use dmech_ocp::refine::{refine_varint_iterate, EqualityLists};
+use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult};
+use dmech_ocp::layout::Layout;
+use dmech_ocp::sequencing::{continuation, mesh_sequence, SequenceSettings, SequencedPlan};
 use dmech_ocp::transcription::{
     Condition, PlanningProblem, Quantity, RkTranscription, Stage, StartState, VarIntTranscription,
 };
@@ -629,7 +629,30 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
     let h = problem.h;
     match transcription {
         Transcription::VarInt(disc) => {
-            let r = mesh_sequence::<M, NS, NX, NW>(model, &models, problem, bounds, disc, opts);
+            let seq = WipSequence {
+                model,
+                models,
+                bounds,
+                disc,
+            };
+            let settings = SequenceSettings {
+                coarsest_step: MESH_COARSEST_STEP,
+                restart_barrier: MESH_RESTART_BARRIER,
+                coarse_tol: MESH_COARSE_TOL,
+            };
+            let verbose = opts.verbose;
+            let progress = |m: &str| {
+                if verbose {
+                    crate::progress!("{m}");
+                }
+            };
+            let r = mesh_sequence::<_, NX, NW, NS, 2, NC>(
+                &seq,
+                problem.clone(),
+                settings,
+                opts,
+                &progress,
+            );
             outcome::<M, NS, NX, NW>(model, r, h, true)
         }
         Transcription::Rk(rk) => {
@@ -638,7 +661,13 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
                 .iter()
                 .map(|m| rk_plan::<M, NS>(m, problem, bounds, rk))
                 .collect();
-            let r = continuation::<_, NX, 2, 0, 2>(&plans, xs, ws, opts);
+            // The continuation's restart barrier: the switch to the steep friction moves
+            // the optimum where the robot leaves and reaches rest, where the voltage-rate
+            // limits are active, and slacks within `μ` of those bounds let the
+            // fraction-to-the-boundary rule cut the steps to a few per cent. Measured on the
+            // eight (whole solve): restart at 1e-3: 85 iterations; 3e-3: 78; 1e-2: 77;
+            // 3e-2: 75; 1e-1: 115.
+            let r = continuation::<_, NX, 2, 0, 2, NC>(&plans, xs, ws, opts);
             outcome::<M, NS, NX, 2>(model, r, h, false)
         }
     }
@@ -660,12 +689,9 @@ const MESH_RESTART_BARRIER: f64 = 1e-4;
 /// 29.3 (one mesh took 272 iterations) / 1.31.
 const MESH_COARSE_TOL: f64 = MESH_RESTART_BARRIER;
 
-/// Mesh sequencing for the VI: the problem solved on the coarsest mesh of step `h·2^L` (the
-/// largest `L` with `h·2^L ≤` [`MESH_COARSEST_STEP`] on which no two waypoints share a
-/// stage) by the friction continuation, then on each finer mesh, step halved, from the
-/// refined solution ([`dmech_ocp::refine::refine_varint_iterate`]) with the model itself,
-/// restarted at [`MESH_RESTART_BARRIER`]. The returned result is the finest mesh's, with
-/// the iterations and times of all meshes added.
+/// The WIP's VI plan as a family of meshes for [`dmech_ocp::sequencing::mesh_sequence`]:
+/// the meshes are [`PlanProblem::at_step`], the continuation phases the friction
+/// continuation's models (the last is the model itself), the start the polyline start.
 ///
 /// Why: where the robot leaves and reaches rest the voltage rate is bang-bang, and the
 /// interior point moves its switch by one or two stages per iteration; on the finest mesh
@@ -674,103 +700,48 @@ const MESH_COARSE_TOL: f64 = MESH_RESTART_BARRIER;
 /// coarse solution the switch is within a coarse step of its place, each finer mesh takes
 /// 14–36 iterations (eight, 10 ms … 1.25 ms), and the coarse meshes cost a geometric fraction of the finest
 /// (`docs/ocp.md`).
-fn mesh_sequence<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
-    model: &M,
-    models: &[M],
-    problem: &PlanProblem,
+struct WipSequence<'m, M> {
+    model: &'m M,
+    models: Vec<M>,
     bounds: PlanBounds,
     disc: Discretisation,
-    opts: IpOptions,
-) -> SolveResult<NX, NW, NC> {
-    // Coarsest first, the problem itself last.
-    let mut meshes = vec![problem.clone()];
-    while let Some(coarser) = (meshes[0].h * 2.0 <= MESH_COARSEST_STEP * (1.0 + 1e-9))
-        .then(|| meshes[0].at_step(meshes[0].h * 2.0))
-        .flatten()
-    {
-        meshes.insert(0, coarser);
+}
+
+impl<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>
+    SequencedPlan<NX, NW, NS, NC> for WipSequence<'_, M>
+where
+    M: PlanModel<NS>,
+{
+    type Mesh = PlanProblem;
+    type Problem<'a>
+        = VarIntPlan<'a, M>
+    where
+        Self: 'a;
+    fn steps(&self, mesh: &PlanProblem) -> usize {
+        mesh.n
     }
-    let last = meshes.len() - 1;
-    let tol = |j: usize| {
-        if j < last {
-            MESH_COARSE_TOL.max(opts.tol)
-        } else {
-            opts.tol
-        }
-    };
-    let announce = |j: usize| {
-        if opts.verbose && last > 0 {
-            crate::progress!(
-                "mesh {} of {}: {} stages of {} s",
-                j + 1,
-                last + 1,
-                meshes[j].n,
-                meshes[j].h
-            );
-        }
-    };
-    // A mesh solved from the polyline start by the friction continuation.
-    let from_start = |mesh: &PlanProblem, o: IpOptions| {
-        let (xs, ws) = varint_start::<M, NS, NX, NW>(model, mesh);
-        let plans: Vec<_> = models
-            .iter()
-            .map(|m| varint_plan::<M, NS>(m, mesh, bounds, disc))
-            .collect();
-        continuation::<_, NX, NW, NS, 2>(&plans, xs, ws, o)
-    };
-    announce(0);
-    let mut o = opts.clone();
-    o.tol = tol(0);
-    let mut r = from_start(&meshes[0], o);
-    for j in 1..=last {
-        if r.status != dmech_ocp::ipm::Status::Solved {
-            break;
-        }
-        announce(j);
-        let mesh = &meshes[j];
-        let plan = varint_plan::<M, NS>(model, mesh, bounds, disc);
-        // The cost is summed over stages without a factor h: the cost-to-go, and with it
-        // λ and the waypoints' multipliers, scale with the number of stages.
-        let dual_scale = mesh.n as f64 / meshes[j - 1].n as f64;
-        let coarse_plan = varint_plan::<M, NS>(model, &meshes[j - 1], bounds, disc);
-        let coarse_eqs = StageProblem::<NX, NW, NS, NC>::state_equalities(&coarse_plan);
-        let fine_eqs = StageProblem::<NX, NW, NS, NC>::state_equalities(&plan);
-        let lists = EqualityLists {
-            coarse: &coarse_eqs,
-            fine: &fine_eqs,
-        };
-        let start = refine_varint_iterate(
-            plan.stages.layout,
-            &r.iterate,
-            &lists,
-            mesh.n,
-            mesh.h,
-            dual_scale,
-        );
-        let mut o = opts.clone();
-        o.tol = tol(j);
-        o.mu_init = MESH_RESTART_BARRIER;
-        o.time_limit = (opts.time_limit - r.timings.total).max(0.0);
-        let s: Solver<_, NX, NW, NS, 2, NC> = Solver::new(&plan, o);
-        r = merge(s.solve(s.warm_iterate(start)), &r);
+    fn step(&self, mesh: &PlanProblem) -> f64 {
+        mesh.h
     }
-    if last > 0 && r.status != dmech_ocp::ipm::Status::Solved {
-        // A mesh that fails says nothing final about the problem asked for: solve that one
-        // directly, so that the status and the iterate are its own (the failed attempt's
-        // iterations and time still count).
-        if opts.verbose {
-            crate::progress!(
-                "mesh sequencing: {}; solving the {} stages of {} s directly",
-                r.status.code(),
-                problem.n,
-                problem.h
-            );
-        }
-        let mut o = opts.clone();
-        o.time_limit = (opts.time_limit - r.timings.total).max(0.0);
-        return merge(from_start(problem, o), &r);
+    fn coarser(&self, mesh: &PlanProblem) -> Option<PlanProblem> {
+        mesh.at_step(mesh.h * 2.0)
     }
-    r
+    fn problem<'a>(&'a self, mesh: &'a PlanProblem, phase: usize) -> VarIntPlan<'a, M> {
+        varint_plan::<M, NS>(&self.models[phase], mesh, self.bounds, self.disc)
+    }
+    fn phases(&self) -> usize {
+        self.models.len()
+    }
+    fn start(&self, mesh: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
+        varint_start::<M, NS, NX, NW>(self.model, mesh)
+    }
+    fn layout(&self) -> Layout {
+        Layout {
+            nc: 3,
+            ns: NS,
+            nu: 2,
+        }
+    }
 }
 
 /// The problems of the friction continuation: the model with `d_0` lowered to
@@ -808,74 +779,6 @@ fn friction_continuation<M: PlanModel<NS>, const NS: usize>(
         .collect();
     models.push(model.clone());
     models
-}
-
-/// Solve each problem in turn, each from the previous one's solution; all but the last
-/// only to tolerance `τ₁ = 10 μ₀/100`, and each later one restarted at barrier `μ = τ₁`.
-///
-/// Why `τ₁` for both: solving an intermediate problem below the barrier the next one starts
-/// at is work thrown away (on the eight: 60 of phase one's 137 iterations, measured with
-/// the old start). The restart barrier: the switch to the steep friction moves the optimum
-/// where the robot leaves and reaches rest, where the voltage-rate limits are active, and
-/// slacks within `μ` of those bounds let the fraction-to-the-boundary rule cut the steps
-/// to a few per cent. Measured on the eight (whole solve): restart at 1e-3: 85 iterations;
-/// 3e-3: 78; 1e-2: 77; 3e-2: 75; 1e-1: 115.
-fn continuation<P, const NX: usize, const NW: usize, const NE: usize, const NU: usize>(
-    problems: &[P],
-    xs: Vec<SVector<f64, NX>>,
-    ws: Vec<SVector<f64, NW>>,
-    opts: IpOptions,
-) -> SolveResult<NX, NW, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
-{
-    let intermediate_tol = (10.0 * opts.warm_mu_init()).max(opts.tol);
-    let last = problems.len() - 1;
-    let mut start = Some((xs, ws));
-    let mut done: Option<SolveResult<NX, NW, NC>> = None;
-    for (j, p) in problems.iter().enumerate() {
-        let mut o = opts.clone();
-        if j < last {
-            o.tol = intermediate_tol;
-        }
-        if j > 0 {
-            o.mu_init = intermediate_tol;
-        }
-        // The time limit holds for the whole continuation.
-        if let Some(prev) = &done {
-            o.time_limit = (opts.time_limit - prev.timings.total).max(0.0);
-        }
-        let s: Solver<_, NX, NW, NE, NU, NC> = Solver::new(p, o);
-        let r = match &done {
-            None => {
-                let (xs, ws) = start.take().expect("only the first problem starts cold");
-                s.solve(s.initial_iterate(xs, ws))
-            }
-            Some(prev) => merge(s.solve(s.warm_iterate(prev.iterate.clone())), prev),
-        };
-        let solved = r.status == dmech_ocp::ipm::Status::Solved;
-        done = Some(r);
-        if !solved {
-            break;
-        }
-    }
-    done.expect("at least one problem")
-}
-
-/// The second phase's result with the first phase's iterations and time added.
-fn merge<const NX: usize, const NW: usize>(
-    mut r: SolveResult<NX, NW, NC>,
-    r0: &SolveResult<NX, NW, NC>,
-) -> SolveResult<NX, NW, NC> {
-    r.iterations += r0.iterations;
-    r.timings.derivatives += r0.timings.derivatives;
-    r.timings.kkt += r0.timings.kkt;
-    r.timings.line_search += r0.timings.line_search;
-    r.timings.riccati += r0.timings.riccati;
-    r.timings.factorizations += r0.timings.factorizations;
-    r.timings.second_order_corrections += r0.timings.second_order_corrections;
-    r.timings.total += r0.timings.total;
-    r
 }
 
 #[cfg(test)]
