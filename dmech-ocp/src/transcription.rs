@@ -109,6 +109,36 @@ pub trait PlanningProblem<const NP: usize, const NS: usize, const NU: usize, con
     }
 }
 
+/// A problem borrowed: the transcription of a problem that lives elsewhere (one per mesh,
+/// say).
+impl<P, const NP: usize, const NS: usize, const NU: usize, const NC: usize>
+    PlanningProblem<NP, NS, NU, NC> for &P
+where
+    P: PlanningProblem<NP, NS, NU, NC>,
+{
+    fn horizon(&self) -> usize {
+        (**self).horizon()
+    }
+    fn start(&self) -> StartState<NP, NS, NU> {
+        (**self).start()
+    }
+    fn cost<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>) -> T {
+        (**self).cost(k, stage)
+    }
+    fn constraints<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>) -> SVector<T, NC> {
+        (**self).constraints(k, stage)
+    }
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
+        (**self).bounds(k)
+    }
+    fn conditions(&self) -> Vec<Condition> {
+        (**self).conditions()
+    }
+    fn affine_in_configuration(&self) -> bool {
+        (**self).affine_in_configuration()
+    }
+}
+
 /// Where each quantity of a stage state sits in the solver's `x_k`: the same for every
 /// transcription (`coords(g)`, `s`, the state's velocity, `u_{k−1}`).
 pub fn state_index(layout: Layout, quantity: Quantity) -> usize {

@@ -8,10 +8,12 @@
 use super::model::{Car, NS, NU};
 use super::problems::{CarProblem, Pose};
 use dmech::Discretisation;
-use dmech_lie::{Real, Se2};
-use dmech_ocp::ipm::{IpOptions, SolveResult, Solver, Status};
+use dmech_lie::{LieGroup, Real, Se2};
+use dmech_ocp::ipm::{IpOptions, SolveResult, Status};
 use dmech_ocp::kinematic_start::varint_start_from_path;
+use dmech_ocp::layout::Layout;
 use dmech_ocp::problem::StageProblem;
+use dmech_ocp::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
 use dmech_ocp::transcription::{
     Condition, PlanningProblem, Quantity, Stage, StartState, VarIntTranscription,
 };
@@ -264,7 +266,79 @@ pub struct CarOutcome {
     pub w: Vec<SVector<f64, NW>>,
 }
 
-/// Plans `problem` at step `h` from the kinematic start along [`start_path`].
+/// The car's plan on meshes of different steps, for
+/// [`dmech_ocp::sequencing::mesh_sequence`]: a mesh is a step, the start the kinematic one
+/// along [`start_path`].
+struct CarSequence<'p> {
+    car: &'p Car,
+    problem: &'p CarProblem,
+    bounds: CarBounds,
+    disc: Discretisation,
+}
+
+/// A mesh of the car's plan: its step and the plan's data on it.
+pub struct CarMesh<'p> {
+    pub plan: CarPlan<'p>,
+}
+
+impl<'p> SequencedPlan<NX, NW, NS, NC> for CarSequence<'p> {
+    type Mesh = CarMesh<'p>;
+    type Problem<'a>
+        = VarIntTranscription<'a, Car, &'a CarPlan<'p>, 3, 2, 3, NU>
+    where
+        Self: 'a;
+    fn steps(&self, mesh: &CarMesh) -> usize {
+        mesh.plan.n
+    }
+    fn step(&self, mesh: &CarMesh) -> f64 {
+        mesh.plan.h
+    }
+    fn coarser(&self, mesh: &CarMesh) -> Option<CarMesh<'p>> {
+        CarPlan::new(self.problem, self.bounds, mesh.plan.h * 2.0)
+            .ok()
+            .map(|plan| CarMesh { plan })
+    }
+    fn problem<'a>(&'a self, mesh: &'a CarMesh<'p>, _phase: usize) -> Self::Problem<'a> {
+        VarIntTranscription::new::<NS>(self.car, &mesh.plan, mesh.plan.h, self.disc)
+    }
+    fn start(&self, mesh: &CarMesh) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
+        let h = mesh.plan.h;
+        let path = start_path(self.problem, mesh.plan.n);
+        // ρ: the wheel rate shrinks by ρ/(ρ + r²) where the path sets it (r² = 2.5e-3):
+        // 1e-6 is a 0.04 % shrink, and holds the charge at rest. The steering rate's 1e-4
+        // costs (2 rad/s)² × 1e-4 per step against (r ψ̇ δφ/L)² ≈ 6e-3 for a steering error
+        // δφ = 0.1 rad at 1 m/s: the steering follows the path's curvature, smoothly, on
+        // the branch |φ| < π/2 it starts on.
+        let weights = SVector::<f64, NS>::new(1e-4, 1e-6, 1e-6);
+        varint_start_from_path::<Car, 3, 2, NS, NU, NX, NW>(
+            self.car,
+            h,
+            &path,
+            &SVector::zeros(),
+            &weights,
+            self.disc,
+        )
+        .unwrap_or_else(|_| {
+            // The path's poses with the shape at rest: the solver still starts from the
+            // right places (a kinematic start that fails is reported by the solve).
+            let xs = path
+                .iter()
+                .map(|g| SVector::from_fn(|i, _| if i < 3 { g.coordinates()[i] } else { 0.0 }))
+                .collect();
+            (xs, vec![SVector::zeros(); mesh.plan.n])
+        })
+    }
+    fn layout(&self) -> Layout {
+        Layout {
+            nc: 3,
+            ns: NS,
+            nu: NU,
+        }
+    }
+}
+
+/// Plans `problem` at step `h` from the kinematic start along [`start_path`], by mesh
+/// sequencing from the coarsest mesh at or below 40 ms.
 pub fn plan(
     car: &Car,
     problem: &CarProblem,
@@ -273,26 +347,37 @@ pub fn plan(
     discretisation: Discretisation,
     opts: IpOptions,
 ) -> Result<CarOutcome, String> {
-    let plan = CarPlan::new(problem, bounds, h)?;
-    let (n, stages) = (plan.n, plan.stages.clone());
-    let path = start_path(problem, n);
-    // ρ: the wheel rate shrinks by ρ/(ρ + r²) where the path sets it (r² = 2.5e-3):
-    // 1e-6 is a 0.04 % shrink, and holds the charge at rest. The steering rate's 1e-4
-    // costs (2 rad/s)² × 1e-4 per step against (r ψ̇ δφ/L)² ≈ 6e-3 for a steering error
-    // δφ = 0.1 rad at 1 m/s: the steering follows the path's curvature, smoothly, on the
-    // branch |φ| < π/2 it starts on.
-    let (xs, ws) = varint_start_from_path::<Car, 3, 2, NS, NU, NX, NW>(
+    let finest = CarMesh {
+        plan: CarPlan::new(problem, bounds, h)?,
+    };
+    let stages = finest.plan.stages.clone();
+    let seq = CarSequence {
         car,
+        problem,
+        bounds,
+        disc: discretisation,
+    };
+    // The WIP's settings (docs/ocp.md): restart a finer mesh at μ = 1e-4, solve the
+    // coarse ones to that tolerance.
+    let settings = SequenceSettings {
+        coarsest_step: 0.04,
+        restart_barrier: 1e-4,
+        coarse_tol: 1e-4,
+    };
+    let verbose = opts.verbose;
+    let progress = |m: &str| {
+        if verbose {
+            crate::progress!("{m}");
+        }
+    };
+    let r = mesh_sequence::<_, NX, NW, NS, NU, NC>(&seq, finest, settings, opts, &progress);
+    let problem_on_mesh = CarPlan::new(problem, bounds, h)?;
+    let tr = VarIntTranscription::<_, _, 3, 2, 3, NU>::new::<NS>(
+        car,
+        &problem_on_mesh,
         h,
-        &path,
-        &SVector::zeros(),
-        &SVector::<f64, NS>::new(1e-4, 1e-6, 1e-6),
         discretisation,
-    )
-    .map_err(|e| e.to_string())?;
-    let tr = VarIntTranscription::<_, _, 3, 2, 3, NU>::new::<NS>(car, plan, h, discretisation);
-    let solver: Solver<_, NX, NW, NS, NU, NC> = Solver::new(&tr, opts);
-    let r = solver.solve(solver.initial_iterate(xs, ws));
+    );
     let max_violation = measured_violation(&tr, &r);
     Ok(CarOutcome {
         status: r.status,
