@@ -14,6 +14,7 @@
 //! constraints. The solver's `NX = NP + 2 NS + NU`; `NW = NS + NU` (variational) or `NU`
 //! (Runge–Kutta).
 
+use crate::ipm::Iterate;
 use crate::layout::{segment, Layout};
 use crate::problem::{StageProblem, StateEquality};
 use crate::runge_kutta::RkStages;
@@ -60,6 +61,16 @@ impl<const NP: usize, const NS: usize, const NU: usize> StartState<NP, NS, NU> {
             previous_input: SVector::zeros(),
         }
     }
+}
+
+/// A plan read back in the robot's terms, whatever the transcription: stage `k = 0..=N`
+/// holds the pose, the shape, the velocity leaving it, the input held from it and the
+/// previous input. At `k = N` the velocity is the one the robot arrives with and the input
+/// repeats `u_{N−1}`.
+#[derive(Clone, Debug)]
+pub struct PlannedTrajectory<const NP: usize, const NS: usize, const NU: usize> {
+    pub h: f64,
+    pub stages: Vec<Stage<f64, NP, NS, NU>>,
 }
 
 /// A state component a [`Condition`] fixes.
@@ -244,6 +255,30 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
             previous_input: segment(x, l.u_at()),
         }
     }
+
+    /// The solver's iterate as a [`PlannedTrajectory`].
+    pub fn trajectory<const NS: usize, const NX: usize, const NW: usize, const NC: usize>(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+    ) -> PlannedTrajectory<NP, NS, NU> {
+        let n = it.w.len();
+        let l = self.stages.layout;
+        let mut stages: Vec<_> = (0..n)
+            .map(|k| self.stage::<f64, NS, NX, NW>(&it.x[k], &it.w[k]))
+            .collect();
+        let x = &it.x[n];
+        stages.push(Stage {
+            pose: segment(x, 0),
+            shape: segment(x, l.s_at()),
+            velocity: segment(x, l.v_at()),
+            input: segment(&it.w[n - 1], NS),
+            previous_input: segment(x, l.u_at()),
+        });
+        PlannedTrajectory {
+            h: self.stages.h,
+            stages,
+        }
+    }
 }
 
 impl<
@@ -368,6 +403,21 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NS: us
             velocity: segment(x, l.v_at()),
             input: *u,
             previous_input: segment(x, l.u_at()),
+        }
+    }
+
+    /// The solver's iterate as a [`PlannedTrajectory`].
+    pub fn trajectory<const NU: usize, const NX: usize, const NC: usize>(
+        &self,
+        it: &Iterate<NX, NU, NC>,
+    ) -> PlannedTrajectory<NP, NS, NU> {
+        let n = it.w.len();
+        let stages = (0..=n)
+            .map(|k| self.stage::<f64, NU, NX>(&it.x[k], &it.w[k.min(n - 1)]))
+            .collect();
+        PlannedTrajectory {
+            h: self.stages.h,
+            stages,
         }
     }
 }

@@ -15,7 +15,7 @@ use dmech_ocp::layout::Layout;
 use dmech_ocp::problem::StageProblem;
 use dmech_ocp::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
 use dmech_ocp::transcription::{
-    Condition, PlanningProblem, Quantity, Stage, StartState, VarIntTranscription,
+    Condition, PlannedTrajectory, PlanningProblem, Quantity, Stage, StartState, VarIntTranscription,
 };
 use nalgebra::SVector;
 
@@ -262,8 +262,7 @@ pub struct CarOutcome {
     pub h: f64,
     /// The stage of every pose of the problem.
     pub stages: Vec<usize>,
-    pub x: Vec<SVector<f64, NX>>,
-    pub w: Vec<SVector<f64, NW>>,
+    pub trajectory: PlannedTrajectory<3, NS, NU>,
 }
 
 /// The car's plan on meshes of different steps, for
@@ -387,8 +386,7 @@ pub fn plan(
         solve_time_s: r.timings.total,
         h,
         stages,
-        x: r.iterate.x,
-        w: r.iterate.w,
+        trajectory: tr.trajectory::<NS, NX, NW, NC>(&r.iterate),
     })
 }
 

@@ -21,23 +21,16 @@ pub struct CarTrajectory {
 pub const CSV_HEADER: &str = "t,x,y,theta,phi,psi,q,v_phi,v_psi,i,tau_s,u_d";
 
 impl CarTrajectory {
-    /// A plan's trajectory: `x_k = (pose, s_k, v_{k−1}, u_{k−1})`, `w_k = (v_k, u_k)`; the
-    /// last row at rest with the last input repeated.
+    /// A plan's trajectory (the last row with the velocity the car arrives with, zero
+    /// to the solver's tolerance, and the last input repeated).
     pub fn from_plan(o: &CarOutcome) -> Self {
-        let n = o.w.len();
         let mut t = CarTrajectory::default();
-        for k in 0..=n {
-            let x = &o.x[k];
-            let w = &o.w[k.min(n - 1)];
+        for (k, stage) in o.trajectory.stages.iter().enumerate() {
             t.t.push(k as f64 * o.h);
-            t.pose.push([x[0], x[1], x[2]]);
-            t.shape.push(x.fixed_rows::<NS>(3).into_owned());
-            t.velocity.push(if k < n {
-                w.fixed_rows::<NS>(0).into_owned()
-            } else {
-                x.fixed_rows::<NS>(3 + NS).into_owned()
-            });
-            t.input.push(w.fixed_rows::<NU>(NS).into_owned());
+            t.pose.push([stage.pose[0], stage.pose[1], stage.pose[2]]);
+            t.shape.push(stage.shape);
+            t.velocity.push(stage.velocity);
+            t.input.push(stage.input);
         }
         t
     }
@@ -99,7 +92,7 @@ pub fn summary_json(
         "problem": problem.name,
         "integrator": integrator,
         "h": o.h,
-        "N": o.w.len(),
+        "N": o.trajectory.stages.len() - 1,
         "status": o.status.code(),
         "iterations": o.iterations,
         "solve_time_s": num(o.solve_time_s),

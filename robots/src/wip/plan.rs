@@ -15,11 +15,12 @@ use super::simulate::Integrator;
 use super::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, Iterate, SolveResult};
+use dmech_ocp::ipm::{IpOptions, SolveResult};
 use dmech_ocp::layout::Layout;
 use dmech_ocp::sequencing::{continuation, mesh_sequence, SequenceSettings, SequencedPlan};
 use dmech_ocp::transcription::{
-    Condition, PlanningProblem, Quantity, RkTranscription, Stage, StartState, VarIntTranscription,
+    Condition, PlannedTrajectory as GenericTrajectory, PlanningProblem, Quantity, RkTranscription,
+    Stage, StartState, VarIntTranscription,
 };
 use nalgebra::SVector;
 
@@ -534,11 +535,10 @@ pub struct PlanOutcome {
 fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
     model: &M,
     r: SolveResult<NX, NW, NC>,
-    h: f64,
-    velocity_in_w: bool,
+    plan: GenericTrajectory<3, NS, 2>,
+    at_rest_exactly: bool,
 ) -> PlanOutcome {
-    let it: &Iterate<NX, NW, NC> = &r.iterate;
-    let n = it.w.len();
+    let (h, n) = (plan.h, plan.stages.len() - 1);
     let mut t = PlannedTrajectory {
         h,
         g: Vec::with_capacity(n + 1),
@@ -547,21 +547,18 @@ fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
         u: Vec::with_capacity(n + 1),
     };
     let mut charges = [0.0; 2];
-    for k in 0..=n {
-        let x = &it.x[k];
-        t.g.push(x.fixed_rows::<3>(0).into_owned());
-        let v = if velocity_in_w {
-            if k < n {
-                it.w[k].fixed_rows::<NS>(0).into_owned()
-            } else {
-                SVector::zeros()
-            }
+    for (k, stage) in plan.stages.iter().enumerate() {
+        t.g.push(stage.pose);
+        // The variational plans arrive at rest by a condition that holds to the solver's
+        // tolerance; their last row says so exactly.
+        let v = if k == n && at_rest_exactly {
+            SVector::zeros()
         } else {
-            x.fixed_rows::<NS>(3 + NS).into_owned()
+            stage.velocity
         };
-        let u = it.w[k.min(n - 1)].fixed_rows::<2>(NW - 2).into_owned();
+        let u = stage.input;
         let (mut s5, mut v5) = (SVector::<f64, 5>::zeros(), SVector::<f64, 5>::zeros());
-        s5.fixed_rows_mut::<NS>(0).copy_from(&x.fixed_rows::<NS>(3));
+        s5.fixed_rows_mut::<NS>(0).copy_from(&stage.shape);
         v5.fixed_rows_mut::<NS>(0).copy_from(&v);
         if !M::CURRENT_DYNAMICS {
             let i = if k < n {
@@ -626,7 +623,6 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
     let bounds = PlanBounds::default();
     let stiff_explicit = matches!(transcription, Transcription::Rk(RungeKutta::Rk4));
     let models = friction_continuation(model, stiff_explicit && M::CURRENT_DYNAMICS);
-    let h = problem.h;
     match transcription {
         Transcription::VarInt(disc) => {
             let seq = WipSequence {
@@ -653,7 +649,9 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
                 opts,
                 &progress,
             );
-            outcome::<M, NS, NX, NW>(model, r, h, true)
+            let traj = varint_plan::<M, NS>(model, problem, bounds, disc)
+                .trajectory::<NS, NX, NW, NC>(&r.iterate);
+            outcome::<M, NS, NX, NW>(model, r, traj, true)
         }
         Transcription::Rk(rk) => {
             let (xs, ws) = rk_start::<M, NS, NX>(model, problem);
@@ -668,7 +666,9 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
             // eight (whole solve): restart at 1e-3: 85 iterations; 3e-3: 78; 1e-2: 77;
             // 3e-2: 75; 1e-1: 115.
             let r = continuation::<_, NX, 2, 0, 2, NC>(&plans, xs, ws, opts);
-            outcome::<M, NS, NX, 2>(model, r, h, false)
+            let traj =
+                rk_plan::<M, NS>(model, problem, bounds, rk).trajectory::<2, NX, NC>(&r.iterate);
+            outcome::<M, NS, NX, 2>(model, r, traj, false)
         }
     }
 }
