@@ -20,6 +20,36 @@
 //! The start then rolls the poses forward from `g_0` with the solved shape motion, so it
 //! satisfies the transcription's dynamics exactly and the path only approximately; the
 //! inputs are zero.
+//!
+//! # Example
+//!
+//! A differential drive on a straight path at 0.5 m/s: both wheels turn at `0.5 / r` = 10 rad/s (r = 0.05 m).
+//! ```
+//! # use dmech::{Lift, PrincipalKinematicSystem};
+//! # use dmech_lie::{Real, Se2};
+//! # use nalgebra::{SMatrix, SVector};
+//! # struct DiffDrive;
+//! # impl PrincipalKinematicSystem<3, 2, 2, 2> for DiffDrive {
+//! #     type Param = f64;
+//! #     type Group<T: Real> = Se2<T>;
+//! #     fn reduced_lagrangian<T: Lift<f64>>(&self, _s: &SVector<T, 2>, v: &SVector<T, 2>, xi: &SVector<T, 3>) -> T {
+//! #         (xi.dot(xi) + v.dot(v) * 1e-3) * 0.5
+//! #     }
+//! #     fn connection<T: Lift<f64>>(&self, _s: &SVector<T, 2>) -> SMatrix<T, 3, 2> {
+//! #         let (half_r, yaw, z) = (T::from(0.025), T::from(0.25), T::zero());
+//! #         SMatrix::<T, 3, 2>::new(-half_r, -half_r, z, z, -yaw, yaw)
+//! #     }
+//! #     fn forcing<T: Lift<f64>>(&self, _s: &SVector<T, 2>, _v: &SVector<T, 2>, u: &SVector<T, 2>) -> SVector<T, 2> { *u }
+//! # }
+//! use dmech_ocp::kinematic_start::shape_motion;
+//! let h = 0.02;
+//! let path: Vec<Se2<f64>> = (0..=50).map(|k| Se2::new(0.5 * h * k as f64, 0.0, 0.0)).collect();
+//! let weights = SVector::<f64, 2>::repeat(1e-9);
+//! let (s, v) = shape_motion::<_, 3, 2, 2, 2>(&DiffDrive, h, &path, &SVector::zeros(), &weights)?;
+//! assert!(v.iter().all(|vk| (vk[0] - 10.0).abs() < 1e-3 && (vk[1] - 10.0).abs() < 1e-3));
+//! assert!((s[50][0] - 10.0).abs() < 1e-3); // 1 s at 10 rad/s
+//! # Ok::<(), dmech_ocp::kinematic_start::KinematicStartError>(())
+//! ```
 
 use crate::ipm::{IpOptions, SolveResult, Solver, Status};
 use crate::problem::{StageProblem, StateEquality};
