@@ -96,11 +96,7 @@ where
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    let s_mid = interval_midpoint(h, s_k, v_k);
-    let xi = -(sys.connection(&s_mid) * v_k);
-    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi * T::from(h)));
-    let d = -(dinv * a_k);
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, &s_mid, -0.5 * h, v_k, &xi, &d)
+    interval_momentum_at_node::<S, T, DOF, DIM, NS, NU>(sys, h, s_k, v_k, a_k, 1.0)
 }
 
 /// The discrete momentum arriving at node `k` (forces excluded):
@@ -125,11 +121,38 @@ where
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    let s_mid = interval_midpoint(h, s_prev, v_prev);
-    let xi = -(sys.connection(&s_mid) * v_prev);
-    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi * T::from(-h)));
-    let d = -(dinv * a_k);
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, &s_mid, 0.5 * h, v_prev, &xi, &d)
+    interval_momentum_at_node::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, a_k, -1.0)
+}
+
+/// The momentum an interval (starting at `s_start` with velocity `v`) contributes at one of
+/// its nodes: the one after it (`side = −1`, incoming) or before it (`side = +1`,
+/// outgoing). The two differ only in the side: the shift `−side·½h` of `∂ℓ/∂s` and
+/// `dexp⁻¹(side·hξ)` (the source of the scheme's symmetry).
+fn interval_momentum_at_node<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    h: f64,
+    s_start: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+    a_node: &SMatrix<T, DOF, NS>,
+    side: f64,
+) -> SVector<T, NS>
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dv<T, NS>: Lift<S::Param>,
+{
+    let s_mid = interval_midpoint(h, s_start, v);
+    let xi = -(sys.connection(&s_mid) * v);
+    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi * T::from(side * h)));
+    let d = -(dinv * a_node);
+    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, &s_mid, -0.5 * side * h, v, &xi, &d)
 }
 
 /// The midpoint momentum-matching residual at node `k`, divided by `h` (force units, as
