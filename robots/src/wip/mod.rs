@@ -13,6 +13,7 @@ pub mod model;
 pub mod params;
 pub mod plan;
 pub mod plan_report;
+pub mod plan_start;
 pub mod simulate;
 pub mod state;
 
