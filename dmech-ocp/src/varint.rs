@@ -13,7 +13,10 @@
 //! momentum-matching residual as the equality.
 
 use crate::layout::{segment, Layout};
-use dmech::midpoint::{interval_body_velocity, midpoint_momentum_matching_residual};
+use dmech::midpoint::{
+    interval_body_velocity, interval_force, midpoint_incoming_momentum,
+    midpoint_momentum_matching_residual, midpoint_outgoing_momentum,
+};
 use dmech::partials::{grad_part, lift_vec, seeded};
 use dmech::variational::{
     discrete_force, incoming_momentum_dual, momentum_matching_residual, outgoing_momentum_dual,
@@ -315,10 +318,9 @@ impl<'a, S> VarIntStages<'a, S> {
     }
 
     /// [`VarIntStages::equality_jacobian`] of the midpoint scheme: each block of
-    /// `(s_k, v_{k−1}, u_{k−1}, v_k, u_k)` seeded in turn through the generic residual (ℓ's
-    /// gradient in nested duals). Every term of the midpoint residual moves with `s_k` and
-    /// with its interval's velocity (they set the midpoint where ℓ, `A` and `F` are read),
-    /// so the first-order scheme's term selection has little to skip here.
+    /// `(s_k, v_{k−1}, v_k)` seeded in turn through the generic momenta (ℓ's gradient in
+    /// nested duals), a velocity's pass evaluating only its interval's half of the
+    /// residual; the inputs by one pass through the forces.
     #[allow(clippy::type_complexity)]
     fn midpoint_equality_jacobian<
         const DOF: usize,
@@ -346,15 +348,35 @@ impl<'a, S> VarIntStages<'a, S> {
         let mut ex = SMatrix::<f64, NS, NX>::zeros();
         let mut ew = SMatrix::<f64, NS, NW>::zeros();
         let h = self.h;
-        let residual = |s: &SVector<_, NS>,
-                        vp: &SVector<_, NS>,
-                        up: &SVector<_, NU>,
-                        v: &SVector<_, NS>,
-                        u: &SVector<_, NU>| {
-            let s_prev = s - vp * D::<NS>::from(h);
-            midpoint_momentum_matching_residual::<S, D<NS>, DOF, DIM, NS, NU>(
-                self.sys, h, &s_prev, vp, up, s, v, u,
-            )
+        // The residual's two halves: the interval before node k (incoming momentum and
+        // its force, moved by s_k and v_{k−1}) and the interval after it (outgoing, moved
+        // by s_k and v_k). A pass seeded in one velocity evaluates only its half.
+        let terms = |incoming: bool,
+                     outgoing: bool,
+                     s: &SVector<D<NS>, NS>,
+                     vp: &SVector<D<NS>, NS>,
+                     up: &SVector<D<NS>, NU>,
+                     v: &SVector<D<NS>, NS>,
+                     u: &SVector<D<NS>, NU>| {
+            let (ht, half) = (D::<NS>::from(h), D::<NS>::from(0.5));
+            let a_k = self.sys.connection(s);
+            let mut r = SVector::<D<NS>, NS>::zeros();
+            if outgoing {
+                let out = midpoint_outgoing_momentum::<S, D<NS>, DOF, DIM, NS, NU>(
+                    self.sys, h, s, v, &a_k,
+                );
+                let f = interval_force::<S, D<NS>, DOF, DIM, NS, NU>(self.sys, h, s, v, u);
+                r += out / ht - f * half;
+            }
+            if incoming {
+                let s_prev = s - vp * ht;
+                let inc = midpoint_incoming_momentum::<S, D<NS>, DOF, DIM, NS, NU>(
+                    self.sys, h, &s_prev, vp, &a_k,
+                );
+                let f = interval_force::<S, D<NS>, DOF, DIM, NS, NU>(self.sys, h, &s_prev, vp, up);
+                r -= inc / ht + f * half;
+            }
+            r
         };
         let (ls, lvp, lup, lv, lu) = (
             lift_vec(&s),
@@ -366,14 +388,18 @@ impl<'a, S> VarIntStages<'a, S> {
         put_columns(
             &mut ex,
             l.s_at(),
-            &residual(&seeded(&s), &lvp, &lup, &lv, &lu),
+            &terms(true, true, &seeded(&s), &lvp, &lup, &lv, &lu),
         );
         put_columns(
             &mut ex,
             l.v_at(),
-            &residual(&ls, &seeded(&v_prev), &lup, &lv, &lu),
+            &terms(true, false, &ls, &seeded(&v_prev), &lup, &lv, &lu),
         );
-        put_columns(&mut ew, 0, &residual(&ls, &lvp, &lup, &seeded(&v), &lu));
+        put_columns(
+            &mut ew,
+            0,
+            &terms(false, true, &ls, &lvp, &lup, &seeded(&v), &lu),
+        );
         // The inputs enter through the interval forces only: one pass with both seeded.
         let r = self.midpoint_input_columns::<DOF, DIM, NS, NU>(&s, &v_prev, &u_prev, &v, &u);
         for i in 0..NS {
