@@ -11,9 +11,9 @@
 //! by a dual number in time along `(ṡ, v̇) = (v, 0)`.
 
 use crate::linalg::{solve, Lu};
+use crate::newton::StepError;
 use crate::partials::{dl_ds, dl_dxi, jacobian_part, pulled_back_gradient, value_and_jacobian};
 use crate::system::{Lift, PrincipalKinematicSystem};
-use crate::variational::StepError;
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, Dual, DualVec};

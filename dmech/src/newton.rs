@@ -4,8 +4,36 @@
 //! [`crate::midpoint`].
 
 use crate::linalg::Lu;
-use crate::variational::StepError;
 use nalgebra::{SMatrix, SVector};
+use std::fmt;
+
+/// Why a step failed. A failed step never returns a NaN state.
+#[derive(Clone, Debug, PartialEq)]
+pub enum StepError {
+    /// Newton's method did not reach the tolerance in the allowed iterations.
+    NoConvergence { iterations: usize, step_norm: f64 },
+    /// A residual, Jacobian or iterate was not finite.
+    NonFinite,
+    /// The Jacobian (or the mass matrix) was singular.
+    Singular,
+}
+
+impl fmt::Display for StepError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StepError::NoConvergence {
+                iterations,
+                step_norm,
+            } => write!(
+                f,
+                "Newton iteration did not converge in {iterations} iterations (last step {step_norm:.3e})"
+            ),
+            StepError::NonFinite => write!(f, "non-finite value in the integrator step"),
+            StepError::Singular => write!(f, "singular Jacobian in the integrator step"),
+        }
+    }
+}
+impl std::error::Error for StepError {}
 
 /// Newton switches to chord steps (the last exact Jacobian reused) once an update is below
 /// this fraction of `1 + ‖v‖∞` (≈ √tol: from there one chord step reaches the tolerance);

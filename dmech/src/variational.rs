@@ -13,7 +13,7 @@
 //! `dmech-lie`, and `F̄_k` the discrete force of the chosen [`ForcingQuadrature`].
 
 use crate::newton::{solve_momentum_matching, NewtonSettings};
-pub use crate::newton::{JacobianPolicy, NewtonCache};
+pub use crate::newton::{JacobianPolicy, NewtonCache, StepError};
 use crate::partials::{
     momenta_and_jacobians, pulled_back_gradient, pulled_back_gradient_dual, value_and_jacobian,
 };
@@ -21,7 +21,6 @@ use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::LieGroup;
 use nalgebra::{SMatrix, SVector};
 use num_dual::{DualSVec64, DualVec};
-use std::fmt;
 
 type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 
@@ -281,34 +280,6 @@ pub struct ViState<G, const NS: usize> {
     pub s: SVector<f64, NS>,
     pub v: SVector<f64, NS>,
 }
-
-/// Why a step failed. A failed step never returns a NaN state.
-#[derive(Clone, Debug, PartialEq)]
-pub enum StepError {
-    /// Newton's method did not reach the tolerance in the allowed iterations.
-    NoConvergence { iterations: usize, step_norm: f64 },
-    /// A residual, Jacobian or iterate was not finite.
-    NonFinite,
-    /// The Jacobian (or the mass matrix) was singular.
-    Singular,
-}
-
-impl fmt::Display for StepError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            StepError::NoConvergence {
-                iterations,
-                step_norm,
-            } => write!(
-                f,
-                "Newton iteration did not converge in {iterations} iterations (last step {step_norm:.3e})"
-            ),
-            StepError::NonFinite => write!(f, "non-finite value in the integrator step"),
-            StepError::Singular => write!(f, "singular Jacobian in the integrator step"),
-        }
-    }
-}
-impl std::error::Error for StepError {}
 
 /// Which discretisation of the reduced LDAP principle a [`VariationalIntegrator`] steps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

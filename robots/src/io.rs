@@ -1,9 +1,7 @@
-//! File input and output shared by the `wip` subcommands: output sets written whole
-//! (staged, then renamed into place), the trajectory CSV, the CSV reader, and progress and
+//! File input and output shared by the tools: output sets written whole (staged, then
+//! renamed into place), the CSV reader, input schedules, and progress and
 //! result lines that never panic on a closed or full stream.
 
-use crate::wip::simulate::{InputSchedule, Trajectory};
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// A line on stderr (progress, warnings). Best-effort: a closed or full stderr
@@ -97,37 +95,6 @@ impl Drop for OutputSet {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.staging);
     }
-}
-
-/// `trajectory.csv`: `t,x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL,uR,uL`. A non-finite
-/// value is an error naming its row and column: a file of NaNs is never a result.
-pub fn trajectory_csv(traj: &Trajectory) -> Result<String, String> {
-    const COLUMNS: [&str; 12] = [
-        "t", "x", "y", "theta", "alpha", "v_alpha", "v_d", "v_theta", "iR", "iL", "uR", "uL",
-    ];
-    let mut s = COLUMNS.join(",") + "\n";
-    for k in 0..traj.t.len() {
-        let u = traj.u[k];
-        let row = std::iter::once(traj.t[k])
-            .chain(traj.x[k].iter().copied())
-            .chain(u);
-        for (j, v) in row.enumerate() {
-            if !v.is_finite() {
-                return Err(format!(
-                    "the trajectory holds a non-finite value ({v}) at t = {} in column '{}': \
-                     nothing written",
-                    traj.t[k], COLUMNS[j]
-                ));
-            }
-            if j == 0 {
-                let _ = write!(s, "{v}");
-            } else {
-                let _ = write!(s, ",{v:.17e}");
-            }
-        }
-        s.push('\n');
-    }
-    Ok(s)
 }
 
 /// A parsed CSV: header names and numeric rows (NaN for empty fields when allowed),
@@ -245,6 +212,27 @@ pub fn read_text(path: &Path, what: &str) -> Result<String, ReadError> {
         what: what.to_string(),
         source,
     })
+}
+
+/// Two inputs held from `t_j` until the next sample (zero-order hold): the WIP's voltages
+/// `(uR, uL)`, the car's `(τ_s, u_d)`.
+#[derive(Clone, Debug)]
+pub struct InputSchedule {
+    pub t: Vec<f64>,
+    pub u: Vec<[f64; 2]>,
+}
+
+impl InputSchedule {
+    /// The input in force at time `t` (the last sample at or before `t`, with a tolerance
+    /// of 1e-9 s so that grid times computed as `k h` do not fall just short of a sample).
+    pub fn at(&self, t: f64) -> [f64; 2] {
+        let idx = self.t.partition_point(|&tj| tj <= t + 1e-9);
+        self.u[idx.saturating_sub(1)]
+    }
+    /// The last sample time: the end of the horizon.
+    pub fn end(&self) -> f64 {
+        *self.t.last().unwrap_or(&0.0)
+    }
 }
 
 /// Read an inputs file (`t,uR,uL`, zero-order hold, starting at t = 0).

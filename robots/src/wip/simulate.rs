@@ -2,12 +2,14 @@
 
 use super::state::{from_reduced, to_reduced, ReducedState};
 use super::Wip;
+pub use crate::io::InputSchedule;
 use dmech::continuous::{ContinuousModel, RungeKutta};
 use dmech::{
     Discretisation, ForcingQuadrature, JacobianPolicy, NewtonCache, StepError,
     VariationalIntegrator, ViState,
 };
 use nalgebra::{Complex, SVector};
+use std::fmt::Write as _;
 
 /// The time-stepping schemes `wip` offers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -74,24 +76,35 @@ impl Integrator {
     }
 }
 
-/// Voltages `(uR, uL)` held from `t_j` until the next sample (zero-order hold).
-#[derive(Clone, Debug)]
-pub struct InputSchedule {
-    pub t: Vec<f64>,
-    pub u: Vec<[f64; 2]>,
-}
-
-impl InputSchedule {
-    /// The input in force at time `t` (the last sample at or before `t`, with a tolerance
-    /// of 1e-9 s so that grid times computed as `k h` do not fall just short of a sample).
-    pub fn at(&self, t: f64) -> [f64; 2] {
-        let idx = self.t.partition_point(|&tj| tj <= t + 1e-9);
-        self.u[idx.saturating_sub(1)]
+/// `trajectory.csv`: `t,x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL,uR,uL`. A non-finite
+/// value is an error naming its row and column: a file of NaNs is never a result.
+pub fn trajectory_csv(traj: &Trajectory) -> Result<String, String> {
+    const COLUMNS: [&str; 12] = [
+        "t", "x", "y", "theta", "alpha", "v_alpha", "v_d", "v_theta", "iR", "iL", "uR", "uL",
+    ];
+    let mut s = COLUMNS.join(",") + "\n";
+    for k in 0..traj.t.len() {
+        let u = traj.u[k];
+        let row = std::iter::once(traj.t[k])
+            .chain(traj.x[k].iter().copied())
+            .chain(u);
+        for (j, v) in row.enumerate() {
+            if !v.is_finite() {
+                return Err(format!(
+                    "the trajectory holds a non-finite value ({v}) at t = {} in column '{}': \
+                     nothing written",
+                    traj.t[k], COLUMNS[j]
+                ));
+            }
+            if j == 0 {
+                let _ = write!(s, "{v}");
+            } else {
+                let _ = write!(s, ",{v:.17e}");
+            }
+        }
+        s.push('\n');
     }
-    /// The last sample time: the end of the horizon.
-    pub fn end(&self) -> f64 {
-        *self.t.last().unwrap_or(&0.0)
-    }
+    Ok(s)
 }
 
 /// A simulated trajectory: reduced states and the inputs applied from each node on.

@@ -5,10 +5,11 @@ use crate::common::{
     IntegratorArg,
 };
 use dmech_ocp::ipm::{IpOptions, Status};
-use robots::io::{trajectory_csv, OutputSet};
+use robots::io::OutputSet;
 use robots::wip::benchmarks;
 use robots::wip::plan::{plan, PlanBounds};
 use robots::wip::plan_report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
+use robots::wip::simulate::trajectory_csv;
 use robots::wip::Wip;
 use robots::{progress, say};
 use std::path::PathBuf;

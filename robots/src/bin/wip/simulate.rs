@@ -1,8 +1,9 @@
 //! `wip simulate`: open-loop simulation from a state with zero-order-hold voltages.
 
 use crate::common::{check_size, load_params, positive_count, sim_step, Failure, IntegratorArg};
-use robots::io::{read_inputs, trajectory_csv, OutputSet};
+use robots::io::{read_inputs, OutputSet};
 use robots::say;
+use robots::wip::simulate::trajectory_csv;
 use robots::wip::simulate::{check_stability, simulate, Integrator};
 use robots::wip::{ReducedState, Wip};
 use std::path::PathBuf;
