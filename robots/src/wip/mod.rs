@@ -15,6 +15,7 @@ pub mod plan;
 pub mod plan_report;
 pub mod simulate;
 pub mod state;
+pub mod track;
 
 pub use model::Wip;
 pub use params::WipParams;

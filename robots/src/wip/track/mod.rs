@@ -1,0 +1,9 @@
+//! `wip track`: the paper's closed loop (feedforward plan + LQ controller + guidance +
+//! observer) with sensor rates, delays and noise (docs/tracking.md).
+
+pub mod closed_loop;
+pub mod dare;
+pub mod guidance;
+pub mod linear;
+pub mod lq;
+pub mod observer;
