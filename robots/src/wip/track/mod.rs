@@ -7,3 +7,4 @@ pub mod guidance;
 pub mod linear;
 pub mod lq;
 pub mod observer;
+pub mod report;

@@ -1,0 +1,104 @@
+//! `wip track`: the closed loop along a plan (feedforward + LQ + guidance + observer).
+
+use crate::common::{load_params, Failure};
+use robots::io::OutputSet;
+use robots::say;
+use robots::wip::track::closed_loop::{track, TrackConfig};
+use robots::wip::track::lq::LqController;
+use robots::wip::track::observer::SensorModel;
+use robots::wip::track::report::{plan_path, plots, read_plan, tracking_csv, tracking_json};
+use std::path::PathBuf;
+
+/// Track a planned trajectory in closed loop.
+///
+/// Applies the plan's voltages as feedforward plus the LQ controller's feedback on the
+/// errors of the guidance and the observer, saturated at ±5 V, to the full nonlinear model
+/// (RK4, 0.5 ms substeps), with the sensors' rates, delays and noise (docs/tracking.md).
+/// Writes DIR/{tracking.csv, tracking.json, tracking_*.svg} (docs/formats.md).
+#[derive(clap::Args)]
+pub struct TrackArgs {
+    /// A plan: a directory holding trajectory.csv, or the file
+    #[arg(value_name = "DIR-or-trajectory.csv")]
+    plan: PathBuf,
+    /// Seed of the sensor noise, delays and losses
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    seed: u64,
+    /// No noise, no delay, no loss: the observer sees the true state
+    #[arg(long)]
+    ideal: bool,
+    /// The tracking controller
+    #[arg(long, value_enum, default_value_t = ControllerArg::Lq)]
+    controller: ControllerArg,
+    /// JSON parameter file of the plant and the controller's design (docs/formats.md)
+    #[arg(long, value_name = "FILE")]
+    params: Option<PathBuf>,
+    /// Output directory
+    #[arg(long, value_name = "DIR", default_value = "out")]
+    out: PathBuf,
+}
+
+/// The tracking controllers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ControllerArg {
+    /// The paper's LQ controller on the ZOH-discretised linear model.
+    Lq,
+}
+
+pub fn run(a: TrackArgs) -> Result<(), Failure> {
+    let params = load_params(a.params.as_deref())?;
+    let path = plan_path(&a.plan);
+    let plan = read_plan(&path)?;
+    let lq = LqController::design(&params)
+        .map_err(|e| Failure::Run(format!("the LQ design failed: {e}")))?;
+    let cfg = TrackConfig {
+        plant: params,
+        nominal: params,
+        sensors: if a.ideal {
+            SensorModel::ideal()
+        } else {
+            SensorModel::paper()
+        },
+        seed: a.seed,
+    };
+    let mut files = OutputSet::create(&a.out)?;
+    let t0 = std::time::Instant::now();
+    let long = *plan.t.last().unwrap_or(&0.0) > 2.0;
+    let run = track(&plan, &lq, &cfg, |f| {
+        if long {
+            robots::progress!("\rtrack: {:3.0} %", 100.0 * f);
+        }
+    })?;
+    if long {
+        robots::progress!("\rtrack: done ");
+    }
+    let elapsed = t0.elapsed().as_secs_f64();
+    let fig = run.figures();
+    let duration = run.samples.last().map_or(0.0, |s| s.t);
+    files.write("tracking.csv", tracking_csv(&run).as_bytes())?;
+    let json = tracking_json(&fig, a.seed, a.ideal, "lq", run.fell_at, duration);
+    files.write("tracking.json", json.as_bytes())?;
+    for (name, svg) in plots(&run) {
+        files.write(&name, svg.as_bytes())?;
+    }
+    files.commit()?;
+    say!(
+        "tracked {duration:.2} s in {elapsed:.2} s: position error max {:.2} mm rms {:.2} mm, \
+         heading error max {:.2} deg rms {:.2} deg, tilt max {:.2} deg, feedback max {:.2} V{}",
+        1e3 * fig.position_error_max_m,
+        1e3 * fig.position_error_rms_m,
+        fig.heading_error_max_rad.to_degrees(),
+        fig.heading_error_rms_rad.to_degrees(),
+        fig.tilt_max_rad.to_degrees(),
+        fig.feedback_voltage_max,
+        run.fell_at
+            .map_or(String::new(), |t| format!("; FELL at t = {t:.2} s"))
+    );
+    say!(
+        "wrote {}/{{tracking.csv, tracking.json, tracking_*.svg}}",
+        a.out.display()
+    );
+    if let Some(t) = run.fell_at {
+        return Err(Failure::Run(format!("the WIP fell at t = {t:.2} s")));
+    }
+    Ok(())
+}
