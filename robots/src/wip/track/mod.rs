@@ -6,5 +6,6 @@ pub mod dare;
 pub mod guidance;
 pub mod linear;
 pub mod lq;
+pub mod monte_carlo;
 pub mod observer;
 pub mod report;
