@@ -6,7 +6,7 @@ use robots::say;
 use robots::wip::simulate::Trajectory;
 use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::lq::LqController;
-use robots::wip::track::monte_carlo::{monte_carlo, quantile, with_mean_delay};
+use robots::wip::track::monte_carlo::{monte_carlo, perturbed, quantile, with_mean_delay};
 use robots::wip::track::observer::SensorModel;
 use robots::wip::track::report::{plan_path, plots, read_plan, tracking_csv, tracking_json};
 use std::path::PathBuf;
@@ -45,6 +45,9 @@ pub struct TrackArgs {
     /// Mean delay of the external pose (s); the paper's law (13–148 ms, mean 63 ms) scaled
     #[arg(long, value_name = "SECONDS", value_parser = crate::common::positive_number)]
     mean_delay: Option<f64>,
+    /// A single run with the plant of Monte Carlo seed N (its parameter error, --param-error)
+    #[arg(long, value_name = "N", conflicts_with = "monte_carlo")]
+    plant_seed: Option<u64>,
     /// Threads of a Monte Carlo run
     #[arg(long, value_name = "N", default_value = "2", value_parser = crate::common::positive_count)]
     threads: usize,
@@ -67,7 +70,9 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
     let lq = LqController::design(&params)
         .map_err(|e| Failure::Run(format!("the LQ design failed: {e}")))?;
     let cfg = TrackConfig {
-        plant: params,
+        plant: a
+            .plant_seed
+            .map_or(params, |n| perturbed(&params, a.param_error, n)),
         nominal: params,
         sensors: match (a.ideal, a.mean_delay) {
             (true, _) => SensorModel::ideal(),
