@@ -21,13 +21,6 @@ pub const SUBSTEPS: usize = 10;
 /// A tilt beyond which the WIP counts as fallen (rad, 45°): no 5-V input recovers it.
 pub const FALL_TILT: f64 = std::f64::consts::FRAC_PI_4;
 
-/// The reference governor: while the last applied voltage was saturated the plan's clock
-/// slows by `GOVERNOR_SLOW` per sample down to `GOVERNOR_MIN`, and recovers by
-/// `GOVERNOR_RECOVER` per sample otherwise (docs/tracking.md).
-pub const GOVERNOR_SLOW: f64 = 0.01;
-pub const GOVERNOR_RECOVER: f64 = 0.002;
-pub const GOVERNOR_MIN: f64 = 0.5;
-
 /// What runs: the plant's parameters, the sensors, the seed.
 #[derive(Clone, Debug)]
 pub struct TrackConfig {
@@ -189,10 +182,7 @@ pub fn track(
     let mut run = TrackRun::default();
     let mut u_prev = plan.u[0];
     let every = (n / 20).max(1);
-    // The plan's clock `tau` and its rate (the reference governor).
-    let (mut tau, mut rate) = (0.0, 1.0);
-    let mut k = 0;
-    loop {
+    for k in 0..=n {
         let t = k as f64 * SAMPLE;
         let x = to_reduced(&cfg.plant, &state.g, &state.s, &state.v);
         if x[3].abs() > FALL_TILT || !x.iter().all(|v| v.is_finite()) {
@@ -243,15 +233,8 @@ pub fn track(
             });
             obs.estimate()
         };
-        let (xr, u_ff) = reference.at(tau);
-        // Velocities of the reference on the slowed clock.
-        let mut xr_rate = xr;
-        for i in 4..7 {
-            xr_rate[i] *= rate;
-        }
-        let u_fb = lq.feedback(&error_state(&est, &xr_rate));
-        let raw = [u_ff[0] + u_fb[0], u_ff[1] + u_fb[1]];
-        let saturated = raw[0].abs() > U_MAX || raw[1].abs() > U_MAX;
+        let (xr, u_ff) = reference.at(t);
+        let u_fb = lq.feedback(&error_state(&est, &xr));
         let u = [
             (u_ff[0] + u_fb[0]).clamp(-U_MAX, U_MAX),
             (u_ff[1] + u_fb[1]).clamp(-U_MAX, U_MAX),
@@ -266,15 +249,9 @@ pub fn track(
             u,
         });
         u_prev = u;
-        if tau >= reference.end() - 1e-9 || k >= 2 * n {
+        if k == n {
             break;
         }
-        rate = if saturated {
-            (rate - GOVERNOR_SLOW).max(GOVERNOR_MIN)
-        } else {
-            (rate + GOVERNOR_RECOVER).min(1.0)
-        };
-        tau = (tau + rate * SAMPLE).min(reference.end());
         let uv = SVector::<f64, 2>::new(u[0], u[1]);
         for _ in 0..SUBSTEPS {
             state = ContinuousModel::step(
@@ -287,9 +264,8 @@ pub fn track(
             .map_err(|e| format!("the plant's step at t = {t:.3} s failed: {e}"))?;
         }
         if k % every == 0 {
-            progress((tau / reference.end()).min(1.0));
+            progress(k as f64 / n as f64);
         }
-        k += 1;
     }
     Ok(run)
 }
