@@ -71,7 +71,7 @@ pub fn solve_dare<const N: usize, const M: usize>(
         let w_g: SMatrix<f64, N, N> = static_of(&w.solve(&dyn_of(&g)).ok_or(DareError::Singular)?);
         let h_next = h + ak.transpose() * h * w_a;
         let g_next = g + ak * w_g * ak.transpose();
-        ak = ak * w_a;
+        ak *= w_a;
         let change = (h_next - h).norm();
         h = 0.5 * (h_next + h_next.transpose());
         g = 0.5 * (g_next + g_next.transpose());

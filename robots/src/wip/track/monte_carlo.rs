@@ -20,7 +20,7 @@ pub const PERTURBED: [&str; 13] = [
 pub fn perturbed(nominal: &WipParams, rel: f64, seed: u64) -> WipParams {
     let mut p = *nominal;
     // A stream apart from the sensors' (which use `seed` itself).
-    let mut rng = Rng::new(seed ^ 0x5eed_0f_9a7a);
+    let mut rng = Rng::new(seed ^ 0x5e_ed0f_9a7a);
     for (name, v) in p.named_mut() {
         if PERTURBED.contains(&name) {
             *v *= 1.0 + rng.range(-rel, rel);
