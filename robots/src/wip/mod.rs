@@ -16,6 +16,7 @@ pub mod plan_report;
 pub mod plan_start;
 pub mod simulate;
 pub mod state;
+pub mod track;
 
 pub use model::Wip;
 pub use params::WipParams;

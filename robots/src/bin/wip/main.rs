@@ -8,6 +8,7 @@ mod generate;
 mod params;
 mod plan;
 mod simulate;
+mod track;
 
 use clap::{Parser, Subcommand};
 use common::Failure;
@@ -32,6 +33,7 @@ enum Command {
     Diagnose(diagnose::DiagnoseArgs),
     Generate(generate::GenerateArgs),
     Params(params::ParamsArgs),
+    Track(track::TrackArgs),
 }
 
 /// clap shows the usage with some errors (unknown argument) but not others (invalid value):
@@ -73,6 +75,7 @@ fn main() -> ExitCode {
         Command::Diagnose(a) => diagnose::run(a),
         Command::Generate(a) => generate::run(a),
         Command::Params(a) => params::run(a),
+        Command::Track(a) => track::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,205 @@
+//! `wip track`: the closed loop along a plan (feedforward + LQ + guidance + observer).
+
+use crate::common::{load_params, Failure};
+use robots::io::OutputSet;
+use robots::say;
+use robots::wip::simulate::Trajectory;
+use robots::wip::track::closed_loop::{track, TrackConfig};
+use robots::wip::track::lq::LqController;
+use robots::wip::track::monte_carlo::{monte_carlo, perturbed, quantile, with_mean_delay};
+use robots::wip::track::observer::SensorModel;
+use robots::wip::track::report::{plan_path, plots, read_plan, tracking_csv, tracking_json};
+use std::path::PathBuf;
+
+/// Track a planned trajectory in closed loop.
+///
+/// Applies the plan's voltages as feedforward plus the LQ controller's feedback on the
+/// errors of the guidance and the observer, saturated at ±5 V, to the full nonlinear model
+/// (RK4, 0.5 ms substeps), with the sensors' rates, delays and noise (docs/tracking.md).
+/// Writes DIR/{tracking.csv, tracking.json, tracking_*.svg} (docs/formats.md).
+#[derive(clap::Args)]
+pub struct TrackArgs {
+    /// A plan: a directory holding trajectory.csv, or the file
+    #[arg(value_name = "DIR-or-trajectory.csv")]
+    plan: PathBuf,
+    /// Seed of the sensor noise, delays and losses
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    seed: u64,
+    /// No noise, no delay, no loss: the observer sees the true state
+    #[arg(long)]
+    ideal: bool,
+    /// The tracking controller
+    #[arg(long, value_enum, default_value_t = ControllerArg::Lq)]
+    controller: ControllerArg,
+    /// JSON parameter file of the plant and the controller's design (docs/formats.md)
+    #[arg(long, value_name = "FILE")]
+    params: Option<PathBuf>,
+    /// Run seeds 1..=N instead of one, each with its own random plant parameter error
+    /// (--param-error), in parallel; writes montecarlo.json and a table
+    #[arg(long, value_name = "N", value_parser = crate::common::positive_count)]
+    monte_carlo: Option<usize>,
+    /// Relative error of every mass, inertia and motor parameter of the plant in a Monte
+    /// Carlo run (uniform in ±REL)
+    #[arg(long, value_name = "REL", default_value = "0.1", value_parser = crate::common::positive_number)]
+    param_error: f64,
+    /// Mean delay of the external pose (s); the paper's law (13–148 ms, mean 63 ms) scaled
+    #[arg(long, value_name = "SECONDS", value_parser = crate::common::positive_number)]
+    mean_delay: Option<f64>,
+    /// A single run with the plant of Monte Carlo seed N (its parameter error, --param-error)
+    #[arg(long, value_name = "N", conflicts_with = "monte_carlo")]
+    plant_seed: Option<u64>,
+    /// Threads of a Monte Carlo run
+    #[arg(long, value_name = "N", default_value = "2", value_parser = crate::common::positive_count)]
+    threads: usize,
+    /// Output directory
+    #[arg(long, value_name = "DIR", default_value = "out")]
+    out: PathBuf,
+}
+
+/// The tracking controllers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ControllerArg {
+    /// The paper's LQ controller on the ZOH-discretised linear model.
+    Lq,
+}
+
+pub fn run(a: TrackArgs) -> Result<(), Failure> {
+    let params = load_params(a.params.as_deref())?;
+    let path = plan_path(&a.plan);
+    let plan = read_plan(&path)?;
+    let lq = LqController::design(&params)
+        .map_err(|e| Failure::Run(format!("the LQ design failed: {e}")))?;
+    let cfg = TrackConfig {
+        plant: a
+            .plant_seed
+            .map_or(params, |n| perturbed(&params, a.param_error, n)),
+        nominal: params,
+        sensors: match (a.ideal, a.mean_delay) {
+            (true, _) => SensorModel::ideal(),
+            (false, Some(m)) => with_mean_delay(m),
+            (false, None) => SensorModel::paper(),
+        },
+        seed: a.seed,
+    };
+    if let Some(n) = a.monte_carlo {
+        return monte_carlo_run(&a, &plan, &lq, &cfg, n);
+    }
+    let mut files = OutputSet::create(&a.out)?;
+    let t0 = std::time::Instant::now();
+    let long = *plan.t.last().unwrap_or(&0.0) > 2.0;
+    let run = track(&plan, &lq, &cfg, |f| {
+        if long {
+            robots::progress!("\rtrack: {:3.0} %", 100.0 * f);
+        }
+    })?;
+    if long {
+        robots::progress!("\rtrack: done ");
+    }
+    let elapsed = t0.elapsed().as_secs_f64();
+    let fig = run.figures();
+    let duration = run.samples.last().map_or(0.0, |s| s.t);
+    files.write("tracking.csv", tracking_csv(&run).as_bytes())?;
+    let json = tracking_json(&fig, a.seed, a.ideal, "lq", run.fell_at, duration);
+    files.write("tracking.json", json.as_bytes())?;
+    for (name, svg) in plots(&run) {
+        files.write(&name, svg.as_bytes())?;
+    }
+    files.commit()?;
+    say!(
+        "tracked {duration:.2} s in {elapsed:.2} s: position error max {:.2} mm rms {:.2} mm, \
+         heading error max {:.2} deg rms {:.2} deg, tilt max {:.2} deg, feedback max {:.2} V{}",
+        1e3 * fig.position_error_max_m,
+        1e3 * fig.position_error_rms_m,
+        fig.heading_error_max_rad.to_degrees(),
+        fig.heading_error_rms_rad.to_degrees(),
+        fig.tilt_max_rad.to_degrees(),
+        fig.feedback_voltage_max,
+        run.fell_at
+            .map_or(String::new(), |t| format!("; FELL at t = {t:.2} s"))
+    );
+    say!(
+        "wrote {}/{{tracking.csv, tracking.json, tracking_*.svg}}",
+        a.out.display()
+    );
+    if let Some(t) = run.fell_at {
+        return Err(Failure::Run(format!("the WIP fell at t = {t:.2} s")));
+    }
+    Ok(())
+}
+
+/// `--monte-carlo N`: seeds 1..=N with plant parameter error, a table on stdout and
+/// montecarlo.json (docs/formats.md).
+fn monte_carlo_run(
+    a: &TrackArgs,
+    plan: &Trajectory,
+    lq: &LqController,
+    cfg: &TrackConfig,
+    n: usize,
+) -> Result<(), Failure> {
+    let mut files = OutputSet::create(&a.out)?;
+    let t0 = std::time::Instant::now();
+    let runs = monte_carlo(
+        plan,
+        lq,
+        &cfg.plant,
+        &cfg.sensors,
+        a.param_error,
+        n as u64,
+        a.threads,
+    )?;
+    let elapsed = t0.elapsed().as_secs_f64();
+    let pos: Vec<f64> = runs
+        .iter()
+        .map(|r| r.figures.position_error_max_m)
+        .collect();
+    let head: Vec<f64> = runs
+        .iter()
+        .map(|r| r.figures.heading_error_max_rad)
+        .collect();
+    let falls: Vec<u64> = runs
+        .iter()
+        .filter(|r| r.figures.fell)
+        .map(|r| r.seed)
+        .collect();
+    say!("seed  fell  pos_max[mm]  pos_rms[mm]  head_max[deg]  tilt_max[deg]  fb_max[V]");
+    for r in &runs {
+        let f = &r.figures;
+        say!(
+            "{:4}  {:5}  {:11.2}  {:11.2}  {:13.2}  {:13.2}  {:9.2}",
+            r.seed,
+            f.fell,
+            1e3 * f.position_error_max_m,
+            1e3 * f.position_error_rms_m,
+            f.heading_error_max_rad.to_degrees(),
+            f.tilt_max_rad.to_degrees(),
+            f.feedback_voltage_max
+        );
+    }
+    let json = serde_json::json!({
+        "controller": "lq",
+        "runs": n,
+        "param_error": a.param_error,
+        "mean_delay_s": a.mean_delay.unwrap_or(0.063),
+        "falls": falls.len(),
+        "fallen_seeds": falls,
+        "position_error_max_m": { "median": quantile(&pos, 0.5), "p95": quantile(&pos, 0.95) },
+        "heading_error_max_rad": { "median": quantile(&head, 0.5), "p95": quantile(&head, 0.95) },
+        "wall_time_s": elapsed,
+        "threads": a.threads,
+    });
+    files.write(
+        "montecarlo.json",
+        (serde_json::to_string_pretty(&json).expect("serialisable") + "\n").as_bytes(),
+    )?;
+    files.commit()?;
+    say!(
+        "{n} runs in {elapsed:.1} s on {} threads: {} fell; max position error median {:.2} mm, \
+         95th percentile {:.2} mm",
+        a.threads,
+        falls.len(),
+        1e3 * quantile(&pos, 0.5),
+        1e3 * quantile(&pos, 0.95)
+    );
+    say!("wrote {}", a.out.join("montecarlo.json").display());
+    Ok(())
+}

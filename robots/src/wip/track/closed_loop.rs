@@ -1,0 +1,271 @@
+//! The closed loop: the plan's feedforward plus LQ feedback on the guidance and observer
+//! errors, saturated at ±5 V, applied to the full nonlinear model integrated by RK4 with
+//! substeps between the 5-ms samples; its record and figures.
+
+use super::guidance;
+use super::lq::{LqController, SAMPLE};
+use super::observer::{Estimate, Observer, OnBoard, PoseMeasurement, SensorModel};
+use crate::wip::diagnose::generate::Rng;
+use crate::wip::simulate::Trajectory;
+use crate::wip::state::{from_reduced, to_reduced};
+use crate::wip::{ReducedState, Wip, WipParams};
+use dmech::continuous::ContinuousState;
+use dmech::{ContinuousModel, RungeKutta};
+use nalgebra::SVector;
+
+/// Motor voltage limit (V).
+pub const U_MAX: f64 = 5.0;
+/// RK4 substeps per sample: 0.5 ms, within RK4's stability bound for the motor circuit's
+/// electrical mode (time constant `L_m/R_m` ≈ 0.27 ms, `|hλ|` ≈ 1.9 < 2.78).
+pub const SUBSTEPS: usize = 10;
+/// A tilt beyond which the WIP counts as fallen (rad, 45°): no 5-V input recovers it.
+pub const FALL_TILT: f64 = std::f64::consts::FRAC_PI_4;
+
+/// What runs: the plant's parameters, the sensors, the seed.
+#[derive(Clone, Debug)]
+pub struct TrackConfig {
+    pub plant: WipParams,
+    /// The parameters the controller and the observer are designed with.
+    pub nominal: WipParams,
+    pub sensors: SensorModel,
+    pub seed: u64,
+}
+
+/// One controller sample of the closed loop.
+#[derive(Clone, Copy, Debug)]
+pub struct Sample {
+    pub t: f64,
+    pub x: ReducedState,
+    pub reference: ReducedState,
+    pub estimate: [f64; 3],
+    pub u_ff: [f64; 2],
+    pub u_fb: [f64; 2],
+    pub u: [f64; 2],
+}
+
+/// The closed loop's record and whether (and when) the WIP fell.
+#[derive(Clone, Debug, Default)]
+pub struct TrackRun {
+    pub samples: Vec<Sample>,
+    pub fell_at: Option<f64>,
+}
+
+/// The plan as a reference: states linearly interpolated between its nodes, voltages held.
+pub struct Reference<'a> {
+    pub plan: &'a Trajectory,
+}
+
+impl Reference<'_> {
+    pub fn end(&self) -> f64 {
+        *self.plan.t.last().unwrap_or(&0.0)
+    }
+    pub fn at(&self, t: f64) -> (ReducedState, [f64; 2]) {
+        let tt = &self.plan.t;
+        let j = tt.partition_point(|&tj| tj <= t + 1e-9).saturating_sub(1);
+        if j + 1 >= tt.len() {
+            return (self.plan.x[tt.len() - 1], self.plan.u[tt.len() - 1]);
+        }
+        let w = ((t - tt[j]) / (tt[j + 1] - tt[j])).clamp(0.0, 1.0);
+        (
+            self.plan.x[j] * (1.0 - w) + self.plan.x[j + 1] * w,
+            self.plan.u[j],
+        )
+    }
+}
+
+/// Summary figures of a run (tracking.json).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TrackFigures {
+    pub position_error_max_m: f64,
+    pub position_error_rms_m: f64,
+    pub heading_error_max_rad: f64,
+    pub heading_error_rms_rad: f64,
+    pub tilt_max_rad: f64,
+    pub feedback_voltage_max: f64,
+    pub feedback_voltage_rms: f64,
+    pub fell: bool,
+}
+
+impl TrackRun {
+    pub fn figures(&self) -> TrackFigures {
+        let n = self.samples.len().max(1) as f64;
+        let mut f = TrackFigures {
+            position_error_max_m: 0.0,
+            position_error_rms_m: 0.0,
+            heading_error_max_rad: 0.0,
+            heading_error_rms_rad: 0.0,
+            tilt_max_rad: 0.0,
+            feedback_voltage_max: 0.0,
+            feedback_voltage_rms: 0.0,
+            fell: self.fell_at.is_some(),
+        };
+        let (mut sp, mut sh, mut su) = (0.0, 0.0, 0.0);
+        for s in &self.samples {
+            let (ep, eh) = s.errors();
+            f.position_error_max_m = f.position_error_max_m.max(ep);
+            f.heading_error_max_rad = f.heading_error_max_rad.max(eh.abs());
+            f.tilt_max_rad = f.tilt_max_rad.max(s.x[3].abs());
+            let ufb = s.u_fb[0].abs().max(s.u_fb[1].abs());
+            f.feedback_voltage_max = f.feedback_voltage_max.max(ufb);
+            sp += ep * ep;
+            sh += eh * eh;
+            su += 0.5 * (s.u_fb[0].powi(2) + s.u_fb[1].powi(2));
+        }
+        f.position_error_rms_m = (sp / n).sqrt();
+        f.heading_error_rms_rad = (sh / n).sqrt();
+        f.feedback_voltage_rms = (su / n).sqrt();
+        f
+    }
+}
+
+impl Sample {
+    /// True position error (m) and heading error (rad) against the plan.
+    pub fn errors(&self) -> (f64, f64) {
+        let ep = (self.x[0] - self.reference[0]).hypot(self.x[1] - self.reference[1]);
+        (ep, guidance::wrap(self.x[2] - self.reference[2]))
+    }
+}
+
+/// The LQ error state `(e_d, e_θ, α − α_r, v_α − v_α,r, v_d − v_d,r, v_θ − v_θ,r,
+/// iR − iR_r, iL − iL_r)` of an estimate against the reference.
+fn error_state(e: &Estimate, r: &ReducedState) -> SVector<f64, 8> {
+    let (ed, eth) = guidance::errors(e.pose, [r[0], r[1], r[2]], r[5]);
+    SVector::<f64, 8>::from_column_slice(&[
+        ed,
+        eth,
+        e.alpha - r[3],
+        e.v_alpha - r[4],
+        e.v_d - r[5],
+        e.v_theta - r[6],
+        e.i[0] - r[7],
+        e.i[1] - r[8],
+    ])
+}
+
+/// Run the closed loop along `plan` with the LQ controller `lq`. `progress` is called with
+/// the fraction done every 5 % of the run.
+pub fn track(
+    plan: &Trajectory,
+    lq: &LqController,
+    cfg: &TrackConfig,
+    mut progress: impl FnMut(f64),
+) -> Result<TrackRun, String> {
+    let reference = Reference { plan };
+    let n = (reference.end() / SAMPLE).round() as usize;
+    let plant = Wip::new(cfg.plant);
+    let sens = &cfg.sensors;
+    let mut rng = Rng::new(cfg.seed);
+    let x0 = plan.x[0];
+    let (g0, s0, v0) = from_reduced(&cfg.plant, &x0, [0.0; 4]);
+    let mut state = ContinuousState {
+        g: g0,
+        s: s0,
+        v: v0,
+    };
+    let start = Estimate {
+        pose: [x0[0], x0[1], x0[2]],
+        alpha: x0[3],
+        v_alpha: x0[4],
+        v_d: x0[5],
+        v_theta: x0[6],
+        i: [x0[7], x0[8]],
+    };
+    let mut obs = Observer::new(cfg.nominal, SAMPLE, sens.pose_gain, start);
+    let quantum = if sens.encoder_counts == 0 {
+        0.0
+    } else {
+        2.0 * std::f64::consts::PI / sens.encoder_counts as f64
+    };
+    let ideal = *sens == SensorModel::ideal();
+    // Poses in flight: (arrival sample, measurement).
+    let mut in_flight: Vec<(usize, PoseMeasurement)> = Vec::new();
+    let mut run = TrackRun::default();
+    let mut u_prev = plan.u[0];
+    let every = (n / 20).max(1);
+    for k in 0..=n {
+        let t = k as f64 * SAMPLE;
+        let x = to_reduced(&cfg.plant, &state.g, &state.s, &state.v);
+        if x[3].abs() > FALL_TILT || !x.iter().all(|v| v.is_finite()) {
+            run.fell_at = Some(t);
+            break;
+        }
+        // Sensors.
+        let est = if ideal {
+            Estimate {
+                pose: [x[0], x[1], x[2]],
+                alpha: x[3],
+                v_alpha: x[4],
+                v_d: x[5],
+                v_theta: x[6],
+                i: [x[7], x[8]],
+            }
+        } else {
+            let q = |a: f64| {
+                if quantum > 0.0 {
+                    (a / quantum).floor() * quantum
+                } else {
+                    a
+                }
+            };
+            let onb = OnBoard {
+                alpha: x[3] + sens.sigma_alpha * rng.normal(),
+                v_alpha: x[4] + sens.sigma_v_alpha * rng.normal(),
+                encoders: [q(state.s[1] - state.s[0]), q(state.s[2] - state.s[0])],
+            };
+            obs.on_board(&onb, u_prev);
+            if k % sens.pose_every == 0 && rng.uniform() >= sens.loss {
+                let delay = sens.draw_delay(&mut rng);
+                let arrive = k + (delay / SAMPLE).ceil() as usize;
+                let pose = [
+                    x[0] + sens.sigma_position * rng.normal(),
+                    x[1] + sens.sigma_position * rng.normal(),
+                    x[2] + sens.sigma_heading * rng.normal(),
+                ];
+                in_flight.push((arrive, PoseMeasurement { k, pose }));
+            }
+            in_flight.retain(|(arrive, m)| {
+                if *arrive <= k {
+                    obs.pose(m);
+                    false
+                } else {
+                    true
+                }
+            });
+            obs.estimate()
+        };
+        let (xr, u_ff) = reference.at(t);
+        let u_fb = lq.feedback(&error_state(&est, &xr));
+        let u = [
+            (u_ff[0] + u_fb[0]).clamp(-U_MAX, U_MAX),
+            (u_ff[1] + u_fb[1]).clamp(-U_MAX, U_MAX),
+        ];
+        run.samples.push(Sample {
+            t,
+            x,
+            reference: xr,
+            estimate: est.pose,
+            u_ff,
+            u_fb,
+            u,
+        });
+        u_prev = u;
+        if k == n {
+            break;
+        }
+        let uv = SVector::<f64, 2>::new(u[0], u[1]);
+        for _ in 0..SUBSTEPS {
+            state = ContinuousModel::step(
+                &plant,
+                RungeKutta::Rk4,
+                SAMPLE / SUBSTEPS as f64,
+                &state,
+                &uv,
+            )
+            .map_err(|e| format!("the plant's step at t = {t:.3} s failed: {e}"))?;
+        }
+        if k % every == 0 {
+            progress(k as f64 / n as f64);
+        }
+    }
+    Ok(run)
+}

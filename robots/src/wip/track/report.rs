@@ -1,0 +1,223 @@
+//! Reading the plan to track (a `trajectory.csv`), and the closed loop's result files:
+//! `tracking.csv`, `tracking.json` and the plots.
+
+use super::closed_loop::{TrackFigures, TrackRun};
+use crate::io::{parse_csv, read_text, ReadError};
+use crate::plot::{Plot, Series};
+use crate::wip::simulate::Trajectory;
+use crate::wip::ReducedState;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The paper's hardware figures on the eight (position max / RMS in m, heading max / RMS
+/// in rad), printed beside ours.
+pub const PAPER_FIGURES: [f64; 4] = [0.024, 0.0083, 0.2112, 0.0559];
+
+/// `DIR/trajectory.csv` or the file itself.
+pub fn plan_path(arg: &Path) -> PathBuf {
+    if arg.is_dir() {
+        arg.join("trajectory.csv")
+    } else {
+        arg.to_path_buf()
+    }
+}
+
+/// Read a `trajectory.csv` (columns by name; at least two rows, strictly increasing `t`
+/// starting at 0).
+pub fn read_plan(path: &Path) -> Result<Trajectory, ReadError> {
+    let what = path.display().to_string();
+    let text = read_text(path, &format!("plan {what}"))?;
+    let bad = |m: String| ReadError::Content(m);
+    let csv = parse_csv(&text, &what, false).map_err(bad)?;
+    const COLS: [&str; 12] = [
+        "t", "x", "y", "theta", "alpha", "v_alpha", "v_d", "v_theta", "iR", "iL", "uR", "uL",
+    ];
+    let mut idx = [0usize; 12];
+    for (i, c) in COLS.iter().enumerate() {
+        idx[i] = csv.column(c).ok_or_else(|| {
+            bad(format!(
+                "{what}: no column '{c}' (a trajectory.csv of wip plan)"
+            ))
+        })?;
+    }
+    let mut traj = Trajectory::default();
+    for (row, line) in csv.rows.iter().zip(&csv.lines) {
+        let t = row[idx[0]];
+        if traj.t.last().is_some_and(|&tp| t <= tp) || (traj.t.is_empty() && t.abs() > 1e-12) {
+            return Err(bad(format!(
+                "{what}: line {line}: t = {t} does not continue a time grid starting at 0"
+            )));
+        }
+        traj.t.push(t);
+        traj.x.push(ReducedState::from_fn(|i, _| row[idx[1 + i]]));
+        traj.u.push([row[idx[10]], row[idx[11]]]);
+    }
+    if traj.t.len() < 2 {
+        return Err(bad(format!("{what}: a plan needs at least two rows")));
+    }
+    Ok(traj)
+}
+
+/// `tracking.csv`: per controller sample the true pose and tilt, the plan's pose, the
+/// estimated pose, and the feedforward, feedback and applied voltages.
+pub fn tracking_csv(run: &TrackRun) -> String {
+    let mut s = String::from(
+        "t,x,y,theta,alpha,x_ref,y_ref,theta_ref,alpha_ref,x_est,y_est,theta_est,\
+         uR_ff,uL_ff,uR_fb,uL_fb,uR,uL\n",
+    );
+    for p in &run.samples {
+        let vals = [
+            p.x[0],
+            p.x[1],
+            p.x[2],
+            p.x[3],
+            p.reference[0],
+            p.reference[1],
+            p.reference[2],
+            p.reference[3],
+            p.estimate[0],
+            p.estimate[1],
+            p.estimate[2],
+            p.u_ff[0],
+            p.u_ff[1],
+            p.u_fb[0],
+            p.u_fb[1],
+            p.u[0],
+            p.u[1],
+        ];
+        let _ = write!(s, "{}", p.t);
+        for v in vals {
+            let _ = write!(s, ",{v:.9e}");
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// `tracking.json`: the figures of the run, the run's identity, and the paper's figures.
+pub fn tracking_json(
+    f: &TrackFigures,
+    seed: u64,
+    ideal: bool,
+    controller: &str,
+    fell_at: Option<f64>,
+    duration: f64,
+) -> String {
+    let mut v = serde_json::to_value(f).expect("plain numbers");
+    let o = v.as_object_mut().expect("an object");
+    o.insert("seed".into(), seed.into());
+    o.insert("ideal".into(), ideal.into());
+    o.insert("controller".into(), controller.into());
+    o.insert("duration_s".into(), duration.into());
+    o.insert(
+        "fell_at_s".into(),
+        fell_at.map_or(serde_json::Value::Null, Into::into),
+    );
+    o.insert(
+        "paper_hardware".into(),
+        serde_json::json!({
+            "position_error_max_m": PAPER_FIGURES[0],
+            "position_error_rms_m": PAPER_FIGURES[1],
+            "heading_error_max_rad": PAPER_FIGURES[2],
+            "heading_error_rms_rad": PAPER_FIGURES[3],
+        }),
+    );
+    serde_json::to_string_pretty(&v).expect("serialisable") + "\n"
+}
+
+/// The plots: planned vs actual path, x/y/θ errors, tilt, feedback voltage.
+pub fn plots(run: &TrackRun) -> Vec<(String, String)> {
+    let s = &run.samples;
+    let t: Vec<f64> = s.iter().map(|p| p.t).collect();
+    let col =
+        |f: &dyn Fn(&super::closed_loop::Sample) -> f64| s.iter().map(f).collect::<Vec<f64>>();
+    let (xs, ys) = (col(&|p| p.x[0]), col(&|p| p.x[1]));
+    let (xr, yr) = (col(&|p| p.reference[0]), col(&|p| p.reference[1]));
+    let ex = col(&|p| 1e3 * (p.x[0] - p.reference[0]));
+    let ey = col(&|p| 1e3 * (p.x[1] - p.reference[1]));
+    let eth = col(&|p| p.errors().1.to_degrees());
+    let alpha = col(&|p| p.x[3].to_degrees());
+    let alpha_r = col(&|p| p.reference[3].to_degrees());
+    let (fr, fl) = (col(&|p| p.u_fb[0]), col(&|p| p.u_fb[1]));
+    let series =
+        |label: &'static str, y: &[f64], color: &'static str| -> (String, Vec<f64>, &'static str) {
+            (label.to_string(), y.to_vec(), color)
+        };
+    let time_plot = |title: &str, ylabel: &str, curves: Vec<(String, Vec<f64>, &'static str)>| {
+        Plot {
+            title,
+            xlabel: "t [s]",
+            ylabel,
+            series: curves
+                .iter()
+                .map(|(l, y, c)| Series {
+                    label: l,
+                    x: &t,
+                    y,
+                    color: c,
+                })
+                .collect(),
+            bounds: vec![],
+            markers: vec![],
+            equal_axes: false,
+        }
+        .to_svg()
+    };
+    let path = Plot {
+        title: "path: planned and actual",
+        xlabel: "x [m]",
+        ylabel: "y [m]",
+        series: vec![
+            Series {
+                label: "planned",
+                x: &xr,
+                y: &yr,
+                color: "#1f77b4",
+            },
+            Series {
+                label: "actual",
+                x: &xs,
+                y: &ys,
+                color: "#ff7f0e",
+            },
+        ],
+        bounds: vec![],
+        markers: vec![],
+        equal_axes: true,
+    }
+    .to_svg();
+    vec![
+        ("tracking_path.svg".into(), path),
+        (
+            "tracking_errors.svg".into(),
+            time_plot(
+                "tracking errors (x, y in mm; theta in deg)",
+                "error",
+                vec![
+                    series("x [mm]", &ex, "#1f77b4"),
+                    series("y [mm]", &ey, "#ff7f0e"),
+                    series("theta [deg]", &eth, "#2ca02c"),
+                ],
+            ),
+        ),
+        (
+            "tracking_tilt.svg".into(),
+            time_plot(
+                "tilt",
+                "alpha [deg]",
+                vec![
+                    series("actual", &alpha, "#ff7f0e"),
+                    series("planned", &alpha_r, "#1f77b4"),
+                ],
+            ),
+        ),
+        (
+            "tracking_feedback.svg".into(),
+            time_plot(
+                "feedback voltage",
+                "u_fb [V]",
+                vec![series("uR", &fr, "#1f77b4"), series("uL", &fl, "#ff7f0e")],
+            ),
+        ),
+    ]
+}
