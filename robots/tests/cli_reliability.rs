@@ -312,6 +312,8 @@ fn usage_errors_name_the_subcommand() {
     usage_error(&["bench", "--time-limit", "-5"], &dir, "must be positive");
     usage_error(&["plan", "eight", "--integrator", "rk3"], &dir, "rk1");
     usage_error(&["plan", "eigth"], &dir, "unknown problem");
+    usage_error(&["plan", "eight", "--u-max", "6"], &dir, "outside (0, 5]");
+    usage_error(&["plan", "eight", "--u-max", "-1"], &dir, "outside (0, 5]");
     usage_error(&["simulate", "--frobnicate"], &dir, "--frobnicate");
 }
 

@@ -421,15 +421,19 @@ fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
 pub fn plan(
     wip: &Wip,
     problem: &PlanProblem,
+    bounds: PlanBounds,
     transcription: Transcription,
     current: CurrentModel,
     opts: IpOptions,
 ) -> PlanOutcome {
     match current {
-        CurrentModel::Dynamic => plan_model::<Wip, 5, NX, 7>(wip, problem, transcription, opts),
+        CurrentModel::Dynamic => {
+            plan_model::<Wip, 5, NX, 7>(wip, problem, bounds, transcription, opts)
+        }
         CurrentModel::Algebraic => plan_model::<_, 3, NX_ALGEBRAIC, 5>(
             &WipAlgebraicCurrent::new(*wip),
             problem,
+            bounds,
             transcription,
             opts,
         ),
@@ -440,10 +444,10 @@ pub fn plan(
 fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
     model: &M,
     problem: &PlanProblem,
+    bounds: PlanBounds,
     transcription: Transcription,
     opts: IpOptions,
 ) -> PlanOutcome {
-    let bounds = PlanBounds::default();
     let stiff_explicit = matches!(transcription, Transcription::Rk(RungeKutta::Rk4));
     let models = friction_continuation(model, stiff_explicit && M::CURRENT_DYNAMICS);
     match transcription {

@@ -73,6 +73,7 @@ pub fn summary_json(
     problem: &PlanProblem,
     o: &PlanOutcome,
     traj: &Trajectory,
+    bounds: &PlanBounds,
     setup_time_s: f64,
 ) -> String {
     let p = peaks(traj);
@@ -95,6 +96,7 @@ pub fn summary_json(
         "setup_time_s": setup_time_s,
         "objective": num(o.objective),
         "max_violation": num(o.max_violation),
+        "u_max": bounds.u_max,
         "peaks": {
             "abs_alpha": p.abs_alpha, "abs_i": p.abs_i, "abs_v_theta": p.abs_v_theta,
             "abs_u": p.abs_u, "abs_du": p.abs_du, "speed": p.speed

@@ -4,7 +4,7 @@ use crate::common::{positive_number, CurrentArg, Failure, IntegratorArg};
 use dmech_ocp::ipm::IpOptions;
 use robots::io::OutputSet;
 use robots::wip::benchmarks;
-use robots::wip::plan::{plan, CurrentModel};
+use robots::wip::plan::{plan, CurrentModel, PlanBounds};
 use robots::wip::Wip;
 use robots::{progress, say};
 use serde::Serialize;
@@ -137,7 +137,14 @@ pub fn run(a: BenchArgs) -> Result<(), Failure> {
                     time_limit: a.time_limit.unwrap_or(f64::INFINITY),
                     ..Default::default()
                 };
-                let o = plan(&wip, &problem, i.transcription(), c, opts);
+                let o = plan(
+                    &wip,
+                    &problem,
+                    PlanBounds::default(),
+                    i.transcription(),
+                    c,
+                    opts,
+                );
                 let paper_s = if name == "eight" {
                     paper_time(i, c)
                 } else {

@@ -48,6 +48,10 @@ pub struct PlanArgs {
     /// Output directory
     #[arg(long, value_name = "DIR", default_value = "out")]
     out: PathBuf,
+    /// Voltage bound |u| of the plan in volts, in (0, 5]. Below the motors' 5 V it leaves
+    /// the tracking controller a margin for feedback (docs/tracking.md)
+    #[arg(long, value_name = "VOLTS", default_value = "5", allow_negative_numbers = true, value_parser = voltage_bound)]
+    u_max: f64,
     /// Interior-point iteration limit
     #[arg(long, value_name = "N", default_value = "500", value_parser = positive_count)]
     max_iter: usize,
@@ -57,6 +61,18 @@ pub struct PlanArgs {
     /// No iteration table on stderr
     #[arg(long)]
     quiet: bool,
+}
+
+/// `--u-max`: a voltage bound in (0, 5] V (the motors' supply is 5 V).
+fn voltage_bound(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number of volts"))?;
+    if v > 0.0 && v <= 5.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} V is outside (0, 5] V"))
+    }
 }
 
 /// Memory per stage while solving: 466 MB peak at 16,940 stages (docs/ocp.md, scale table).
@@ -105,9 +121,14 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
             problem.points.len()
         );
     }
+    let bounds = PlanBounds {
+        u_max: a.u_max,
+        ..PlanBounds::default()
+    };
     let o = plan(
         &wip,
         &problem,
+        bounds,
         a.integrator.transcription(),
         a.current.model(),
         opts,
@@ -122,10 +143,11 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         &problem,
         &o,
         &traj,
+        &bounds,
         setup,
     );
     files.write("summary.json", summary.as_bytes())?;
-    for (name, svg) in plots(&problem, &traj, &PlanBounds::default()) {
+    for (name, svg) in plots(&problem, &traj, &bounds) {
         files.write(&name, svg.as_bytes())?;
     }
     files.commit()?;
