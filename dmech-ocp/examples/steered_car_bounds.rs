@@ -1,0 +1,188 @@
+//! A steered car (torque inputs) planned rest to rest with a drive-torque bound active on
+//! many stages, and a sweep of the bound: a reproduction of the solver's stall (SR1: 500
+//! iterations at J = 0.1924 with the bound 0.035; the optimum is near 0.1608). Defined here,
+//! on the traits alone, so the solver meets a robot that is not in the project.
+//!
+//! `cargo run --release -p dmech-ocp --example steered_car_bounds` prints status, iterations
+//! and objective for both curvatures over the bounds 0.05, 0.035, 0.028; `EXACT=0|1`,
+//! `TAU=<bound>` and `VERBOSE=1` narrow it and show the iteration table.
+//!
+//! G = SE(2) (pose of the rear-axle midpoint), shape (steering angle φ, wheel angle ψ),
+//! ξ = (r ψ̇ cos φ, 0, r ψ̇ sin φ / L) for the front wheel's rolling angle;
+//! ℓ = ½ m (ξ₁² + (ξ₂ + b ξ₃)²) + ½ j ξ₃² + ½ i_s (ξ₃ + φ̇)² + ½ i_w ψ̇², forcing u − c ⊙ v.
+
+use dmech::{Discretisation, Lift, PrincipalKinematicSystem};
+use dmech_lie::{Real, Se2};
+use dmech_ocp::ipm::{IpOptions, Solver, Status};
+use dmech_ocp::kinematic_start::varint_start_from_path;
+use dmech_ocp::transcription::{
+    Condition, PlanningProblem, Quantity, Stage, StartState, VarIntTranscription,
+};
+use nalgebra::{SMatrix, SVector};
+
+struct Car {
+    m: f64,
+    b: f64,
+    j: f64,
+    wheelbase: f64,
+    r: f64,
+    i_w: f64,
+    i_s: f64,
+    damping: [f64; 2],
+}
+
+const CAR: Car = Car {
+    m: 2.0,
+    b: 0.1,
+    j: 0.02,
+    wheelbase: 0.25,
+    r: 0.05,
+    i_w: 5e-4,
+    i_s: 1e-3,
+    damping: [0.02, 1e-3],
+};
+
+impl PrincipalKinematicSystem<3, 2, 2, 2> for Car {
+    type Param = f64;
+    type Group<T: Real> = Se2<T>;
+    fn reduced_lagrangian<T: Lift<f64>>(
+        &self,
+        _s: &SVector<T, 2>,
+        v: &SVector<T, 2>,
+        xi: &SVector<T, 3>,
+    ) -> T {
+        let lateral = xi[1] + xi[2] * self.b;
+        let steer = xi[2] + v[0];
+        (xi[0] * xi[0] + lateral * lateral) * (0.5 * self.m)
+            + xi[2] * xi[2] * (0.5 * self.j)
+            + steer * steer * (0.5 * self.i_s)
+            + v[1] * v[1] * (0.5 * self.i_w)
+    }
+    fn connection<T: Lift<f64>>(&self, s: &SVector<T, 2>) -> SMatrix<T, 3, 2> {
+        let z = T::zero();
+        let (sin, cos) = s[0].sin_cos();
+        SMatrix::<T, 3, 2>::new(z, -cos * self.r, z, z, z, -sin * (self.r / self.wheelbase))
+    }
+    fn forcing<T: Lift<f64>>(
+        &self,
+        _s: &SVector<T, 2>,
+        v: &SVector<T, 2>,
+        u: &SVector<T, 2>,
+    ) -> SVector<T, 2> {
+        SVector::<T, 2>::new(u[0] - v[0] * self.damping[0], u[1] - v[1] * self.damping[1])
+    }
+}
+
+/// From rest at the origin to rest at (1, 1, 0) in `n` steps; cost Σ |u_k|².
+struct ParkDiagonal {
+    n: usize,
+    drive_torque: f64,
+}
+const STEER_TORQUE: f64 = 0.05;
+const STEER_ANGLE: f64 = 0.6;
+const END: [f64; 3] = [1.0, 1.0, 0.0];
+
+impl PlanningProblem<3, 2, 2, 3> for ParkDiagonal {
+    fn horizon(&self) -> usize {
+        self.n
+    }
+    fn start(&self) -> StartState<3, 2, 2> {
+        StartState::at_rest(SVector::zeros(), SVector::zeros())
+    }
+    fn cost<T: Real>(&self, _k: usize, stage: &Stage<T, 3, 2, 2>) -> T {
+        stage.input[0] * stage.input[0] + stage.input[1] * stage.input[1]
+    }
+    fn constraints<T: Real>(&self, _k: usize, stage: &Stage<T, 3, 2, 2>) -> SVector<T, 3> {
+        SVector::<T, 3>::new(stage.input[0], stage.input[1], stage.shape[0])
+    }
+    fn bounds(&self, _k: usize) -> (SVector<f64, 3>, SVector<f64, 3>) {
+        let hi = SVector::<f64, 3>::new(STEER_TORQUE, self.drive_torque, STEER_ANGLE);
+        (-hi, hi)
+    }
+    fn conditions(&self) -> Vec<Condition> {
+        let at_end = |quantity, value| Condition {
+            stage: self.n,
+            quantity,
+            value,
+        };
+        let mut c: Vec<Condition> = (0..3).map(|i| at_end(Quantity::Pose(i), END[i])).collect();
+        c.extend((0..2).map(|i| at_end(Quantity::Velocity(i), 0.0)));
+        c
+    }
+    fn affine_in_configuration(&self) -> bool {
+        true
+    }
+}
+
+/// The start: a cubic Hermite path from the origin to `END` with unit tangents
+/// along x at both ends, timed by 3τ² − 2τ³, the heading along the tangent.
+fn hermite_path(n: usize) -> Vec<Se2<f64>> {
+    (0..=n)
+        .map(|k| {
+            let tau = k as f64 / n as f64;
+            let f = tau * tau * (3.0 - 2.0 * tau);
+            // Hermite basis h10, h01, h11 (h00 multiplies the origin) and their derivatives.
+            let (h10, h01, h11) = (
+                f.powi(3) - 2.0 * f * f + f,
+                -2.0 * f.powi(3) + 3.0 * f * f,
+                f.powi(3) - f * f,
+            );
+            let (d10, d01, d11) = (
+                3.0 * f * f - 4.0 * f + 1.0,
+                -6.0 * f * f + 6.0 * f,
+                3.0 * f * f - 2.0 * f,
+            );
+            let x = h01 * END[0] + h10 + h11;
+            let y = h01 * END[1];
+            let (dx, dy) = (d01 * END[0] + d10 + d11, d01 * END[1]);
+            Se2::new(x, y, dy.atan2(dx))
+        })
+        .collect()
+}
+
+fn solve(drive_torque: f64, opts: IpOptions) -> (Status, usize, f64, f64) {
+    let (n, h) = (250, 5.0 / 250.0);
+    let disc = Discretisation::FirstOrder;
+    let (xs, ws) = varint_start_from_path::<Car, 3, 2, 2, 2, 9, 4>(
+        &CAR,
+        h,
+        &hermite_path(n),
+        &SVector::zeros(),
+        &SVector::<f64, 2>::new(1e-4, 1e-6),
+        disc,
+    )
+    .expect("a kinematic start");
+    let problem = VarIntTranscription::<_, _, 3, 2, 3, 2>::new::<2>(
+        &CAR,
+        ParkDiagonal { n, drive_torque },
+        h,
+        disc,
+    );
+    let solver: Solver<_, 9, 4, 2, 2, 3> = Solver::new(&problem, opts);
+    let r = solver.solve(solver.initial_iterate(xs, ws));
+    (r.status, r.iterations, r.objective, r.max_violation)
+}
+
+fn main() {
+    let exacts: Vec<bool> = std::env::var("EXACT")
+        .map(|v| vec![v == "1"])
+        .unwrap_or(vec![false, true]);
+    let taus: Vec<f64> = std::env::var("TAU")
+        .map(|v| vec![v.parse().unwrap()])
+        .unwrap_or(vec![0.05, 0.035, 0.028]);
+    for &exact in &exacts {
+        for &tau in &taus {
+            let opts = IpOptions {
+                exact_hessian: exact,
+                verbose: std::env::var("VERBOSE").is_ok(),
+                ..Default::default()
+            };
+            let t = std::time::Instant::now();
+            let (status, its, j, viol) = solve(tau, opts);
+            println!(
+                "exact {exact} bound {tau}: {status:?} {its} its J = {j:.6} viol {viol:.1e} in {:.2} s",
+                t.elapsed().as_secs_f64()
+            );
+        }
+    }
+}
