@@ -14,6 +14,7 @@ struct DoubleIntegrator {
     du_max: f64,
     target: f64,
     nonlinear: bool,
+    cost_scale: f64,
 }
 
 impl StageProblem<3, 1, 0, 2> for DoubleIntegrator {
@@ -42,7 +43,7 @@ impl StageProblem<3, 1, 0, 2> for DoubleIntegrator {
         SVector::zeros()
     }
     fn cost<T: Real>(&self, _k: usize, x: &SVector<T, 3>, w: &SVector<T, 1>) -> T {
-        (w[0] * w[0] + x[1] * x[1] * 0.1) * 0.5
+        (w[0] * w[0] + x[1] * x[1] * 0.1) * (0.5 * self.cost_scale)
     }
     fn constraints<T: Real>(
         &self,
@@ -82,6 +83,7 @@ fn double_integrator_converges() {
             du_max: 0.05,
             target: 1.0,
             nonlinear,
+            cost_scale: 1.0,
         };
         let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(
             &p,
@@ -110,6 +112,7 @@ fn threads_do_not_change_the_iterates() {
         du_max: 0.01,
         target: 1.0,
         nonlinear: true,
+        cost_scale: 1.0,
     };
     let solve = |threads| {
         let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(
@@ -132,5 +135,55 @@ fn threads_do_not_change_the_iterates() {
         assert_eq!(r.iterate.x, serial.iterate.x);
         assert_eq!(r.iterate.w, serial.iterate.w);
         assert_eq!(r.iterate.lambda, serial.iterate.lambda);
+    }
+}
+
+/// The solver works on the cost scaled to a mean stage cost of one (`ipm/scaling.rs`), so a
+/// small cost times `a` is the same internal problem up to rounding: the same iterations,
+/// the same primal solution (to rounding amplified by the solve, 1e-9), the objective and
+/// the equality multipliers times `a` (reported in the problem's units). The start has a
+/// nonzero input so that the scale is read at the start itself.
+#[test]
+fn small_objectives_are_solved_scale_invariantly() {
+    let solve = |cost_scale: f64| {
+        let p = DoubleIntegrator {
+            n: 200,
+            h: 0.05,
+            u_max: 1.0,
+            du_max: 0.05,
+            target: 1.0,
+            nonlinear: true,
+            cost_scale,
+        };
+        let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(&p, IpOptions::default());
+        let start = s.initial_iterate(
+            vec![SVector::zeros(); 201],
+            vec![SVector::repeat(0.01); 200],
+        );
+        s.solve(start)
+    };
+    let base = solve(1e-2);
+    assert_eq!(base.status, Status::Solved);
+    for a in [1e-4, 1e-7] {
+        let r = solve(a);
+        let ratio = a / 1e-2;
+        assert_eq!(r.status, Status::Solved);
+        assert_eq!(r.iterations, base.iterations, "scale {a}");
+        assert!(
+            (r.objective / (base.objective * ratio) - 1.0).abs() < 1e-9,
+            "scale {a}"
+        );
+        for (x, xb) in r.iterate.x.iter().zip(&base.iterate.x) {
+            assert!((x - xb).amax() < 1e-9, "scale {a}: {x} against {xb}");
+        }
+        let lam_max = base
+            .iterate
+            .lambda
+            .iter()
+            .map(|l| l.amax())
+            .fold(0.0, f64::max);
+        for (l, lb) in r.iterate.lambda.iter().zip(&base.iterate.lambda) {
+            assert!((l / ratio - lb).amax() <= 1e-9 * lam_max, "scale {a}");
+        }
     }
 }

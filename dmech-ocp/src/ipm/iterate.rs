@@ -49,6 +49,7 @@ impl<const NX: usize, const NW: usize, const NU: usize> Elimination<NX, NW, NU> 
     }
 }
 
+#[derive(Clone)]
 pub(super) struct Bounds<const NC: usize> {
     pub(super) lo: SVector<f64, NC>,
     pub(super) hi: SVector<f64, NC>,

@@ -28,6 +28,7 @@ mod options;
 mod parallel;
 mod quasi_newton;
 mod recovery;
+mod scaling;
 
 use iterate::{Bounds, Elimination, Measures, Step};
 pub use iterate::{Iterate, SolveResult};
@@ -266,8 +267,65 @@ where
         worst
     }
 
-    /// Solve from `start`.
+    /// Solve from `start`. A problem whose cost per stage at the start is below one is
+    /// solved with its cost scaled up (`scaling.rs`); the result is in the problem's units.
     pub fn solve(&self, start: Iterate<NX, NW, NC>) -> SolveResult<NX, NW, NC> {
+        let c = scaling::objective_scale(self.p, &start)
+            .or_else(|| {
+                let probe = self.with_options(IpOptions {
+                    max_iter: 1,
+                    verbose: false,
+                    time_limit: f64::INFINITY,
+                    ..self.opts.clone()
+                });
+                scaling::objective_scale(self.p, &probe.run(start.clone()).iterate)
+            })
+            .unwrap_or(1.0);
+        if c == 1.0 {
+            return self.run(start);
+        }
+        if self.opts.verbose {
+            let _ = writeln!(
+                std::io::stderr(),
+                "objective scaled by {c:.3e} (mean stage cost {:.3e} at the start or after one step)",
+                1.0 / c
+            );
+        }
+        let scaled = scaling::ScaledCost { p: self.p, c };
+        let inner: Solver<_, NX, NW, NE, NU, NC> = Solver {
+            p: &scaled,
+            n: self.n,
+            opts: self.opts.clone(),
+            bounds: self.bounds.clone(),
+            eqs: self.eqs.clone(),
+            eqs_at: self.eqs_at.clone(),
+        };
+        // A cold start (no equality multipliers) has the initial bound multipliers 1 of
+        // `initial_iterate`, IPOPT's initial value for the problem the solver works on;
+        // a warm start's multipliers are in the problem's units and are scaled with it.
+        let warm = start.lambda.iter().any(|l| l.amax() > 0.0) || start.y.iter().any(|&y| y != 0.0);
+        let r = inner.run(start.with_duals_scaled(c, warm));
+        SolveResult {
+            iterate: r.iterate.with_duals_scaled(1.0 / c, true),
+            objective: r.objective / c,
+            ..r
+        }
+    }
+
+    /// The same solver with other options.
+    fn with_options(&self, opts: IpOptions) -> Self {
+        Solver {
+            p: self.p,
+            n: self.n,
+            opts,
+            bounds: self.bounds.clone(),
+            eqs: self.eqs.clone(),
+            eqs_at: self.eqs_at.clone(),
+        }
+    }
+
+    /// The interior-point loop on the problem as given.
+    fn run(&self, start: Iterate<NX, NW, NC>) -> SolveResult<NX, NW, NC> {
         let t_start = Instant::now();
         let n = self.n;
         let o = &self.opts;

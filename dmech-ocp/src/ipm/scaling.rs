@@ -1,0 +1,130 @@
+//! Objective scaling: the solver's absolute constants (`μ₀ = 0.1`, the tolerances, the
+//! dual regularisation, the inertia-correction and SR1 thresholds) are IPOPT's, made for
+//! objectives whose terms are of order one. A barrier term `μ log t` per inequality and
+//! stage competes with each stage's cost: where the cost per stage is far below one, the
+//! barrier dominates the early iterations, and the iterates reach a region the monotone
+//! barrier rule does not leave (measured in `docs/ocp.md`, "Objective scaling": a steered
+//! vehicle whose cost per stage is 6e-4 stalls at 500 iterations, and solves in 23 with
+//! its cost scaled by 1/s ≈ 1.2e4).
+//!
+//! The rule: at the start, the mean stage cost `s = Σ_k |ℓ_k| / N`; the solver works on
+//! `c ℓ` with `c = 1/s` when `0 < s < 1`, and `c = 1` when `s ≥ 1` (an objective of order
+//! one or more is left alone). A start of zero cost (at rest, inputs zero) gives no scale:
+//! then `s` is taken after one iteration of the unscaled problem (a probe from the same
+//! start, whose step gives the inputs their first magnitude). The optimum is the same
+//! point; the multipliers scale by `c`, and the solver reports them and the objective in
+//! the problem's own units.
+
+use super::Iterate;
+use crate::problem::{StageProblem, StateEquality};
+use dmech_lie::Real;
+use nalgebra::{SMatrix, SVector};
+
+/// `p` with its cost multiplied by `c`; everything else delegated (including the exact
+/// Jacobian routes a problem overrides).
+pub(super) struct ScaledCost<'a, P> {
+    pub(super) p: &'a P,
+    pub(super) c: f64,
+}
+
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>
+    StageProblem<NX, NW, NE, NC> for ScaledCost<'_, P>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    fn horizon(&self) -> usize {
+        self.p.horizon()
+    }
+    fn initial_state(&self) -> SVector<f64, NX> {
+        self.p.initial_state()
+    }
+    fn dynamics<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NX> {
+        self.p.dynamics(k, x, w)
+    }
+    fn equality<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NE> {
+        self.p.equality(k, x, w)
+    }
+    fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
+        self.p.cost(k, x, w) * T::from(self.c)
+    }
+    fn constraints<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NC> {
+        self.p.constraints(k, x, w)
+    }
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
+        self.p.bounds(k)
+    }
+    fn state_equalities(&self) -> Vec<StateEquality> {
+        self.p.state_equalities()
+    }
+    fn affine_in_state(&self) -> bool {
+        self.p.affine_in_state()
+    }
+    fn dynamics_jacobian(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
+        self.p.dynamics_jacobian(k, x, w)
+    }
+    fn equality_jacobian(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
+        self.p.equality_jacobian(k, x, w)
+    }
+}
+
+/// The objective scale `c = max(1, 1/s)` of `p` at the point `it` (module doc), or `None`
+/// if its mean stage cost `s` is zero (or not finite): no scale to read there.
+pub(super) fn objective_scale<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NC: usize,
+>(
+    p: &P,
+    it: &Iterate<NX, NW, NC>,
+) -> Option<f64>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let n = it.w.len();
+    let total: f64 = (0..n)
+        .map(|k| p.cost::<f64>(k, &it.x[k], &it.w[k]).abs())
+        .sum();
+    let s = total / n.max(1) as f64;
+    (s > 0.0 && s.is_finite()).then(|| (1.0 / s).max(1.0))
+}
+
+impl<const NX: usize, const NW: usize, const NC: usize> Iterate<NX, NW, NC> {
+    /// The same primal point with the equality multipliers (`λ`, `y`) times `c`, and the
+    /// bound multipliers `z` times `c` when `scale_bounds`.
+    pub(super) fn with_duals_scaled(mut self, c: f64, scale_bounds: bool) -> Self {
+        self.lambda.iter_mut().for_each(|l| *l *= c);
+        self.y.iter_mut().for_each(|y| *y *= c);
+        if scale_bounds {
+            self.z_lo.iter_mut().for_each(|z| *z *= c);
+            self.z_hi.iter_mut().for_each(|z| *z *= c);
+        }
+        self
+    }
+}
