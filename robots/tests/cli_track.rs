@@ -7,6 +7,7 @@ use common::{fails_with_one_line, scratch, wip};
 use robots::wip::simulate::Trajectory;
 use robots::wip::track::closed_loop::{track, TrackConfig, SUBSTEPS};
 use robots::wip::track::lq::{LqController, SAMPLE};
+use robots::wip::track::mpc::MpcController;
 use robots::wip::track::observer::SensorModel;
 use robots::wip::{ReducedState, Wip, WipParams};
 use std::path::PathBuf;
@@ -63,6 +64,14 @@ fn feedforward_reproduces_a_plant_trajectory() {
     assert!(!f.fell);
     assert!(f.position_error_max_m < 1e-9, "{}", f.position_error_max_m);
     assert!(f.feedback_voltage_max < 1e-6, "{}", f.feedback_voltage_max);
+    // The MPC along the same reference: every error is zero, the inputs' rate is within its
+    // bound, so the QP's solution is zero to clarabel's tolerance (1e-8 on gaps).
+    let mpc = MpcController::design(&p, &plan).unwrap();
+    let run = track(&plan, &mpc, &cfg, |_| {}).unwrap();
+    let f = run.figures();
+    assert!(!f.fell && f.qp_fallbacks == 0);
+    assert!(f.position_error_max_m < 1e-6, "{}", f.position_error_max_m);
+    assert!(f.feedback_voltage_max < 1e-5, "{}", f.feedback_voltage_max);
 }
 
 /// Along a short planned path with the paper's sensor rates, delays, losses and noise,
@@ -71,12 +80,12 @@ fn feedforward_reproduces_a_plant_trajectory() {
 #[test]
 fn noisy_loop_tracks_a_short_plan() {
     let dir = scratch("track-noisy");
-    for seed in ["1", "2", "3"] {
-        let out_dir = dir.join(seed);
+    for (controller, seed) in [("lq", "1"), ("lq", "2"), ("lq", "3"), ("mpc", "1")] {
+        let out_dir = dir.join(format!("{controller}-{seed}"));
         let out = wip()
             .arg("track")
             .arg(hook_plan())
-            .args(["--seed", seed, "--out"])
+            .args(["--controller", controller, "--seed", seed, "--out"])
             .arg(&out_dir)
             .output()
             .unwrap();
@@ -89,6 +98,12 @@ fn noisy_loop_tracks_a_short_plan() {
             serde_json::from_str(&std::fs::read_to_string(out_dir.join("tracking.json")).unwrap())
                 .unwrap();
         assert_eq!(j["fell"], false);
+        assert_eq!(j["controller"], controller);
+        assert_eq!(
+            j["qp_solve_ms_median"].is_number(),
+            controller == "mpc",
+            "{j}"
+        );
         assert!(j["position_error_max_m"].as_f64().unwrap() < 0.024, "{j}");
         assert!(
             j["heading_error_max_rad"].as_f64().unwrap() < 12.1f64.to_radians(),
@@ -103,6 +118,43 @@ fn noisy_loop_tracks_a_short_plan() {
         ] {
             assert!(out_dir.join(f).exists(), "{f}");
         }
+    }
+}
+
+/// The delay sweep runs every delay for both controllers and names the largest one
+/// without a fall; along the short plan with the nominal plant nothing falls.
+#[test]
+fn delay_sweep_reports_each_delay() {
+    let dir = scratch("track-sweep");
+    for controller in ["lq", "mpc"] {
+        let out_dir = dir.join(controller);
+        let out = wip()
+            .arg("track")
+            .arg(hook_plan())
+            .args([
+                "--controller",
+                controller,
+                "--delay-sweep",
+                "--monte-carlo",
+                "2",
+            ])
+            .arg("--out")
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let j: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out_dir.join("delay_sweep.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(j["controller"], controller);
+        assert_eq!(j["sweep"].as_array().unwrap().len(), 5);
+        let largest = j["largest_mean_delay_without_fall_s"].as_f64().unwrap();
+        assert!((largest - 16.0 * 0.063).abs() < 1e-12, "{j}");
     }
 }
 

@@ -4,17 +4,18 @@ use crate::common::{load_params, Failure};
 use robots::io::OutputSet;
 use robots::say;
 use robots::wip::simulate::Trajectory;
-use robots::wip::track::closed_loop::{track, TrackConfig};
+use robots::wip::track::closed_loop::{track, Controller, TrackConfig};
 use robots::wip::track::lq::LqController;
-use robots::wip::track::monte_carlo::{monte_carlo, perturbed, quantile, with_mean_delay};
+use robots::wip::track::monte_carlo::{monte_carlo, perturbed, quantile, with_mean_delay, McRun};
+use robots::wip::track::mpc::MpcController;
 use robots::wip::track::observer::SensorModel;
 use robots::wip::track::report::{plan_path, plots, read_plan, tracking_csv, tracking_json};
 use std::path::PathBuf;
 
 /// Track a planned trajectory in closed loop.
 ///
-/// Applies the plan's voltages as feedforward plus the LQ controller's feedback on the
-/// errors of the guidance and the observer, saturated at ±5 V, to the full nonlinear model
+/// Applies the plan's voltages as feedforward plus the feedback (LQ, or the constrained MPC)
+/// on the errors of the guidance and the observer, saturated at ±5 V, to the full nonlinear model
 /// (RK4, 0.5 ms substeps), with the sensors' rates, delays and noise (docs/tracking.md).
 /// Writes DIR/{tracking.csv, tracking.json, tracking_*.svg} (docs/formats.md).
 #[derive(clap::Args)]
@@ -48,6 +49,10 @@ pub struct TrackArgs {
     /// A single run with the plant of Monte Carlo seed N (its parameter error, --param-error)
     #[arg(long, value_name = "N", conflicts_with = "monte_carlo")]
     plant_seed: Option<u64>,
+    /// Sweep the mean pose delay (0.063 s × 1, 2, 4, 8, 16) over the seeds of --monte-carlo
+    /// (default 20) with the nominal plant; reports the largest delay without a fall
+    #[arg(long, conflicts_with = "plant_seed")]
+    delay_sweep: bool,
     /// Threads of a Monte Carlo run
     #[arg(long, value_name = "N", default_value = "2", value_parser = crate::common::positive_count)]
     threads: usize,
@@ -61,6 +66,9 @@ pub struct TrackArgs {
 pub enum ControllerArg {
     /// The paper's LQ controller on the ZOH-discretised linear model.
     Lq,
+    /// A QP per sample over 0.1 s along the plan (linear time-varying model; voltage bound
+    /// hard, rate and tilt bounds soft), solved by clarabel.
+    Mpc,
 }
 
 pub fn run(a: TrackArgs) -> Result<(), Failure> {
@@ -69,6 +77,11 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
     let plan = read_plan(&path)?;
     let lq = LqController::design(&params)
         .map_err(|e| Failure::Run(format!("the LQ design failed: {e}")))?;
+    let mpc = match a.controller {
+        ControllerArg::Lq => None,
+        ControllerArg::Mpc => Some(MpcController::design(&params, &plan).map_err(Failure::Run)?),
+    };
+    let controller = mpc.as_ref().map_or(Controller::Lq(&lq), Controller::Mpc);
     let cfg = TrackConfig {
         plant: a
             .plant_seed
@@ -81,13 +94,16 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         },
         seed: a.seed,
     };
+    if a.delay_sweep {
+        return delay_sweep(&a, &plan, controller, &cfg, a.monte_carlo.unwrap_or(20));
+    }
     if let Some(n) = a.monte_carlo {
-        return monte_carlo_run(&a, &plan, &lq, &cfg, n);
+        return monte_carlo_run(&a, &plan, controller, &cfg, n);
     }
     let mut files = OutputSet::create(&a.out)?;
     let t0 = std::time::Instant::now();
     let long = *plan.t.last().unwrap_or(&0.0) > 2.0;
-    let run = track(&plan, &lq, &cfg, |f| {
+    let run = track(&plan, controller, &cfg, |f| {
         if long {
             robots::progress!("\rtrack: {:3.0} %", 100.0 * f);
         }
@@ -99,7 +115,14 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
     let fig = run.figures();
     let duration = run.samples.last().map_or(0.0, |s| s.t);
     files.write("tracking.csv", tracking_csv(&run).as_bytes())?;
-    let json = tracking_json(&fig, a.seed, a.ideal, "lq", run.fell_at, duration);
+    let json = tracking_json(
+        &fig,
+        a.seed,
+        a.ideal,
+        controller.name(),
+        run.fell_at,
+        duration,
+    );
     files.write("tracking.json", json.as_bytes())?;
     for (name, svg) in plots(&run) {
         files.write(&name, svg.as_bytes())?;
@@ -117,6 +140,13 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         run.fell_at
             .map_or(String::new(), |t| format!("; FELL at t = {t:.2} s"))
     );
+    if let (Some(med), Some(max)) = (fig.qp_solve_ms_median, fig.qp_solve_ms_max) {
+        say!(
+            "MPC: QP solve time per sample median {med:.3} ms, largest {max:.3} ms (the sample \
+             is 5 ms); {} samples fell back to the LQ move",
+            fig.qp_fallbacks
+        );
+    }
     say!(
         "wrote {}/{{tracking.csv, tracking.json, tracking_*.svg}}",
         a.out.display()
@@ -132,7 +162,7 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
 fn monte_carlo_run(
     a: &TrackArgs,
     plan: &Trajectory,
-    lq: &LqController,
+    controller: Controller<'_>,
     cfg: &TrackConfig,
     n: usize,
 ) -> Result<(), Failure> {
@@ -140,7 +170,7 @@ fn monte_carlo_run(
     let t0 = std::time::Instant::now();
     let runs = monte_carlo(
         plan,
-        lq,
+        controller,
         &cfg.plant,
         &cfg.sensors,
         a.param_error,
@@ -176,7 +206,7 @@ fn monte_carlo_run(
         );
     }
     let json = serde_json::json!({
-        "controller": "lq",
+        "controller": controller.name(),
         "runs": n,
         "param_error": a.param_error,
         "mean_delay_s": a.mean_delay.unwrap_or(0.063),
@@ -201,5 +231,73 @@ fn monte_carlo_run(
         1e3 * quantile(&pos, 0.95)
     );
     say!("wrote {}", a.out.join("montecarlo.json").display());
+    Ok(())
+}
+
+/// `--delay-sweep`: for each mean pose delay, seeds 1..=n with the nominal plant; a table
+/// and delay_sweep.json (docs/formats.md).
+fn delay_sweep(
+    a: &TrackArgs,
+    plan: &Trajectory,
+    controller: Controller<'_>,
+    cfg: &TrackConfig,
+    n: usize,
+) -> Result<(), Failure> {
+    let mut files = OutputSet::create(&a.out)?;
+    let mut rows = Vec::new();
+    let mut tolerated: Option<f64> = None;
+    say!("mean_delay[s]  falls  pos_max_median[mm]  pos_max_p95[mm]");
+    for factor in [1.0, 2.0, 4.0, 8.0, 16.0] {
+        let delay = 0.063 * factor;
+        robots::progress!("delay sweep: mean delay {delay:.3} s, {n} seeds …");
+        let runs: Vec<McRun> = monte_carlo(
+            plan,
+            controller,
+            &cfg.nominal,
+            &with_mean_delay(delay),
+            0.0,
+            n as u64,
+            a.threads,
+        )?;
+        let pos: Vec<f64> = runs
+            .iter()
+            .map(|r| r.figures.position_error_max_m)
+            .collect();
+        let falls = runs.iter().filter(|r| r.figures.fell).count();
+        // The largest delay with no fall at it nor at any smaller one.
+        if falls == 0 && rows.iter().all(|r: &serde_json::Value| r["falls"] == 0) {
+            tolerated = Some(delay);
+        }
+        say!(
+            "{delay:13.3}  {falls:5}  {:18.2}  {:15.2}",
+            1e3 * quantile(&pos, 0.5),
+            1e3 * quantile(&pos, 0.95)
+        );
+        rows.push(serde_json::json!({
+            "mean_delay_s": delay, "runs": n, "falls": falls,
+            "position_error_max_m": { "median": quantile(&pos, 0.5), "p95": quantile(&pos, 0.95) },
+        }));
+    }
+    let json = serde_json::json!({
+        "controller": controller.name(),
+        "largest_mean_delay_without_fall_s": tolerated,
+        "sweep": rows,
+    });
+    files.write(
+        "delay_sweep.json",
+        (serde_json::to_string_pretty(&json).expect("serialisable") + "\n").as_bytes(),
+    )?;
+    files.commit()?;
+    match tolerated {
+        Some(t) => say!(
+            "{}: no fall up to a mean pose delay of {t:.3} s (the largest swept: 1.008 s)",
+            controller.name()
+        ),
+        None => say!(
+            "{}: falls already at the paper's mean delay 0.063 s",
+            controller.name()
+        ),
+    }
+    say!("wrote {}", a.out.join("delay_sweep.json").display());
     Ok(())
 }

@@ -4,6 +4,7 @@
 
 use super::guidance;
 use super::lq::{LqController, SAMPLE};
+use super::mpc::MpcController;
 use super::observer::{Estimate, Observer, OnBoard, PoseMeasurement, SensorModel};
 use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
@@ -48,6 +49,41 @@ pub struct Sample {
 pub struct TrackRun {
     pub samples: Vec<Sample>,
     pub fell_at: Option<f64>,
+    /// The MPC's QP solve time per sample (s); empty for LQ.
+    pub qp_solve_s: Vec<f64>,
+    /// Samples where the QP was not solved and the LQ move was applied instead.
+    pub qp_fallbacks: usize,
+}
+
+/// The feedback law of the loop.
+#[derive(Clone, Copy, Debug)]
+pub enum Controller<'a> {
+    /// The paper's LQ controller, `u_fb = −K e`.
+    Lq(&'a LqController),
+    /// The constrained MPC along the plan (`mpc.rs`).
+    Mpc(&'a MpcController),
+}
+
+impl<'a> From<&'a LqController> for Controller<'a> {
+    fn from(lq: &'a LqController) -> Self {
+        Controller::Lq(lq)
+    }
+}
+
+impl<'a> From<&'a MpcController> for Controller<'a> {
+    fn from(mpc: &'a MpcController) -> Self {
+        Controller::Mpc(mpc)
+    }
+}
+
+impl Controller<'_> {
+    /// The name used in outputs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Controller::Lq(_) => "lq",
+            Controller::Mpc(_) => "mpc",
+        }
+    }
 }
 
 /// The plan as a reference: states linearly interpolated between its nodes, voltages held.
@@ -84,6 +120,10 @@ pub struct TrackFigures {
     pub feedback_voltage_max: f64,
     pub feedback_voltage_rms: f64,
     pub fell: bool,
+    /// The MPC's QP solve time per sample, median and largest (ms); `null` for LQ.
+    pub qp_solve_ms_median: Option<f64>,
+    pub qp_solve_ms_max: Option<f64>,
+    pub qp_fallbacks: usize,
 }
 
 impl TrackRun {
@@ -98,6 +138,11 @@ impl TrackRun {
             feedback_voltage_max: 0.0,
             feedback_voltage_rms: 0.0,
             fell: self.fell_at.is_some(),
+            qp_solve_ms_median: (!self.qp_solve_s.is_empty())
+                .then(|| 1e3 * super::monte_carlo::quantile(&self.qp_solve_s, 0.5)),
+            qp_solve_ms_max: (!self.qp_solve_s.is_empty())
+                .then(|| 1e3 * self.qp_solve_s.iter().copied().fold(0.0, f64::max)),
+            qp_fallbacks: self.qp_fallbacks,
         };
         let (mut sp, mut sh, mut su) = (0.0, 0.0, 0.0);
         for s in &self.samples {
@@ -142,14 +187,15 @@ fn error_state(e: &Estimate, r: &ReducedState) -> SVector<f64, 8> {
     ])
 }
 
-/// Run the closed loop along `plan` with the LQ controller `lq`. `progress` is called with
+/// Run the closed loop along `plan` with `controller` (LQ or MPC). `progress` is called with
 /// the fraction done every 5 % of the run.
-pub fn track(
+pub fn track<'a>(
     plan: &Trajectory,
-    lq: &LqController,
+    controller: impl Into<Controller<'a>>,
     cfg: &TrackConfig,
     mut progress: impl FnMut(f64),
 ) -> Result<TrackRun, String> {
+    let controller = controller.into();
     let reference = Reference { plan };
     let n = (reference.end() / SAMPLE).round() as usize;
     let plant = Wip::new(cfg.plant);
@@ -234,7 +280,16 @@ pub fn track(
             obs.estimate()
         };
         let (xr, u_ff) = reference.at(t);
-        let u_fb = lq.feedback(&error_state(&est, &xr));
+        let e = error_state(&est, &xr);
+        let u_fb = match controller {
+            Controller::Lq(lq) => lq.feedback(&e),
+            Controller::Mpc(mpc) => {
+                let m = mpc.feedback(k, &e, u_prev);
+                run.qp_solve_s.push(m.solve_s);
+                run.qp_fallbacks += usize::from(!m.solved);
+                m.u_fb
+            }
+        };
         let u = [
             (u_ff[0] + u_fb[0]).clamp(-U_MAX, U_MAX),
             (u_ff[1] + u_fb[1]).clamp(-U_MAX, U_MAX),

@@ -38,14 +38,29 @@ pub fn vector_field<T: Real>(wip: &Wip, w: &SVector<T, { NZ + NIN }>) -> Option<
 
 /// The linearisation `(A, B)` of [`vector_field`] at `z = 0, u = 0`, by vector duals.
 pub fn linearise(wip: &Wip) -> (SMatrix<f64, NZ, NZ>, SMatrix<f64, NZ, NIN>) {
+    linearise_at(wip, &SVector::zeros(), &SVector::zeros())
+        .expect("the mass matrix is regular at upright rest")
+}
+
+/// The linearisation `(A, B)` of [`vector_field`] at the state `z` and input `u`, by
+/// vector duals; `None` where the mass matrix is singular.
+pub fn linearise_at(
+    wip: &Wip,
+    z: &SVector<f64, NZ>,
+    u: &SVector<f64, NIN>,
+) -> Option<(SMatrix<f64, NZ, NZ>, SMatrix<f64, NZ, NIN>)> {
+    let mut w = SVector::<f64, { NZ + NIN }>::zeros();
+    w.fixed_rows_mut::<NZ>(0).copy_from(z);
+    w.fixed_rows_mut::<NIN>(NZ).copy_from(u);
+    vector_field(wip, &w)?;
     let (_, j) = value_and_jacobian(
-        |w| vector_field(wip, w).expect("the mass matrix is regular at upright rest"),
-        &SVector::<f64, { NZ + NIN }>::zeros(),
+        |w| vector_field(wip, w).expect("regular at the point, checked above"),
+        &w,
     );
-    (
+    Some((
         j.fixed_view::<NZ, NZ>(0, 0).into_owned(),
         j.fixed_view::<NZ, NIN>(0, NZ).into_owned(),
-    )
+    ))
 }
 
 /// The paper's linear-model parameters: the nominal ones with the friction replaced by a

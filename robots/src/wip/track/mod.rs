@@ -7,5 +7,6 @@ pub mod guidance;
 pub mod linear;
 pub mod lq;
 pub mod monte_carlo;
+pub mod mpc;
 pub mod observer;
 pub mod report;

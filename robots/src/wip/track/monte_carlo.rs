@@ -3,8 +3,7 @@
 //! design), run in parallel on `std::thread`s; and the delay-scaled sensor model of the
 //! delay sweep.
 
-use super::closed_loop::{track, TrackConfig, TrackFigures};
-use super::lq::LqController;
+use super::closed_loop::{track, Controller, TrackConfig, TrackFigures};
 use super::observer::SensorModel;
 use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
@@ -49,10 +48,11 @@ pub struct McRun {
     pub figures: TrackFigures,
 }
 
-/// Run seeds `1..=n` on `threads` threads: plant parameter error `rel`, sensors `sensors`.
+/// Run seeds `1..=n` on `threads` threads with `controller`: plant parameter error `rel`,
+/// sensors `sensors`.
 pub fn monte_carlo(
     plan: &Trajectory,
-    lq: &LqController,
+    controller: Controller<'_>,
     nominal: &WipParams,
     sensors: &SensorModel,
     rel: f64,
@@ -74,7 +74,7 @@ pub fn monte_carlo(
                     sensors: sensors.clone(),
                     seed,
                 };
-                let r = track(plan, lq, &cfg, |_| {}).map(|run| McRun {
+                let r = track(plan, controller, &cfg, |_| {}).map(|run| McRun {
                     seed,
                     figures: run.figures(),
                 });

@@ -1,0 +1,366 @@
+//! The constrained alternative to the LQ controller: a QP per 5-ms sample over a horizon of
+//! `N_p` samples along the plan, on the linear time-varying error model, solved by
+//! clarabel (docs/tracking.md, "MPC").
+//!
+//! Variables `(e_1 … e_Np, δu_0 … δu_{Np−1}, σ)`: error states, feedback voltages and
+//! slacks. Cost `Σ_{j<Np} (e_jᵀ Q_Y e_j + δu_jᵀ δu_j) + e_Npᵀ P e_Np + ρ Σ σ` with `P` the
+//! DARE's solution at upright rest, so that with no constraint active at upright rest the
+//! first move is the LQ controller's `−K e_0`. Constraints: `e_{j+1} = Φ_j e_j + Γ_j δu_j`
+//! (the model linearised at the plan's sample `k + j` and discretised exactly); the voltage
+//! `|u_ff + δu| ≤ 5 V` hard; the rate `|u_j − u_{j−1}| ≤ 2 V/s · h` (`u_{−1}` the voltage
+//! applied last) and the tilt `|α_ref + e[α]| ≤ 15°` softened by slacks `σ` with weights
+//! `ρ`: under the paper's sensor noise the LQ loop changes its voltage by 0.56 V per sample
+//! (median over the eight; 99 % of the samples above the bound's 0.01 V), so a hard rate
+//! bound would leave the robot without balance authority. The rate slack's weight is therefore a trade-off
+//! (`RATE_WEIGHT`), the tilt slack's an exact penalty (`TILT_WEIGHT`).
+
+use super::closed_loop::{Reference, U_MAX};
+use super::linear::{linear_model_params, linearise_at, zoh, NIN, NZ};
+use super::lq::{LqController, Q_Y, SAMPLE};
+use crate::wip::simulate::Trajectory;
+use crate::wip::{Wip, WipParams};
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT,
+    SolverStatus, ZeroConeT,
+};
+use nalgebra::{SMatrix, SVector};
+
+/// Samples in the horizon (50 ms; the terminal cost carries the rest). Measured on the
+/// eight (one run, 4237 QPs): 10 samples 1.18 ms median / 1.89 ms worst per QP, position
+/// error max 1.25 mm; 20: 2.52 / 6.57 ms, 1.22 mm; 40: 5.77 / 11.0 ms, 1.35 mm.
+pub const HORIZON: usize = 10;
+/// The voltage rate bound per sample: 2 V/s times the 5-ms sample.
+pub const DU_MAX: f64 = 2.0 * SAMPLE;
+/// The tilt bound of the plan (rad).
+pub const TILT_MAX: f64 = 15.0 * std::f64::consts::PI / 180.0;
+/// Exact-penalty weight on the tilt slack (per rad): above the multipliers the bound takes
+/// when it can be met, so that the slack stays zero whenever that is possible.
+pub const TILT_WEIGHT: f64 = 1e4;
+/// L1 weight on the rate slack (per V of excess per sample): a trade-off, not an exact
+/// penalty (docs/tracking.md: at 1e4 the rate bound holds and the robot falls within 1 s).
+pub const RATE_WEIGHT: f64 = 1.0;
+
+/// The linear error model at one sample and the plan's values there.
+#[derive(Clone, Debug)]
+struct PlanSample {
+    phi: SMatrix<f64, NZ, NZ>,
+    gamma: SMatrix<f64, NZ, NIN>,
+    alpha_ref: f64,
+    u_ff: [f64; 2],
+}
+
+/// What one MPC step did.
+#[derive(Clone, Copy, Debug)]
+pub struct MpcMove {
+    /// The feedback voltages `δu_0`.
+    pub u_fb: [f64; 2],
+    /// The QP's solve time (s), set-up included.
+    pub solve_s: f64,
+    /// `false` when clarabel did not report solved (the LQ move was used).
+    pub solved: bool,
+}
+
+/// The MPC along one plan: the linear time-varying model at every sample, precomputed.
+#[derive(Clone, Debug)]
+pub struct MpcController {
+    pub lq: LqController,
+    samples: Vec<PlanSample>,
+    settings: DefaultSettings<f64>,
+}
+
+impl MpcController {
+    /// Linearise the model with the parameters `p` (the linear model's friction, as for
+    /// the LQ design) at each 5-ms sample of `plan` and discretise it.
+    pub fn design(p: &WipParams, plan: &Trajectory) -> Result<Self, String> {
+        let lq = LqController::design(p).map_err(|e| format!("the LQ design failed: {e}"))?;
+        let wip = Wip::new(linear_model_params(p));
+        let reference = Reference { plan };
+        let n = (reference.end() / SAMPLE).round() as usize;
+        let samples = (0..=n)
+            .map(|k| {
+                let (x, u_ff) = reference.at(k as f64 * SAMPLE);
+                let z = SVector::<f64, NZ>::from_column_slice(&[
+                    0.0, 0.0, x[3], x[4], x[5], x[6], x[7], x[8],
+                ]);
+                let u = SVector::<f64, NIN>::new(u_ff[0], u_ff[1]);
+                let (a, b) = linearise_at(&wip, &z, &u).ok_or(format!(
+                    "the model is singular at t = {:.3} s",
+                    k as f64 * SAMPLE
+                ))?;
+                let (phi, gamma) = zoh(&a, &b, SAMPLE);
+                Ok(PlanSample {
+                    phi,
+                    gamma,
+                    alpha_ref: x[3],
+                    u_ff,
+                })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        let settings = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .presolve_enable(false)
+            .build()
+            .expect("valid settings");
+        Ok(MpcController {
+            lq,
+            samples,
+            settings,
+        })
+    }
+
+    /// The MPC at upright rest (no plan): every sample's model is the LQ design's, no
+    /// feedforward, and the tilt reference zero. For tests.
+    pub fn at_rest(p: &WipParams, samples: usize) -> Result<Self, String> {
+        let plan = Trajectory {
+            t: vec![0.0, samples as f64 * SAMPLE],
+            x: vec![Default::default(); 2],
+            u: vec![[0.0; 2]; 2],
+        };
+        Self::design(p, &plan)
+    }
+
+    /// The feedback at sample `k` for the error state `e0`, `u_prev` the voltage applied
+    /// at the sample before.
+    pub fn feedback(&self, k: usize, e0: &SVector<f64, NZ>, u_prev: [f64; 2]) -> MpcMove {
+        let t0 = std::time::Instant::now();
+        let qp = self.qp(k, e0, u_prev);
+        let x = DefaultSolver::new(&qp.p, &qp.q, &qp.a, &qp.b, &qp.cones, self.settings.clone())
+            .ok()
+            .and_then(|mut solver| {
+                solver.solve();
+                matches!(
+                    solver.solution.status,
+                    SolverStatus::Solved | SolverStatus::AlmostSolved
+                )
+                .then(|| [solver.solution.x[qp.u0], solver.solution.x[qp.u0 + 1]])
+            });
+        let solved = x.is_some();
+        let u_fb = x.unwrap_or_else(|| self.lq.feedback(e0));
+        MpcMove {
+            u_fb,
+            solve_s: t0.elapsed().as_secs_f64(),
+            solved,
+        }
+    }
+
+    /// The plan's sample `k + j`, or its last one beyond the end.
+    fn sample(&self, i: usize) -> &PlanSample {
+        &self.samples[i.min(self.samples.len() - 1)]
+    }
+}
+
+/// One QP in clarabel's form: `min ½ xᵀPx + qᵀx` s.t. `Ax + s = b`, `s ∈ cones`.
+struct Qp {
+    p: CscMatrix<f64>,
+    q: Vec<f64>,
+    a: CscMatrix<f64>,
+    b: Vec<f64>,
+    cones: Vec<clarabel::solver::SupportedConeT<f64>>,
+    /// Index of `δu_0` in `x`.
+    u0: usize,
+}
+
+/// Triplets of a sparse matrix under construction.
+#[derive(Default)]
+struct Triplets {
+    rows: Vec<usize>,
+    cols: Vec<usize>,
+    vals: Vec<f64>,
+}
+
+impl Triplets {
+    fn put(&mut self, r: usize, c: usize, v: f64) {
+        if v != 0.0 {
+            self.rows.push(r);
+            self.cols.push(c);
+            self.vals.push(v);
+        }
+    }
+    fn csc(self, m: usize, n: usize) -> CscMatrix<f64> {
+        CscMatrix::new_from_triplets(m, n, self.rows, self.cols, self.vals)
+    }
+}
+
+/// Where each variable sits in the QP's `x`: `e_j` at `8(j−1)`, `δu_j` at `8Np + 2j`, rate
+/// slacks at `10Np + 2j`, tilt slacks at `12Np + j`.
+mod layout {
+    use super::{HORIZON as NP, NZ};
+    pub const NX: usize = (NZ + 5) * NP;
+    /// `e_j[i]`, `j ≥ 1` (`e_0` is given).
+    pub fn e(j: usize, i: usize) -> usize {
+        NZ * (j - 1) + i
+    }
+    pub fn du(j: usize, wheel: usize) -> usize {
+        NZ * NP + 2 * j + wheel
+    }
+    pub fn rate_slack(j: usize, wheel: usize) -> usize {
+        (NZ + 2) * NP + 2 * j + wheel
+    }
+    pub fn tilt_slack(j: usize) -> usize {
+        (NZ + 4) * NP + j
+    }
+}
+
+impl MpcController {
+    /// The QP at sample `k` (module doc).
+    fn qp(&self, k: usize, e0: &SVector<f64, NZ>, u_prev: [f64; 2]) -> Qp {
+        let (p, q) = self.cost();
+        let (a, b, n_eq) = self.constraints(k, e0, u_prev);
+        let m = b.len();
+        Qp {
+            p,
+            q,
+            a,
+            b,
+            cones: vec![ZeroConeT(n_eq), NonnegativeConeT(m - n_eq)],
+            u0: layout::du(0, 0),
+        }
+    }
+
+    /// `½ xᵀPx + qᵀx` with `P = 2 blockdiag(Q_Y, …, Q_Y, P_T, I, …, I)` (upper triangle)
+    /// and `q` the slack weights.
+    fn cost(&self) -> (CscMatrix<f64>, Vec<f64>) {
+        use layout::{du, e, rate_slack, tilt_slack, NX};
+        let mut pm = Triplets::default();
+        let terminal = &self.lq.design.p;
+        for j in 1..=HORIZON {
+            for r in 0..NZ {
+                for c in r..NZ {
+                    let v = match (j < HORIZON, r == c) {
+                        (true, true) => Q_Y[r],
+                        (true, false) => 0.0,
+                        (false, _) => terminal[(r, c)],
+                    };
+                    pm.put(e(j, r), e(j, c), 2.0 * v);
+                }
+            }
+        }
+        let mut q = vec![0.0; NX];
+        for j in 0..HORIZON {
+            for w in 0..2 {
+                pm.put(du(j, w), du(j, w), 2.0);
+                q[rate_slack(j, w)] = RATE_WEIGHT;
+            }
+            q[tilt_slack(j)] = TILT_WEIGHT;
+        }
+        (pm.csc(NX, NX), q)
+    }
+
+    /// `A x + s = b`: the dynamics rows first (`s = 0`, their count returned), then the
+    /// voltage, rate, tilt and slack-sign rows (`s ≥ 0`).
+    fn constraints(
+        &self,
+        k: usize,
+        e0: &SVector<f64, NZ>,
+        u_prev: [f64; 2],
+    ) -> (CscMatrix<f64>, Vec<f64>, usize) {
+        use layout::{du, e, rate_slack, tilt_slack, NX};
+        let (mut am, mut b) = (Triplets::default(), Vec::new());
+        // Dynamics: e_{j+1} − Φ e_j − Γ δu_j = 0 (e_0 given, on the right).
+        for j in 0..HORIZON {
+            let s = self.sample(k + j);
+            let rhs = if j == 0 { s.phi * e0 } else { SVector::zeros() };
+            for r in 0..NZ {
+                let row = b.len();
+                am.put(row, e(j + 1, r), 1.0);
+                if j > 0 {
+                    for c in 0..NZ {
+                        am.put(row, e(j, c), -s.phi[(r, c)]);
+                    }
+                }
+                for w in 0..2 {
+                    am.put(row, du(j, w), -s.gamma[(r, w)]);
+                }
+                b.push(rhs[r]);
+            }
+        }
+        let n_eq = b.len();
+        for j in 0..HORIZON {
+            let s = self.sample(k + j);
+            let before = if j == 0 {
+                u_prev
+            } else {
+                self.sample(k + j - 1).u_ff
+            };
+            for (w, (&u_ff, &u_before)) in s.u_ff.iter().zip(&before).enumerate() {
+                for sgn in [1.0, -1.0] {
+                    // Voltage: ±(u_ff + δu) ≤ U_MAX.
+                    let row = b.len();
+                    am.put(row, du(j, w), sgn);
+                    b.push(U_MAX - sgn * u_ff);
+                    // Rate: ±((u_ff,j + δu_j) − u_{j−1}) − σ ≤ DU_MAX.
+                    let row = b.len();
+                    am.put(row, du(j, w), sgn);
+                    if j > 0 {
+                        am.put(row, du(j - 1, w), -sgn);
+                    }
+                    am.put(row, rate_slack(j, w), -1.0);
+                    b.push(DU_MAX - sgn * (u_ff - u_before));
+                }
+                let row = b.len();
+                am.put(row, rate_slack(j, w), -1.0);
+                b.push(0.0);
+            }
+            // Tilt at the sample after: ±(α_ref + e[α]) − σ ≤ TILT_MAX.
+            let alpha_ref = self.sample(k + j + 1).alpha_ref;
+            for sgn in [1.0, -1.0] {
+                let row = b.len();
+                am.put(row, e(j + 1, 2), sgn);
+                am.put(row, tilt_slack(j), -1.0);
+                b.push(TILT_MAX - sgn * alpha_ref);
+            }
+            let row = b.len();
+            am.put(row, tilt_slack(j), -1.0);
+            b.push(0.0);
+        }
+        let m = b.len();
+        (am.csc(m, NX), b, n_eq)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Unconstrained at upright rest, the QP's first move is the LQ feedback: the terminal
+    /// cost is the DARE's `P`, so the finite horizon reproduces the infinite one. The
+    /// tolerance follows clarabel's (1e-8 relative gaps) on voltages of order 0.1 V.
+    #[test]
+    fn unconstrained_at_rest_the_first_move_is_the_lq_feedback() {
+        let mpc = MpcController::at_rest(&WipParams::default(), 100).unwrap();
+        // Small enough that the LQ sequence changes by less than the rate bound per sample.
+        let e0 = SVector::<f64, NZ>::from_column_slice(&[
+            2e-5, -1e-4, 4e-5, 1e-4, 5e-5, -2e-4, 0.0, 0.0,
+        ]);
+        let lq = mpc.lq.feedback(&e0);
+        // Start from the LQ voltage itself, so that the first step's rate is zero.
+        let m = mpc.feedback(0, &e0, lq);
+        assert!(m.solved);
+        let scale = lq[0].abs().max(lq[1].abs());
+        for w in 0..2 {
+            assert!(
+                (m.u_fb[w] - lq[w]).abs() < 1e-5 * scale,
+                "{:?} against {lq:?}",
+                m.u_fb
+            );
+        }
+    }
+
+    /// An error that asks for more than 5 V: the MPC's move stays inside the bound.
+    #[test]
+    fn the_voltage_bound_holds_where_lq_would_exceed_it() {
+        let mpc = MpcController::at_rest(&WipParams::default(), 100).unwrap();
+        let e0 = SVector::<f64, NZ>::from_column_slice(&[0.0, 0.0, 0.2, 2.0, 0.0, 0.0, 0.0, 0.0]);
+        let lq = mpc.lq.feedback(&e0);
+        assert!(
+            lq[0].abs() > U_MAX,
+            "the LQ move {lq:?} is inside the bound"
+        );
+        let m = mpc.feedback(0, &e0, [0.0; 2]);
+        assert!(m.solved);
+        for w in 0..2 {
+            assert!(m.u_fb[w].abs() <= U_MAX * (1.0 + 1e-7), "{:?}", m.u_fb);
+        }
+    }
+}
