@@ -289,3 +289,26 @@ where
         c: p.constraints(k, x, w),
     }
 }
+
+/// The terminal cost `ℓ_N(x_N)`: value, gradient and Hessian, by one `Dual2` pass.
+#[derive(Clone, Copy, Debug)]
+pub struct TerminalDerivatives<const NX: usize> {
+    pub cost: f64,
+    pub gx: SVector<f64, NX>,
+    pub hxx: SMatrix<f64, NX, NX>,
+}
+
+pub fn terminal_derivatives<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+    p: &P,
+    x: &SVector<f64, NX>,
+) -> TerminalDerivatives<NX>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let v = p.terminal_cost(&seed2(x));
+    TerminalDerivatives {
+        cost: v.re,
+        gx: v.v1.0.map_or_else(SVector::zeros, |g| g.transpose()),
+        hxx: hess2(&v),
+    }
+}

@@ -1,7 +1,7 @@
 //! A stage-structured nonlinear program, as the interior-point solver sees it.
 //!
 //! ```text
-//! min  Σ_{k<N} ℓ_k(x_k, w_k)
+//! min  Σ_{k<N} ℓ_k(x_k, w_k) + ℓ_N(x_N)
 //! s.t. x_0 = x̄                                  (given)
 //!      x_{k+1} = f_k(x_k, w_k)                  (dynamics, explicit)
 //!      e_k(x_k, w_k) = 0                        (stage equality, NE rows)
@@ -42,6 +42,10 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     fn equality<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>)
         -> SVector<T, NE>;
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T;
+    /// `ℓ_N(x_N)`, a cost on the end state. Default: none.
+    fn terminal_cost<T: Real>(&self, _x: &SVector<T, NX>) -> T {
+        T::zero()
+    }
     fn constraints<T: Real>(
         &self,
         k: usize,

@@ -77,6 +77,8 @@ pub fn merge<const NX: usize, const NW: usize, const NC: usize>(
     r.timings.riccati += r0.timings.riccati;
     r.timings.factorizations += r0.timings.factorizations;
     r.timings.second_order_corrections += r0.timings.second_order_corrections;
+    r.timings.restorations += r0.timings.restorations;
+    r.timings.restoration += r0.timings.restoration;
     r.timings.total += r0.timings.total;
     r
 }

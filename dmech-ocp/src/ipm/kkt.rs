@@ -1,6 +1,6 @@
-//! The KKT system: a stage condensed (dependent decisions and slacks eliminated), the
-//! state equalities' dual-regularised rows, the KKT error, and the condense-and-sweep pass
-//! with its second-order correction.
+//! The KKT system: the Newton step with its inertia correction, a stage condensed
+//! (dependent decisions and slacks eliminated), the state equalities' dual-regularised
+//! rows, the KKT error, and the condense-and-sweep pass with its second-order correction.
 
 use super::*;
 
@@ -56,6 +56,58 @@ impl<
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
+    /// The Newton step at `it` and the primal shift it took: every stage condensed, the
+    /// Riccati recursion run behind the condensing with no shift, and, while some stage's
+    /// `H_uu` is not positive definite, again over the condensed stages with the next shift
+    /// of the inertia correction. `Err` when a stage cannot be condensed or the shifts are
+    /// exhausted.
+    pub(super) fn newton_step(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        inertia: &mut InertiaCorrection,
+        mu: f64,
+        dc: f64,
+        tm: &mut Timings,
+    ) -> Result<(Step<NX, NW, NC>, f64), String> {
+        let t1 = Instant::now();
+        let n = self.n;
+        let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
+        let mut sweep = BackwardSweep::new(n, &q_n, &q_vec_n, 0.0);
+        let Workspace {
+            ders, lq, elim, qn, ..
+        } = ws;
+        let (first, t_sweep) = self.condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
+            self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e)
+        })?;
+        tm.riccati += t_sweep;
+        let mut attempt = Some(first.map(|()| sweep.forward(lq, &SVector::zeros())));
+        let mut delta = 0.0;
+        let sol = loop {
+            tm.factorizations += 1;
+            let r = match attempt.take() {
+                Some(r) => r,
+                None => {
+                    let t_r = Instant::now();
+                    let r = solve_lq(lq, &q_n, &q_vec_n, &SVector::zeros(), delta);
+                    tm.riccati += t_r.elapsed().as_secs_f64();
+                    r
+                }
+            };
+            match r {
+                Ok(s) => break s,
+                Err(_) => match inertia.next(delta) {
+                    Some(next) => delta = next,
+                    None => return Err("inertia correction failed".into()),
+                },
+            }
+        };
+        inertia.succeeded(delta);
+        let step = self.recover(it, ders, elim, sol, mu, dc);
+        tm.kkt += t1.elapsed().as_secs_f64();
+        Ok((step, delta))
+    }
+
     /// Condense stage `k`: eliminate the dependent decisions and the inequality slacks,
     /// into the solver's buffers `lq`, `el` (written in place: returning the 5 kB pair and
     /// moving it there was part of the memmove share, see `condense_and_sweep`).
@@ -152,6 +204,19 @@ where
         Ok(())
     }
 
+    /// The terminal stage of the LQ problem: the terminal cost's curvature and gradient and
+    /// the state equalities at `x_N`.
+    pub(super) fn terminal_lq(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        terminal: &TerminalDerivatives<NX>,
+        dc: f64,
+    ) -> (SMatrix<f64, NX, NX>, SVector<f64, NX>) {
+        let (mut q_n, mut q_vec_n) = (terminal.hxx, terminal.gx);
+        self.add_state_equalities(self.n, it, dc, &mut q_n, &mut q_vec_n);
+        (q_n, q_vec_n)
+    }
+
     /// The quadratic terms of the state equalities at stage `k`.
     pub(super) fn add_state_equalities(
         &self,
@@ -219,6 +284,7 @@ where
     pub(super) fn kkt_error(
         &self,
         it: &Iterate<NX, NW, NC>,
+        terminal: &TerminalDerivatives<NX>,
         per_stage: impl Iterator<Item = StageKkt>,
     ) -> KktError {
         let n = self.n;
@@ -242,12 +308,11 @@ where
             mult_cnt += (NX + 2 * NC) as f64;
             primal = primal.max(p_k);
         }
-        // x_N's gradient: its part in the dynamics row of stage N − 1.
-        let mut gx_n = if n > 0 {
-            -it.lambda[n - 1]
-        } else {
-            SVector::zeros()
-        };
+        // x_N's gradient: the terminal cost's and its part in the dynamics row of stage N − 1.
+        let mut gx_n = terminal.gx;
+        if n > 0 {
+            gx_n -= it.lambda[n - 1];
+        }
         for &j in &self.eqs_at[n] {
             gx_n[self.eqs[j].index] = 0.0;
         }
@@ -422,6 +487,7 @@ where
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
         qn: &[QuasiNewton<NX, NW, NE>],
+        terminal: &TerminalDerivatives<NX>,
         trial_vals: &[StageValues<NX, NE, NC>],
         trial: &Iterate<NX, NW, NC>,
         alpha: f64,
@@ -432,8 +498,7 @@ where
         elim: &mut [Elimination<NX, NW, NU>],
     ) -> Option<Step<NX, NW, NC>> {
         let n = self.n;
-        let (mut q_n, mut q_vec_n) = (SMatrix::zeros(), SVector::zeros());
-        self.add_state_equalities(n, it, dc, &mut q_n, &mut q_vec_n);
+        let (q_n, q_vec_n) = self.terminal_lq(it, terminal, dc);
         let mut sweep = BackwardSweep::new(n, &q_n, &q_vec_n, delta);
         let (swept, _) = self
             .condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {

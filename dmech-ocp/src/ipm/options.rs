@@ -30,7 +30,7 @@ pub struct IpOptions {
     /// into negative curvature forces the inertia shift on all stages, so the bound is
     /// tight (1e-2, not the textbook 1e-8: measurements in `docs/ocp.md`).
     pub sr1_skip: f64,
-    /// Wall-clock limit in seconds (reported as `MaxIterations`).
+    /// Wall-clock limit in seconds (reported as `TimeLimit`).
     pub time_limit: f64,
 }
 
@@ -67,14 +67,20 @@ impl Default for IpOptions {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Status {
     Solved,
-    /// The constraint violation stopped decreasing far from zero: no feasible point near.
+    /// Feasibility restoration converged to a point of local infeasibility (a stationary
+    /// point of the state equalities' squared violation within the dynamics and bounds), or
+    /// the dynamics and bounds themselves cannot be met: no feasible point near.
     Infeasible {
         violation: f64,
     },
+    /// The iteration limit (`max_iter`) was reached.
     MaxIterations,
+    /// The wall-clock limit (`time_limit`) was reached.
+    TimeLimit,
     /// Non-finite values or iterates growing without bound.
     Diverged,
-    /// The line search or the inertia correction gave up.
+    /// A numerical failure: the line search near feasibility, the inertia correction, a
+    /// singular stage equality, or a failed restoration; the reason.
     Failed(String),
 }
 
@@ -84,6 +90,7 @@ impl Status {
             Status::Solved => "solved",
             Status::Infeasible { .. } => "infeasible",
             Status::MaxIterations => "max_iterations",
+            Status::TimeLimit => "time_limit",
             Status::Diverged => "diverged",
             Status::Failed(_) => "failed",
         }
@@ -101,6 +108,10 @@ pub struct Timings {
     pub factorizations: usize,
     /// Second-order correction steps tried.
     pub second_order_corrections: usize,
+    /// Feasibility restorations entered, and their time (included in `total`; their
+    /// iterations are in the solve's count).
+    pub restorations: usize,
+    pub restoration: f64,
     pub line_search: f64,
     pub total: f64,
 }

@@ -47,7 +47,8 @@ where
         tm.total = t_start.elapsed().as_secs_f64();
         let objective = (0..self.n)
             .map(|k| self.p.cost(k, &it.x[k], &it.w[k]))
-            .sum();
+            .sum::<f64>()
+            + self.p.terminal_cost(&it.x[self.n]);
         let max_violation = self.max_violation(&it.x, &it.w);
         SolveResult {
             status,

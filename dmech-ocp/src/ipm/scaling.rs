@@ -57,6 +57,9 @@ where
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         self.p.cost(k, x, w) * T::from(self.c)
     }
+    fn terminal_cost<T: Real>(&self, x: &SVector<T, NX>) -> T {
+        self.p.terminal_cost(x) * T::from(self.c)
+    }
     fn constraints<T: Real>(
         &self,
         k: usize,

@@ -169,10 +169,14 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
     match o.status {
         Status::Solved => Ok(()),
         Status::Infeasible { violation } => Err(Failure::Run(format!(
-            "infeasible: the constraint violation stopped decreasing at {violation:.3e} (waypoints or end state out of reach within the bounds)"
+            "infeasible: feasibility restoration ended at a point of local infeasibility, largest violation {violation:.3e} (waypoints or end state out of reach within the bounds)"
         ))),
         Status::MaxIterations => Err(Failure::Run(format!(
             "not solved within {} iterations (--max-iter)",
+            o.iterations
+        ))),
+        Status::TimeLimit => Err(Failure::Run(format!(
+            "not solved within the time limit ({} iterations)",
             o.iterations
         ))),
         Status::Diverged => Err(Failure::Run(

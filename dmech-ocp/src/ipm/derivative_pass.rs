@@ -1,0 +1,120 @@
+//! The per-iteration pass over the stages: exact derivatives, the SR1 update, each stage's
+//! part of the KKT error and its values, in parallel, and the terminal cost's derivatives;
+//! and the buffers it and the Newton step keep from one iteration to the next.
+
+use super::*;
+
+/// The per-stage buffers of a solve, overwritten every iteration: derivatives, the
+/// condensed stages and their eliminations, what the derivative pass leaves besides the
+/// derivatives, and the SR1 curvature (empty without quasi-Newton).
+pub(super) struct Workspace<
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NU: usize,
+    const NC: usize,
+> {
+    pub(super) ders: Vec<StageDerivatives<NX, NW, NE, NC>>,
+    pub(super) lq: Vec<LqStage<NX, NU>>,
+    pub(super) elim: Vec<Elimination<NX, NW, NU>>,
+    pub(super) aux: Vec<StageAux<NX, NE, NC>>,
+    pub(super) qn: Vec<QuasiNewton<NX, NW, NE>>,
+    pub(super) terminal: TerminalDerivatives<NX>,
+}
+
+impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Workspace<NX, NW, NE, NU, NC>
+{
+    pub(super) fn new(n: usize, quasi_newton: bool) -> Self {
+        Workspace {
+            ders: vec![StageDerivatives::zeros(); n],
+            lq: vec![LqStage::zeros(); n],
+            elim: vec![Elimination::zeros(); n],
+            aux: vec![StageAux::zeros(); n],
+            qn: vec![QuasiNewton::new(); if quasi_newton { n } else { 0 }],
+            terminal: TerminalDerivatives {
+                cost: 0.0,
+                gx: SVector::zeros(),
+                hxx: SMatrix::zeros(),
+            },
+        }
+    }
+
+    /// Forget the SR1 curvature (back to the exact cost curvature alone).
+    pub(super) fn reset_quasi_newton(&mut self) {
+        for q in self.qn.iter_mut() {
+            q.reset();
+        }
+    }
+}
+
+impl<
+        'a,
+        P,
+        const NX: usize,
+        const NW: usize,
+        const NE: usize,
+        const NU: usize,
+        const NC: usize,
+    > Solver<'a, P, NX, NW, NE, NU, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    /// Every stage's derivatives at `it`, with, while they are in cache, its SR1 update, its
+    /// part of the KKT error and its values (reading the 36 MB of derivatives again for
+    /// these was 5–7 % of a plan).
+    pub(super) fn derivative_pass(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        tm: &mut Timings,
+    ) {
+        let o = &self.opts;
+        let t0 = Instant::now();
+        let derivatives = |k: usize, d: &mut StageDerivatives<NX, NW, NE, NC>| {
+            let zeta = it.z_hi[k] - it.z_lo[k];
+            let lam = &it.lambda[k];
+            stage_derivatives_into(
+                d,
+                self.p,
+                k,
+                &it.x[k],
+                &it.w[k],
+                &zeta,
+                o.exact_hessian.then_some(lam),
+            );
+            d.nu = d.equality_multiplier(lam, &zeta);
+        };
+        let finish =
+            |k: usize, d: &StageDerivatives<NX, NW, NE, NC>, a: &mut StageAux<NX, NE, NC>| {
+                a.kkt = self.kkt_stage(k, it, d);
+                a.vals = StageValues {
+                    f: d.f,
+                    e: d.e,
+                    cost: d.cost,
+                    c: d.c,
+                };
+            };
+        if o.quasi_newton {
+            par_zip3(
+                &mut ws.ders,
+                &mut ws.qn,
+                &mut ws.aux,
+                o.threads,
+                |k, d, q, a| {
+                    derivatives(k, d);
+                    let nu = d.nu.unwrap_or_else(SVector::zeros);
+                    q.update(o.sr1_skip, &it.x[k], &it.w[k], d, &it.lambda[k], &nu);
+                    finish(k, d, a);
+                },
+            );
+        } else {
+            par_zip(&mut ws.ders, &mut ws.aux, o.threads, |k, d, a| {
+                derivatives(k, d);
+                finish(k, d, a);
+            });
+        }
+        ws.terminal = terminal_derivatives(self.p, &it.x[self.n]);
+        tm.derivatives += t0.elapsed().as_secs_f64();
+    }
+}

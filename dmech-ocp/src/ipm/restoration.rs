@@ -1,0 +1,273 @@
+//! Feasibility restoration: what the solver does when its line search finds no acceptable
+//! step far from feasibility, or the violation stalls there, and how it tells a problem
+//! that has no feasible point near from one it only failed to make progress on.
+//!
+//! IPOPT's restoration phase (Wächter & Biegler 2006, §3.3) minimises the `ℓ₁` norm of
+//! every constraint's violation plus a proximity term. Here the dynamics, the stage
+//! equalities and the inequalities stay hard: a stage-structured problem can always meet
+//! its explicit dynamics and (by the assumption of [`StageProblem`]) its stage equalities
+//! by simulating forward from `x̄`, so what makes a plan infeasible is that the state
+//! equalities (waypoints, the end state) cannot be reached within the inequalities. The
+//! restoration problem keeps the original's stages and replaces its objective by
+//!
+//! ```text
+//! ρ/2 Σ_j (x_{k_j}[i_j] − v_j)²  +  ζ/2 Σ_k (‖D_x (x_k − x̂_k)‖² + ‖D_w (w_k − ŵ_k)‖²)
+//! ```
+//!
+//! (the state equalities' residuals, squared, and a proximity to the point `(x̂, ŵ)` where
+//! restoration began, `D = diag(min(1, 1/|x̂_i|))`, `ζ = √μ` following the restoration's
+//! barrier parameter down, so that the proximity vanishes at its solution), solved by the
+//! same interior point. `ρ = ρ₁/θ̂`, with `θ̂` the largest violation at entry, makes the penalty's
+//! gradient `ρ₁ = 1000` there, as IPOPT's `ℓ₁` penalty weight. The restoration stops as
+//! soon as the original problem's violation has fallen to `κ_R = 0.9` of its value at entry
+//! and the state equalities' own violation, which is what the restoration problem
+//! minimises, has fallen to `κ_R` of its value at entry too (the first restoration steps
+//! remove the dynamics' residuals at once; measured on an unreachable plan, stopping on the
+//! total alone handed back points that stalled again). The original filter then holds the
+//! point restoration began at. If the restoration problem is
+//! instead solved to its tolerance with the violation still above that, the iterate is a
+//! stationary point of the squared violation within the hard constraints, a point of local
+//! infeasibility, and the problem is reported [`Status::Infeasible`].
+
+use super::*;
+use dmech_lie::Real;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// `ρ₁`: the penalty's gradient at entry (IPOPT's `ρ`).
+const RHO_AT_ENTRY: f64 = 1e3;
+/// `κ_R`: the restoration has succeeded when the violation is at most this fraction of
+/// its value at entry.
+pub(super) const KAPPA_RESTORATION: f64 = 0.9;
+/// Bound multipliers above this after restoration are reset to 1 (IPOPT's
+/// `bound_mult_reset_threshold`).
+const BOUND_MULT_RESET: f64 = 1e3;
+
+/// The restoration problem of `p` around `(x̂, ŵ)`: `p`'s stages with the objective above.
+pub(super) struct Restoration<'a, P, const NX: usize, const NW: usize> {
+    p: &'a P,
+    eqs: &'a [StateEquality],
+    eqs_at: &'a [Vec<usize>],
+    x_ref: Vec<SVector<f64, NX>>,
+    w_ref: Vec<SVector<f64, NW>>,
+    rho: f64,
+    /// `ζ`, as the bits of an `f64` (set between iterations, read by the stage functions on
+    /// every thread).
+    zeta: AtomicU64,
+}
+
+/// `D (v − v̂)` with `D = diag(min(1, 1/|v̂_i|))`, squared and summed.
+fn proximity<T: Real, const N: usize>(v: &SVector<T, N>, v_ref: &SVector<f64, N>) -> T {
+    let mut s = T::zero();
+    for i in 0..N {
+        let d = (v[i] - v_ref[i]) * (1.0 / v_ref[i].abs().max(1.0));
+        s += d * d;
+    }
+    s
+}
+
+impl<P, const NX: usize, const NW: usize> Restoration<'_, P, NX, NW> {
+    fn zeta(&self) -> f64 {
+        f64::from_bits(self.zeta.load(Ordering::Relaxed))
+    }
+
+    /// `ζ = √μ`; `true` if it changed.
+    fn follow(&self, mu: f64) -> bool {
+        let new = mu.sqrt().to_bits();
+        self.zeta.swap(new, Ordering::Relaxed) != new
+    }
+
+    /// `ρ/2 Σ (x[i_j] − v_j)²` over the state equalities at stage `k`.
+    fn penalty<T: Real>(&self, k: usize, x: &SVector<T, NX>) -> T {
+        let mut s = T::zero();
+        for &j in &self.eqs_at[k] {
+            let r = x[self.eqs[j].index] - self.eqs[j].value;
+            s += r * r;
+        }
+        s * (0.5 * self.rho)
+    }
+}
+
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>
+    StageProblem<NX, NW, NE, NC> for Restoration<'_, P, NX, NW>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    fn horizon(&self) -> usize {
+        self.p.horizon()
+    }
+    fn initial_state(&self) -> SVector<f64, NX> {
+        self.p.initial_state()
+    }
+    fn dynamics<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NX> {
+        self.p.dynamics(k, x, w)
+    }
+    fn equality<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NE> {
+        self.p.equality(k, x, w)
+    }
+    fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
+        let prox = proximity(x, &self.x_ref[k]) + proximity(w, &self.w_ref[k]);
+        self.penalty(k, x) + prox * (0.5 * self.zeta())
+    }
+    fn terminal_cost<T: Real>(&self, x: &SVector<T, NX>) -> T {
+        let n = self.x_ref.len() - 1;
+        self.penalty(n, x) + proximity(x, &self.x_ref[n]) * (0.5 * self.zeta())
+    }
+    fn constraints<T: Real>(
+        &self,
+        k: usize,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> SVector<T, NC> {
+        self.p.constraints(k, x, w)
+    }
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
+        self.p.bounds(k)
+    }
+    fn state_equalities(&self) -> Vec<StateEquality> {
+        Vec::new()
+    }
+    fn dynamics_jacobian(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
+        self.p.dynamics_jacobian(k, x, w)
+    }
+    fn equality_jacobian(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
+        self.p.equality_jacobian(k, x, w)
+    }
+}
+
+/// How a restoration ended.
+pub(super) enum Restored<const NX: usize, const NW: usize, const NC: usize> {
+    /// The violation fell to `κ_R` of its value at entry: go on from this iterate.
+    Progress(Iterate<NX, NW, NC>),
+    /// The solve could not go on: `Infeasible` (a point of local infeasibility, or the hard
+    /// constraints themselves infeasible), an iteration or time limit, or a failure; with
+    /// the restoration's last iterate.
+    Stop(Status, Iterate<NX, NW, NC>),
+}
+
+impl<
+        'a,
+        P,
+        const NX: usize,
+        const NW: usize,
+        const NE: usize,
+        const NU: usize,
+        const NC: usize,
+    > Solver<'a, P, NX, NW, NE, NU, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    /// `Σ_j |x_{k_j}[i_j] − v_j|`, the state equalities' part of `θ`.
+    pub(super) fn state_equality_violation(&self, it: &Iterate<NX, NW, NC>) -> f64 {
+        self.eqs
+            .iter()
+            .map(|e| (it.x[e.stage][e.index] - e.value).abs())
+            .sum()
+    }
+
+    /// Restoration from `it` (measures `m`, barrier `mu`), within `max_iter` iterations and
+    /// `time_limit` seconds; returns how it ended and the iterations it took.
+    pub(super) fn restore(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        m: &Measures,
+        mu: f64,
+        max_iter: usize,
+        time_limit: f64,
+    ) -> (Restored<NX, NW, NC>, usize) {
+        let mu_r = mu.max(m.theta_max.min(self.opts.mu_init));
+        let problem = Restoration {
+            p: self.p,
+            eqs: &self.eqs,
+            eqs_at: &self.eqs_at,
+            x_ref: it.x.clone(),
+            w_ref: it.w.clone(),
+            rho: RHO_AT_ENTRY / m.theta_max.max(f64::MIN_POSITIVE),
+            zeta: AtomicU64::new(mu_r.sqrt().to_bits()),
+        };
+        let solver: Solver<_, NX, NW, NE, NU, NC> = Solver::new(
+            &problem,
+            IpOptions {
+                mu_init: mu_r,
+                max_iter,
+                time_limit,
+                ..self.opts.clone()
+            },
+        );
+        if self.opts.verbose {
+            let _ = writeln!(
+                std::io::stderr(),
+                "restoration: violation {:.2e}, barrier {mu_r:.1e}",
+                m.theta_max
+            );
+        }
+        // Same primal point, slacks and bound multipliers; no equality multipliers (the
+        // objective is another one).
+        let start = Iterate {
+            lambda: vec![SVector::zeros(); self.n],
+            y: Vec::new(),
+            ..it.clone()
+        };
+        let target = KAPPA_RESTORATION * m.theta;
+        // The state equalities' part may be zero at entry: within their tolerance then.
+        let eq_target = KAPPA_RESTORATION * self.state_equality_violation(it)
+            + self.eqs.len() as f64 * self.opts.constr_viol_tol;
+        let done = |r: &Iterate<NX, NW, NC>, rm: &Measures| {
+            let eq = self.state_equality_violation(r);
+            eq <= eq_target && rm.theta + eq <= target
+        };
+        let follow = |mu: f64| problem.follow(mu);
+        let (r, progressed) = solver.run_with(
+            start,
+            Mode::Restoration {
+                done: &done,
+                follow: &follow,
+            },
+        );
+        let mut back = r.iterate;
+        back.y = vec![0.0; self.eqs.len()];
+        let status = match r.status {
+            _ if progressed => {
+                for z in back.z_lo.iter_mut().chain(back.z_hi.iter_mut()) {
+                    z.apply(|v| {
+                        if *v > BOUND_MULT_RESET {
+                            *v = 1.0
+                        }
+                    });
+                }
+                back.lambda.iter_mut().for_each(|l| l.fill(0.0));
+                return (Restored::Progress(back), r.iterations);
+            }
+            // Converged to a stationary point of the squared violation that is not feasible.
+            Status::Solved => {
+                let vals = self.values(&back);
+                Status::Infeasible {
+                    violation: self.measures(&back, &vals, mu).theta_max,
+                }
+            }
+            s @ (Status::Infeasible { .. } | Status::MaxIterations | Status::TimeLimit) => s,
+            Status::Diverged => Status::Failed("restoration diverged".into()),
+            Status::Failed(why) => Status::Failed(format!("restoration: {why}")),
+        };
+        (Restored::Stop(status, back), r.iterations)
+    }
+}
