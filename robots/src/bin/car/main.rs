@@ -60,6 +60,9 @@ struct PlanArgs {
     /// Output directory
     #[arg(long, default_value = "out")]
     out: PathBuf,
+    /// Worker threads of the solver (default: all cores, at most 8)
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=64))]
+    threads: Option<u64>,
     /// No iteration log
     #[arg(long)]
     quiet: bool,
@@ -163,10 +166,12 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
             a.step
         );
     }
+    let defaults = IpOptions::default();
     let opts = IpOptions {
         verbose: !a.quiet,
         max_iter: a.max_iter,
-        ..Default::default()
+        threads: a.threads.map_or(defaults.threads, |n| n as usize),
+        ..defaults
     };
     let bounds = CarBounds::default();
     let o = plan(&Car::default(), &problem, bounds, a.step, disc, opts)?;

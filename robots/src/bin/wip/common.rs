@@ -84,6 +84,14 @@ pub fn positive_count(s: &str) -> Result<usize, String> {
     }
 }
 
+/// A thread count in 1..=64 (more would only add scheduling on the machines this runs on).
+pub fn thread_count(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if (1..=64).contains(&n) => Ok(n),
+        _ => Err(format!("'{s}' is not a thread count in 1..=64")),
+    }
+}
+
 /// The time-stepping schemes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum IntegratorArg {

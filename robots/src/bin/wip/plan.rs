@@ -1,8 +1,8 @@
 //! `wip plan`: the constrained energy-optimal trajectory through waypoints.
 
 use crate::common::{
-    check_size, load_params, plan_step, positive_count, usage_error, CurrentArg, Failure,
-    IntegratorArg,
+    check_size, load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg,
+    Failure, IntegratorArg,
 };
 use dmech_ocp::ipm::{IpOptions, Status};
 use robots::io::OutputSet;
@@ -58,6 +58,9 @@ pub struct PlanArgs {
     /// Largest number of stages accepted (each takes about 28 kB while solving)
     #[arg(long, value_name = "N", default_value = "100000", value_parser = positive_count)]
     max_stages: usize,
+    /// Worker threads of the solver (default: all cores, at most 8)
+    #[arg(long, value_name = "N", value_parser = thread_count)]
+    threads: Option<usize>,
     /// No iteration table on stderr
     #[arg(long)]
     quiet: bool,
@@ -105,10 +108,12 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
     )?;
     let wip = Wip::new(load_params(a.params.as_deref())?);
     let mut files = OutputSet::create(&a.out)?;
+    let defaults = IpOptions::default();
     let opts = IpOptions {
         verbose: !a.quiet,
         max_iter: a.max_iter,
-        ..Default::default()
+        threads: a.threads.unwrap_or(defaults.threads),
+        ..defaults
     };
     let (integrator, current) = (a.integrator.name(), a.current.model().name());
     let setup = t_setup.elapsed().as_secs_f64();
