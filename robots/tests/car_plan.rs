@@ -42,3 +42,74 @@ fn parallel_park_and_lane_change_solve_from_the_kinematic_start() {
         );
     }
 }
+
+/// The solver issue's stall on the car's own model: the steering-angle bound lowered below
+/// the unconstrained plan's peak until it is active over much of the manoeuvre; every plan
+/// solves with the default options (the steered car of
+/// `dmech-ocp/tests/steered_car_bounds.rs` stalled at 500 iterations with a bound active on
+/// many stages).
+#[test]
+fn parallel_park_solves_with_the_steering_bound_active() {
+    let problem = CarProblem::parallel_park();
+    let plan_with = |steer_angle: f64| {
+        plan(
+            &Car::default(),
+            &problem,
+            CarBounds {
+                steer_angle,
+                ..CarBounds::default()
+            },
+            0.02,
+            Discretisation::FirstOrder,
+            IpOptions::default(),
+        )
+        .unwrap()
+    };
+    let peak = |o: &robots::car::plan::CarOutcome| {
+        o.trajectory
+            .stages
+            .iter()
+            .map(|s| s.shape[0].abs())
+            .fold(0.0, f64::max)
+    };
+    let free = plan_with(CarBounds::default().steer_angle);
+    assert_eq!(free.status, Status::Solved);
+    let phi_free = peak(&free);
+    let mut j_prev = free.objective;
+    for fraction in [0.8, 0.6, 0.4] {
+        let bound = fraction * phi_free;
+        let o = plan_with(bound);
+        let active = o
+            .trajectory
+            .stages
+            .iter()
+            .filter(|s| s.shape[0].abs() > bound - 1e-5)
+            .count();
+        println!(
+            "steering bound {bound:.3} rad ({fraction} of the free peak {phi_free:.3}): {:?} after {} iterations, J = {:.6}, active at {active} of {} stages, max violation {:.1e}, peak {:.4}",
+            o.status,
+            o.iterations,
+            o.objective,
+            o.trajectory.stages.len(),
+            o.max_violation,
+            peak(&o)
+        );
+        assert_eq!(o.status, Status::Solved, "bound {bound}");
+        assert!(
+            o.max_violation <= 1e-9,
+            "bound {bound}: {:e}",
+            o.max_violation
+        );
+        // A bound below the free peak binds: somewhere within the solver's tolerance of it
+        // (complementarity 1e-6 over multipliers of order one).
+        assert!(active > 0, "bound {bound} inactive");
+        // A tighter bound shrinks the feasible set: the optimum cannot fall (beyond the
+        // solver's relative tolerance).
+        assert!(
+            o.objective >= j_prev * (1.0 - 1e-6),
+            "J fell: {} < {j_prev}",
+            o.objective
+        );
+        j_prev = o.objective;
+    }
+}

@@ -118,9 +118,9 @@ const QN_RESET_BACKTRACKS: usize = 4;
 const MAX_FORCED_STEPS: usize = 20;
 const FORCED_STEP_FRACTION: f64 = 0.125;
 
-/// `restore(it, m, μ, iterations left, seconds left)`: a restoration from `it`.
-type RestoreFn<'f, const NX: usize, const NW: usize, const NC: usize> =
-    dyn Fn(&Iterate<NX, NW, NC>, &Measures, f64, usize, f64) -> (Restored<NX, NW, NC>, usize) + 'f;
+/// `restore(it, m, μ, (iterations, seconds) left, complete)`: a restoration from `it`.
+type RestoreFn<'f, const NX: usize, const NW: usize, const NC: usize> = dyn Fn(&Iterate<NX, NW, NC>, &Measures, f64, (usize, f64), bool) -> (Restored<NX, NW, NC>, usize)
+    + 'f;
 
 /// What a run of the loop is.
 enum Mode<'f, const NX: usize, const NW: usize, const NC: usize> {
@@ -250,11 +250,15 @@ where
             eqs_at: self.eqs_at.clone(),
         }
     }
+
     /// The interior-point loop on the problem as given, with feasibility restoration.
     fn run(&self, start: Iterate<NX, NW, NC>) -> SolveResult<NX, NW, NC> {
-        let restore = |it: &Iterate<NX, NW, NC>, m: &Measures, mu: f64, iters: usize, secs: f64| {
-            self.restore(it, m, mu, iters, secs)
-        };
+        let restore =
+            |it: &Iterate<NX, NW, NC>,
+             m: &Measures,
+             mu: f64,
+             limits: (usize, f64),
+             complete: bool| { self.restore(it, m, mu, limits, complete) };
         self.run_with(start, Mode::Main(&restore)).0
     }
 
@@ -280,6 +284,7 @@ where
         let mut forced_steps = 0usize;
         let mut iter = 0;
         let mut restored = false;
+        let mut restore = false;
         self.print_header();
         if let Some(msg) = self.check_affine_declaration(&it) {
             return (self.finish(Status::Failed(msg), it, 0, tm, t_start), false);
@@ -302,6 +307,18 @@ where
                     m = self.measures(&it, &vals, mu);
                 }
             }
+            // No acceptable step far from feasibility, or a violation that has stopped
+            // falling there: restoration decides whether a feasible point is near.
+            if std::mem::take(&mut restore) || stall.stalled(m.theta_max) {
+                match self.restoration(&mode, &mut it, &mut iter, &mut tm, mu, t_start) {
+                    Some(status) => break status,
+                    None => {
+                        (vals, m) =
+                            self.restart_after_restoration(&it, &mut ws, &mut filter, &m, mu);
+                        stall = StallWatch::new();
+                    }
+                }
+            }
             self.derivative_pass(&it, &mut ws, &mut tm);
             let kkt = self.kkt_error(&it, &ws.terminal, ws.aux.iter().map(|a| a.kkt));
             let compl0 = self.complementarity(&it, 0.0, kkt.s_d);
@@ -314,19 +331,6 @@ where
             }
             if t_start.elapsed().as_secs_f64() > o.time_limit {
                 break Status::TimeLimit;
-            }
-            // The violation has stopped falling far from zero: restoration decides whether a
-            // feasible point is near.
-            if stall.stalled(m.theta_max) {
-                match self.restoration(&mode, &mut it, &mut iter, &mut tm, mu, t_start) {
-                    Some(status) => break status,
-                    None => {
-                        (vals, m) =
-                            self.restart_after_restoration(&it, &mut ws, &mut filter, &m, mu);
-                        stall = StallWatch::new();
-                        continue;
-                    }
-                }
             }
             if self.update_barrier(&it, &mut mu, &kkt) {
                 filter.clear();
@@ -343,12 +347,7 @@ where
             let (mut step, delta) =
                 match self.newton_step(&it, &mut ws, &mut inertia, mu, dc, &mut tm) {
                     Ok(s) => s,
-                    Err(msg) => {
-                        return (
-                            self.finish(Status::Failed(msg), it, iter, tm, t_start),
-                            false,
-                        )
-                    }
+                    Err(msg) => break Status::Failed(msg),
                 };
             last = self.line_search(
                 &it,
@@ -361,32 +360,25 @@ where
                 delta,
                 &mut tm,
             );
-            let far = m.theta_max > INFEASIBLE_VIOLATION;
-            if last.accepted.is_none() && far && matches!(mode, Mode::Main(_)) {
-                match self.restoration(&mode, &mut it, &mut iter, &mut tm, mu, t_start) {
-                    Some(status) => break status,
-                    None => {
-                        (vals, m) =
-                            self.restart_after_restoration(&it, &mut ws, &mut filter, &m, mu);
-                        stall = StallWatch::new();
-                        continue;
-                    }
+            if last.accepted.is_none() {
+                if m.theta_max > INFEASIBLE_VIOLATION && matches!(mode, Mode::Main(_)) {
+                    restore = true;
+                    continue;
                 }
-            }
-            if last.accepted.is_none() && forced_steps < MAX_FORCED_STEPS {
-                // Near feasibility (or inside a restoration): forget the quasi-Newton
-                // curvature (a secant model gone bad gives steps the barrier function does
-                // not accept), take a short step anyway and restart the filter. Bounded in
-                // number, so a problem without an acceptable step still ends.
-                ws.reset_quasi_newton();
-                filter.clear();
-                forced_steps += 1;
-                let a = last.alpha_max * FORCED_STEP_FRACTION;
-                let trial = self.trial(&it, &step, a);
-                let tv = self.values(&trial);
-                let tmz = self.measures(&trial, &tv, mu);
-                last.alpha = a;
-                last.accepted = Some((trial, tv, tmz));
+                if forced_steps < MAX_FORCED_STEPS {
+                    // Near feasibility (or inside a restoration): forget the quasi-Newton
+                    // curvature (a secant model gone bad gives steps the barrier function
+                    // does not accept), take a short step anyway and restart the filter.
+                    // Bounded in number, so a problem without an acceptable step still ends.
+                    ws.reset_quasi_newton();
+                    filter.clear();
+                    forced_steps += 1;
+                    last.alpha = last.alpha_max * FORCED_STEP_FRACTION;
+                    let trial = self.trial(&it, &step, last.alpha);
+                    let tv = self.values(&trial);
+                    let tmz = self.measures(&trial, &tv, mu);
+                    last.accepted = Some((trial, tv, tmz));
+                }
             }
             // A step accepted only after cutting it by 2³ or more says the secant model
             // predicts badly: start it over from the exact cost curvature. (Measured on the
@@ -430,7 +422,8 @@ where
         };
         let t = Instant::now();
         let secs_left = self.opts.time_limit - t_start.elapsed().as_secs_f64();
-        let (outcome, iterations) = restore(it, &m, mu, self.opts.max_iter - *iter, secs_left);
+        let limits = (self.opts.max_iter - *iter, secs_left);
+        let (outcome, iterations) = restore(it, &m, mu, limits, tm.restorations > 0);
         tm.restorations += 1;
         tm.restoration += t.elapsed().as_secs_f64();
         *iter += iterations;

@@ -41,6 +41,11 @@ pub(super) const KAPPA_RESTORATION: f64 = 0.9;
 /// Bound multipliers above this after restoration are reset to 1 (IPOPT's
 /// `bound_mult_reset_threshold`).
 const BOUND_MULT_RESET: f64 = 1e3;
+/// A completed restoration counts as feasible when the largest violation is at most this
+/// fraction of its value at entry. On a feasible problem the converged restoration leaves
+/// `r ≈ ζ|x − x̂|/ρ ≈ 3·10⁻⁷ θ̂` (`ζ = √(tol/10)`, `ρ = 10³/θ̂`); on an infeasible one the
+/// least violation, of the order of `θ̂`.
+const FEASIBLE_FRACTION: f64 = 1e-4;
 
 /// The restoration problem of `p` around `(x̂, ŵ)`: `p`'s stages with the objective above.
 pub(super) struct Restoration<'a, P, const NX: usize, const NW: usize> {
@@ -185,15 +190,19 @@ where
     }
 
     /// Restoration from `it` (measures `m`, barrier `mu`), within `max_iter` iterations and
-    /// `time_limit` seconds; returns how it ended and the iterations it took.
+    /// `time_limit` seconds; returns how it ended and the iterations it took. A `complete`
+    /// restoration (the solve has been restored before, and came back to a stall) does not
+    /// stop at `κ_R`: it solves the restoration problem, and the result is feasible or a
+    /// point of local infeasibility.
     pub(super) fn restore(
         &self,
         it: &Iterate<NX, NW, NC>,
         m: &Measures,
         mu: f64,
-        max_iter: usize,
-        time_limit: f64,
+        limits: (usize, f64),
+        complete: bool,
     ) -> (Restored<NX, NW, NC>, usize) {
+        let (max_iter, time_limit) = limits;
         let mu_r = mu.max(m.theta_max.min(self.opts.mu_init));
         let problem = Restoration {
             p: self.p,
@@ -233,7 +242,7 @@ where
             + self.eqs.len() as f64 * self.opts.constr_viol_tol;
         let done = |r: &Iterate<NX, NW, NC>, rm: &Measures| {
             let eq = self.state_equality_violation(r);
-            eq <= eq_target && rm.theta + eq <= target
+            !complete && eq <= eq_target && rm.theta + eq <= target
         };
         let follow = |mu: f64| problem.follow(mu);
         let (r, progressed) = solver.run_with(
@@ -245,8 +254,11 @@ where
         );
         let mut back = r.iterate;
         back.y = vec![0.0; self.eqs.len()];
+        let violation = self.measures(&back, &self.values(&back), mu).theta_max;
+        let feasible =
+            complete && r.status == Status::Solved && violation <= FEASIBLE_FRACTION * m.theta_max;
         let status = match r.status {
-            _ if progressed => {
+            _ if progressed || feasible => {
                 for z in back.z_lo.iter_mut().chain(back.z_hi.iter_mut()) {
                     z.apply(|v| {
                         if *v > BOUND_MULT_RESET {
@@ -258,12 +270,7 @@ where
                 return (Restored::Progress(back), r.iterations);
             }
             // Converged to a stationary point of the squared violation that is not feasible.
-            Status::Solved => {
-                let vals = self.values(&back);
-                Status::Infeasible {
-                    violation: self.measures(&back, &vals, mu).theta_max,
-                }
-            }
+            Status::Solved => Status::Infeasible { violation },
             s @ (Status::Infeasible { .. } | Status::MaxIterations | Status::TimeLimit) => s,
             Status::Diverged => Status::Failed("restoration diverged".into()),
             Status::Failed(why) => Status::Failed(format!("restoration: {why}")),
