@@ -2,8 +2,8 @@
 //! `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`, `x_{k+1} = (RK step with u_k held, u_k)`.
 
 use crate::layout::{segment, Layout};
-use dmech::continuous::{acceleration, acceleration_dual, coordinate_rate};
-use dmech::partials::{lift_vec, seeded, split_passes};
+use dmech::continuous::{acceleration, acceleration_jacobian, coordinate_rate};
+use dmech::partials::{grad_part, seeded};
 use dmech::{PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
@@ -102,10 +102,12 @@ impl<'a, S> RkStages<'a, S> {
         })
     }
 
-    /// `(f, F_x, F_w)`, exact: two vector-dual passes (seeded in `x`, then in `w`) whose
-    /// accelerations take their derivatives by the implicit function theorem
-    /// ([`acceleration_dual`]) instead of duals nested three deep in `ℓ`; checked against
-    /// the generic path in a test.
+    /// `(f, F_x, F_w)`, exact, by the chain rule through the method's stages: each stage
+    /// evaluation's rate Jacobian ([`RkStages::rate_jacobian`]) takes the acceleration's
+    /// derivatives by the implicit function theorem with only the blocks the equations of
+    /// motion read seeded ([`acceleration_jacobian`]), and the stages are composed in `f64`
+    /// (`dK_i = F(Y_i) dY_i`, `dY_i = I + h Σ_j a_ij dK_j`). Checked against the generic
+    /// path in a test. A singular mass matrix gives NaN, as in [`RkStages::dynamics`].
     #[allow(clippy::type_complexity)]
     pub fn dynamics_jacobian<
         const DOF: usize,
@@ -122,17 +124,108 @@ impl<'a, S> RkStages<'a, S> {
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
-        let fx = self.dynamics_with::<DualSVec64<NX>, DOF, DIM, NS, NU, NX, NW>(
-            &seeded(x),
-            &lift_vec(w),
-            &|s, v, u| acceleration_dual::<S, DOF, DIM, NS, NU, NX>(self.sys, s, v, u),
-        );
-        let fw = self.dynamics_with::<DualSVec64<NW>, DOF, DIM, NS, NU, NX, NW>(
-            &lift_vec(x),
-            &seeded(w),
-            &|s, v, u| acceleration_dual::<S, DOF, DIM, NS, NU, NW>(self.sys, s, v, u),
-        );
-        split_passes(&fx, &fw)
+        let l = self.layout;
+        l.check(NX, NW, NU);
+        let u: SVector<f64, NU> = segment(w, 0);
+        let h = self.h;
+        let rate = |y: &SVector<f64, NX>| self.rate_jacobian::<DOF, DIM, NS, NU, NX>(y, &u);
+        let eye = SMatrix::<f64, NX, NX>::identity();
+        // (K, dK/dx, dK/du) of one stage at Y = x + c·Σ, from the stage point's derivatives.
+        let stage =
+            |y: &SVector<f64, NX>, dy: &SMatrix<f64, NX, NX>, dyu: &SMatrix<f64, NX, NU>| {
+                rate(y).map(|(k, fx, fu)| (k, fx * dy, fx * dyu + fu))
+            };
+        let zu = SMatrix::<f64, NX, NU>::zeros();
+        let combined = match self.method {
+            RungeKutta::Rk1 => stage(x, &eye, &zu),
+            RungeKutta::Rk2 => stage(x, &eye, &zu).and_then(|(k1, d1, d1u)| {
+                let c = 0.5 * h;
+                stage(&(x + k1 * c), &(eye + d1 * c), &(d1u * c))
+            }),
+            RungeKutta::Rk4 => stage(x, &eye, &zu).and_then(|(k1, d1, d1u)| {
+                let c = 0.5 * h;
+                let (k2, d2, d2u) = stage(&(x + k1 * c), &(eye + d1 * c), &(d1u * c))?;
+                let (k3, d3, d3u) = stage(&(x + k2 * c), &(eye + d2 * c), &(d2u * c))?;
+                let (k4, d4, d4u) = stage(&(x + k3 * h), &(eye + d3 * h), &(d3u * h))?;
+                Some((
+                    (k1 + (k2 + k3) * 2.0 + k4) / 6.0,
+                    (d1 + (d2 + d3) * 2.0 + d4) / 6.0,
+                    (d1u + (d2u + d3u) * 2.0 + d4u) / 6.0,
+                ))
+            }),
+        };
+        let Some((k, dk, dku)) = combined else {
+            let nan = f64::NAN;
+            return (
+                SVector::from_element(nan),
+                SMatrix::from_element(nan),
+                SMatrix::from_element(nan),
+            );
+        };
+        let mut next = x + k * h;
+        let mut fx = eye + dk * h;
+        let mut fw = SMatrix::<f64, NX, NW>::from_fn(|r, c| h * dku[(r, c)]);
+        for i in 0..NU {
+            let row = l.u_at() + i;
+            next[row] = u[i];
+            fx.row_mut(row).fill(0.0);
+            fw.row_mut(row).fill(0.0);
+            fw[(row, i)] = 1.0;
+        }
+        (next, fx, fw)
+    }
+
+    /// The rate at `x` with input `u` and its Jacobians `(F_x, F_u)`: the group coordinates'
+    /// rate by one vector-dual pass seeded in `x` (it reads `coords(g)`, `s` and `v`), the
+    /// acceleration's rows from [`acceleration_jacobian`]. `None` if the mass matrix is
+    /// singular.
+    #[allow(clippy::type_complexity)]
+    fn rate_jacobian<
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+    >(
+        &self,
+        x: &SVector<f64, NX>,
+        u: &SVector<f64, NU>,
+    ) -> Option<(SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NU>)>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let l = self.layout;
+        let s: SVector<f64, NS> = segment(x, l.s_at());
+        let v: SVector<f64, NS> = segment(x, l.v_at());
+        let acc = acceleration_jacobian::<S, DOF, DIM, NS, NU>(self.sys, &s, &v, u)?;
+        let xd = seeded(x);
+        let coords: Vec<DualSVec64<NX>> = (0..l.nc).map(|i| xd[i]).collect();
+        let g = <S::Group<DualSVec64<NX>> as LieGroup<DOF, DIM>>::from_coordinates(&coords)
+            .expect("layout checked");
+        let sd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.s_at());
+        let vd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.v_at());
+        let gdot = coordinate_rate::<_, _, DOF, DIM>(&g, &(-(self.sys.connection(&sd) * vd)));
+        let mut f = SVector::<f64, NX>::zeros();
+        let mut fx = SMatrix::<f64, NX, NX>::zeros();
+        let mut fu = SMatrix::<f64, NX, NU>::zeros();
+        for (i, c) in gdot.iter().enumerate() {
+            f[i] = c.re;
+            fx.set_row(i, &grad_part(c).transpose());
+        }
+        for i in 0..NS {
+            let (rs, rv) = (l.s_at() + i, l.v_at() + i);
+            f[rs] = v[i];
+            fx[(rs, rv)] = 1.0;
+            f[rv] = acc.a[i];
+            for j in 0..NS {
+                fx[(rv, l.s_at() + j)] = acc.a_s[(i, j)];
+                fx[(rv, l.v_at() + j)] = acc.a_v[(i, j)];
+            }
+            for j in 0..NU {
+                fu[(rv, j)] = acc.a_u[(i, j)];
+            }
+        }
+        Some((f, fx, fu))
     }
 
     /// The RK step with a given acceleration function.

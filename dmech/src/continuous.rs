@@ -12,11 +12,13 @@
 
 use crate::linalg::{solve, Lu};
 use crate::newton::StepError;
-use crate::partials::{dl_ds, dl_dxi, jacobian_part, pulled_back_gradient, value_and_jacobian};
+use crate::partials::{
+    dl_ds, dl_dxi, jacobian_part, pulled_back_gradient, seeded, value_and_jacobian,
+};
 use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
-use num_dual::{Derivative, Dual, DualVec};
+use num_dual::{Dual, DualVec};
 
 type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 
@@ -104,7 +106,7 @@ where
 /// The residual of the equations of motion at a trial acceleration `a`:
 /// `r(s, v, a, u) = d/dt (P − A(s₀)ᵀμ) + Aᵀ ad_ξᵀ μ − ∂ℓ/∂s − F`, the time derivative taken
 /// along `(ṡ, v̇) = (v, a)` by one dual number in time (so `r = 𝕄 a + r₀`; it vanishes
-/// exactly at [`acceleration`]). Generic over the scalar; [`acceleration_dual`] uses it
+/// exactly at [`acceleration`]). Generic over the scalar; [`acceleration_jacobian`] uses it
 /// for the implicit-function derivative of the acceleration.
 pub fn motion_residual<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
     sys: &S,
@@ -136,43 +138,65 @@ where
     momentum_dot + a0.transpose() * (ad.transpose() * mu) - ls - sys.forcing(s, v, u)
 }
 
-/// [`acceleration`] for inputs that are first-order vector duals in `N` seeds `θ`: the
-/// value in `f64`, the `θ`-Jacobian by the implicit function theorem on
-/// `r(s, v, a, u) = 0` ([`motion_residual`]): `∂a/∂θ = −𝕄⁻¹ ∂r/∂θ|_a`, one dual
-/// evaluation of `r` at the fixed acceleration. The generic path nests three levels of
-/// duals for the same numbers (`𝕄` is a second derivative of `ℓ`).
-pub fn acceleration_dual<
+/// The shape acceleration and its Jacobians, in `f64`.
+#[derive(Clone, Copy, Debug)]
+pub struct AccelerationJacobian<const NS: usize, const NU: usize> {
+    /// `a(s, v, u)`.
+    pub a: SVector<f64, NS>,
+    /// `∂a/∂s`, `∂a/∂v`, `∂a/∂u`.
+    pub a_s: SMatrix<f64, NS, NS>,
+    pub a_v: SMatrix<f64, NS, NS>,
+    pub a_u: SMatrix<f64, NS, NU>,
+}
+
+/// [`acceleration`] with its Jacobians by the implicit function theorem on
+/// `r(s, v, a, u) = 0` ([`motion_residual`]), each block seeded alone:
+/// `∂a/∂θ = −𝕄⁻¹ ∂r/∂θ|_a` for `θ = s` and `θ = v` (one vector-dual evaluation of `r` each,
+/// `NS` lanes), and `∂a/∂u = 𝕄⁻¹ ∂F/∂u` (the input enters `r` only through the forcing:
+/// one evaluation of `F`). Seeding only the blocks `r` reads (not the group coordinates, not
+/// a whole stage vector) is what makes it cheap on a stage.
+/// `None` if the mass matrix is singular.
+pub fn acceleration_jacobian<
     S,
     const DOF: usize,
     const DIM: usize,
     const NS: usize,
     const NU: usize,
-    const N: usize,
 >(
     sys: &S,
-    s: &SVector<Dv<f64, N>, NS>,
-    v: &SVector<Dv<f64, N>, NS>,
-    u: &SVector<Dv<f64, N>, NU>,
-) -> Option<SVector<Dv<f64, N>, NS>>
+    s: &SVector<f64, NS>,
+    v: &SVector<f64, NS>,
+    u: &SVector<f64, NU>,
+) -> Option<AccelerationJacobian<NS, NU>>
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
-    let (s0, v0, u0) = (s.map(|z| z.re), v.map(|z| z.re), u.map(|z| z.re));
-    let (m, r0) = mass_and_bias::<S, f64, DOF, DIM, NS, NU>(sys, &s0, &v0, &u0);
-    let lu = Lu::new(&m)?;
-    let a = lu.solve(&(-r0));
-    let r = motion_residual::<S, Dv<f64, N>, DOF, DIM, NS, NU>(
+    // `r` is affine in `a`: one pass seeded in `a` at `a = 0` gives `r₀` and `𝕄 = ∂r/∂a`.
+    let (sl, vl) = (s.map(Dv::from_re), v.map(Dv::from_re));
+    let ul = u.map(Dv::<f64, NS>::from_re);
+    let r_a = motion_residual::<S, Dv<f64, NS>, DOF, DIM, NS, NU>(
         sys,
-        s,
-        v,
-        &a.map(Dv::<f64, N>::from_re),
-        u,
+        &sl,
+        &vl,
+        &seeded(&SVector::zeros()),
+        &ul,
     );
-    let r_theta = jacobian_part(&r);
-    let da = lu.solve_columns(&(-r_theta));
-    Some(SVector::from_fn(|i, _| {
-        DualVec::new(a[i], Derivative::some(da.row(i).transpose()))
-    }))
+    let lu = Lu::new(&jacobian_part(&r_a))?;
+    let a = lu.solve(&(-r_a.map(|z| z.re)));
+    let ad = a.map(Dv::<f64, NS>::from_re);
+    let r_s = motion_residual::<S, Dv<f64, NS>, DOF, DIM, NS, NU>(sys, &seeded(s), &vl, &ad, &ul);
+    let r_v = motion_residual::<S, Dv<f64, NS>, DOF, DIM, NS, NU>(sys, &sl, &seeded(v), &ad, &ul);
+    let f_u = sys.forcing(
+        &s.map(Dv::<f64, NU>::from_re),
+        &v.map(Dv::<f64, NU>::from_re),
+        &seeded(u),
+    );
+    Some(AccelerationJacobian {
+        a,
+        a_s: lu.solve_columns(&(-jacobian_part(&r_s))),
+        a_v: lu.solve_columns(&(-jacobian_part(&r_v))),
+        a_u: lu.solve_columns(&jacobian_part(&f_u)),
+    })
 }
 
 /// The rate of the group coordinates (`LieGroup::coordinates`) for body velocity `ξ`:
