@@ -5,9 +5,9 @@
 //! [`StageProblem::dynamics_jacobian`] and [`StageProblem::equality_jacobian`]. The Hessian of
 //! `Φ = ℓ_k + ζᵀ c_k` (cost plus inequality curvature, `ζ` the inequality multipliers)
 //! comes from three second-order passes (`xx`, `ww` by `Dual2`, `xw` by hyper-duals).
-//! The curvature of the dynamics and of the stage equality is not formed: for the first
-//! robot of the project (five shape variables, variational integrator) it costs 2.5 ms
-//! per stage by nested duals (50× the Jacobian), see `docs/ocp.md`.
+//! The curvature of the dynamics and of the stage equality, `∇²(λᵀf + νᵀe)`, is formed only
+//! when the exact Hessian is asked for ([`StageProblem::constraint_curvature`]); by default
+//! the solver approximates it by SR1 from the Jacobians (`docs/ocp.md`).
 
 use crate::problem::StageProblem;
 use dmech::linalg::Lu;
@@ -81,7 +81,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
     }
 }
 
-fn seed2<const N: usize>(x: &SVector<f64, N>) -> SVector<Dual2SVec64<N>, N> {
+pub(crate) fn seed2<const N: usize>(x: &SVector<f64, N>) -> SVector<Dual2SVec64<N>, N> {
     SVector::from_fn(|i, _| {
         let mut e = SMatrix::<f64, 1, N>::zeros();
         e[i] = 1.0;
@@ -89,20 +89,15 @@ fn seed2<const N: usize>(x: &SVector<f64, N>) -> SVector<Dual2SVec64<N>, N> {
     })
 }
 
-fn hess2<const N: usize>(d: &Dual2SVec64<N>) -> SMatrix<f64, N, N> {
+pub(crate) fn hess2<const N: usize>(d: &Dual2SVec64<N>) -> SMatrix<f64, N, N> {
     d.v2.0.unwrap_or_else(SMatrix::zeros)
 }
 
-/// Multipliers of the dynamics and the stage equality, for the exact Hessian.
-pub type Multipliers<'a, const NX: usize, const NE: usize> =
-    Option<(&'a SVector<f64, NX>, SVector<f64, NE>)>;
-
-/// `ℓ + ζᵀ c (+ λᵀ f + νᵀ e)` in any scalar.
+/// `ℓ + ζᵀ c` in any scalar.
 fn phi<P, T, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
     p: &P,
     k: usize,
     zeta: &SVector<f64, NC>,
-    mult: &Multipliers<NX, NE>,
     x: &SVector<T, NX>,
     w: &SVector<T, NW>,
 ) -> T
@@ -117,17 +112,148 @@ where
             v += c[i] * zeta[i];
         }
     }
-    if let Some((lam, nu)) = mult {
-        let f = p.dynamics(k, x, w);
-        for i in 0..NX {
-            v += f[i] * lam[i];
-        }
-        let e = p.equality(k, x, w);
-        for i in 0..NE {
-            v += e[i] * nu[i];
-        }
-    }
     v
+}
+
+/// A scalar function of a stage `(x, w)` in any scalar: what [`block_hessian`] takes
+/// second derivatives of (closures cannot be generic over the scalar).
+pub trait StageScalar<const NX: usize, const NW: usize> {
+    fn eval<T: dmech_lie::Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T;
+}
+
+/// `(∇²_xx, ∇²_xw, ∇²_ww)` of `f` at `(x, w)`: `xx` and `ww` by `Dual2` passes, `xw` by a
+/// hyper-dual pass. `with_state = false` skips the two state blocks (left zero).
+#[allow(clippy::type_complexity)]
+pub fn block_hessian<F, const NX: usize, const NW: usize>(
+    f: &F,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    with_state: bool,
+) -> (
+    SMatrix<f64, NX, NX>,
+    SMatrix<f64, NX, NW>,
+    SMatrix<f64, NW, NW>,
+)
+where
+    F: StageScalar<NX, NW>,
+{
+    let hww = hess2(&f.eval(&x.map(Dual2SVec64::<NW>::from_re), &seed2(w)));
+    if !with_state {
+        return (SMatrix::zeros(), SMatrix::zeros(), hww);
+    }
+    let hxx = hess2(&f.eval(&seed2(x), &w.map(Dual2SVec64::<NX>::from_re)));
+    let (xh, wh) = seed_hyper(x, w);
+    let hxw = f.eval(&xh, &wh).eps1eps2.0.unwrap_or_else(SMatrix::zeros);
+    (hxx, hxw, hww)
+}
+
+/// `a` seeded in the first direction and `b` in the second of a hyper-dual.
+pub fn seed_hyper<const NA: usize, const NB: usize>(
+    a: &SVector<f64, NA>,
+    b: &SVector<f64, NB>,
+) -> (
+    SVector<HyperDualSVec64<NA, NB>, NA>,
+    SVector<HyperDualSVec64<NA, NB>, NB>,
+) {
+    let ah = SVector::from_fn(|i, _| {
+        let mut e = SVector::<f64, NA>::zeros();
+        e[i] = 1.0;
+        let mut h = HyperDualSVec64::<NA, NB>::from_re(a[i]);
+        h.eps1 = Derivative::some(e);
+        h
+    });
+    let bh = SVector::from_fn(|i, _| {
+        let mut e = SMatrix::<f64, 1, NB>::zeros();
+        e[i] = 1.0;
+        let mut h = HyperDualSVec64::<NA, NB>::from_re(b[i]);
+        h.eps2 = Derivative::some(e);
+        h
+    });
+    (ah, bh)
+}
+
+/// The cost and inequality part `ℓ + ζᵀc` of stage `k` as a [`StageScalar`].
+struct CostPart<'a, P, const NC: usize> {
+    p: &'a P,
+    k: usize,
+    zeta: &'a SVector<f64, NC>,
+}
+
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize> StageScalar<NX, NW>
+    for (CostPart<'_, P, NC>, std::marker::PhantomData<[(); NE]>)
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    fn eval<T: dmech_lie::Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
+        let c = &self.0;
+        phi::<P, T, NX, NW, NE, NC>(c.p, c.k, c.zeta, x, w)
+    }
+}
+
+/// The constraint part `λᵀf + νᵀe` of stage `k` as a [`StageScalar`] (through the
+/// problem's generic dynamics and equality).
+pub struct ConstraintPart<'a, P, const NX: usize, const NE: usize> {
+    pub p: &'a P,
+    pub k: usize,
+    pub lambda: &'a SVector<f64, NX>,
+    pub nu: &'a SVector<f64, NE>,
+}
+
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize> StageScalar<NX, NW>
+    for (
+        ConstraintPart<'_, P, NX, NE>,
+        std::marker::PhantomData<[(); NC]>,
+    )
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    fn eval<T: dmech_lie::Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
+        let c = &self.0;
+        let f = c.p.dynamics(c.k, x, w);
+        let e = c.p.equality(c.k, x, w);
+        let mut v = T::zero();
+        for i in 0..NX {
+            if c.lambda[i] != 0.0 {
+                v += f[i] * c.lambda[i];
+            }
+        }
+        for i in 0..NE {
+            v += e[i] * c.nu[i];
+        }
+        v
+    }
+}
+
+/// The curvature `∇²(λᵀf + νᵀe)` of stage `k` through the problem's generic dynamics and
+/// equality: the default of [`StageProblem::constraint_curvature`]. For a variational
+/// integrator's momentum equation these are third derivatives of `ℓ` in nested duals.
+#[allow(clippy::type_complexity)]
+pub fn generic_constraint_curvature<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NC: usize,
+>(
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    lambda: &SVector<f64, NX>,
+    nu: &SVector<f64, NE>,
+) -> (
+    SMatrix<f64, NX, NX>,
+    SMatrix<f64, NX, NW>,
+    SMatrix<f64, NW, NW>,
+)
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let part = (
+        ConstraintPart { p, k, lambda, nu },
+        std::marker::PhantomData::<[(); NC]>,
+    );
+    block_hessian(&part, x, w, true)
 }
 
 /// All derivatives of stage `k` at `(x, w)`, with inequality multipliers `ζ = z_hi − z_lo`.
@@ -183,29 +309,22 @@ pub fn stage_derivatives_into<
     d.gx = grad(&l_d);
     d.gw = grad(&l_w);
     d.nu = None;
-    let mult: Multipliers<NX, NE> = lambda.map(|lam| {
-        (
-            lam,
-            d.equality_multiplier(lam, zeta)
-                .unwrap_or_else(SVector::zeros),
-        )
-    });
-    // Second order of the Lagrangian (or of ℓ + ζᵀc only, whose `xx` and `xw` blocks vanish
-    // when the problem declares it affine in the state).
-    d.hww = hess2(&phi::<P, _, NX, NW, NE, NC>(
-        p,
-        k,
-        zeta,
-        &mult,
-        &x.map(Dual2SVec64::<NW>::from_re),
-        &seed2(w),
-    ));
-    if mult.is_none() && p.affine_in_state() {
-        d.hxx.fill(0.0);
-        d.hxw.fill(0.0);
-        return;
+    // Second order of `ℓ + ζᵀc` (only its `ww` block when the problem declares itself affine
+    // in the state), plus the constraints' curvature when the exact Hessian is asked for.
+    let cost = (
+        CostPart { p, k, zeta },
+        std::marker::PhantomData::<[(); NE]>,
+    );
+    (d.hxx, d.hxw, d.hww) = block_hessian(&cost, x, w, !p.affine_in_state());
+    if let Some(lam) = lambda {
+        let nu = d
+            .equality_multiplier(lam, zeta)
+            .unwrap_or_else(SVector::zeros);
+        let (cxx, cxw, cww) = p.constraint_curvature(k, x, w, lam, &nu);
+        d.hxx += cxx;
+        d.hxw += cxw;
+        d.hww += cww;
     }
-    (d.hxx, d.hxw) = state_blocks(p, k, zeta, &mult, x, w);
 }
 
 /// The `xx` and `xw` blocks of the Hessian of `ℓ_k + ζᵀc_k` at `(x, w)`: what
@@ -220,47 +339,11 @@ pub fn state_curvature<P, const NX: usize, const NW: usize, const NE: usize, con
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
-    state_blocks(p, k, zeta, &None, x, w)
-}
-
-/// The `xx` (by `Dual2`) and `xw` (by hyper-duals) blocks of the Hessian of [`phi`].
-fn state_blocks<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
-    p: &P,
-    k: usize,
-    zeta: &SVector<f64, NC>,
-    mult: &Multipliers<NX, NE>,
-    x: &SVector<f64, NX>,
-    w: &SVector<f64, NW>,
-) -> (SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>)
-where
-    P: StageProblem<NX, NW, NE, NC>,
-{
-    let hxx = hess2(&phi::<P, _, NX, NW, NE, NC>(
-        p,
-        k,
-        zeta,
-        mult,
-        &seed2(x),
-        &w.map(Dual2SVec64::<NX>::from_re),
-    ));
-    let xh: SVector<HyperDualSVec64<NX, NW>, NX> = SVector::from_fn(|i, _| {
-        let mut e = SVector::<f64, NX>::zeros();
-        e[i] = 1.0;
-        let mut h = HyperDualSVec64::<NX, NW>::from_re(x[i]);
-        h.eps1 = Derivative::some(e);
-        h
-    });
-    let wh: SVector<HyperDualSVec64<NX, NW>, NW> = SVector::from_fn(|i, _| {
-        let mut e = SMatrix::<f64, 1, NW>::zeros();
-        e[i] = 1.0;
-        let mut h = HyperDualSVec64::<NX, NW>::from_re(w[i]);
-        h.eps2 = Derivative::some(e);
-        h
-    });
-    let hxw = phi::<P, _, NX, NW, NE, NC>(p, k, zeta, mult, &xh, &wh)
-        .eps1eps2
-        .0
-        .unwrap_or_else(SMatrix::zeros);
+    let cost = (
+        CostPart { p, k, zeta },
+        std::marker::PhantomData::<[(); NE]>,
+    );
+    let (hxx, hxw, _) = block_hessian(&cost, x, w, true);
     (hxx, hxw)
 }
 

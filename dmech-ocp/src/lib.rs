@@ -39,3 +39,4 @@ pub mod sequencing;
 mod test_rng;
 pub mod transcription;
 pub mod varint;
+mod varint_curvature;

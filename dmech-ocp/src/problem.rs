@@ -63,6 +63,31 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     fn affine_in_state(&self) -> bool {
         false
     }
+    /// The curvature of the constraints, `(∇²_xx, ∇²_xw, ∇²_ww)` of `λᵀf + νᵀe` at
+    /// `(x, w)` (the exact Hessian's part beyond the cost and the inequalities). The default
+    /// differentiates [`StageProblem::dynamics`] and [`StageProblem::equality`] twice by
+    /// dual numbers ([`crate::derivatives::generic_constraint_curvature`]); a problem with a
+    /// cheaper exact route overrides it (e.g. [`crate::varint::VarIntStages`]).
+    #[allow(clippy::type_complexity)]
+    fn constraint_curvature(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        lambda: &SVector<f64, NX>,
+        nu: &SVector<f64, NE>,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+    )
+    where
+        Self: Sized,
+    {
+        crate::derivatives::generic_constraint_curvature::<Self, NX, NW, NE, NC>(
+            self, k, x, w, lambda, nu,
+        )
+    }
     /// `(f, F_x, F_w)` of the dynamics, exact. The default differentiates
     /// [`StageProblem::dynamics`] by two vector-dual passes (seeded in `x`, then in `w`); a
     /// problem with a cheaper exact route overrides it (e.g.

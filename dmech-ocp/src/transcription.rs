@@ -88,6 +88,7 @@
 //! assert!((plan.stages[n].pose[0] - 1.0).abs() < 1e-8);
 //! ```
 
+use crate::derivatives::generic_constraint_curvature;
 use crate::ipm::Iterate;
 use crate::layout::{segment, Layout};
 use crate::problem::{StageProblem, StateEquality};
@@ -402,6 +403,24 @@ where
     ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
         self.stages
             .equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w)
+    }
+    fn constraint_curvature(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        lambda: &SVector<f64, NX>,
+        nu: &SVector<f64, NS>,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+    ) {
+        self.stages
+            .constraint_curvature::<DOF, DIM, NS, NU, NX, NW>(x, w, lambda, nu)
+            .unwrap_or_else(|| {
+                generic_constraint_curvature::<Self, NX, NW, NS, NC>(self, k, x, w, lambda, nu)
+            })
     }
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         self.problem.cost(k, &self.stage::<T, NS, NX, NW>(x, w))

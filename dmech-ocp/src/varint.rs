@@ -30,10 +30,10 @@ type D<const N: usize> = DualSVec64<N>;
 
 /// Which terms of the momentum-matching residual a derivative pass evaluates.
 #[derive(Clone, Copy)]
-struct Terms {
-    outgoing: bool,
-    incoming: bool,
-    force: bool,
+pub(crate) struct Terms {
+    pub(crate) outgoing: bool,
+    pub(crate) incoming: bool,
+    pub(crate) force: bool,
 }
 
 /// The stage functions of the VI transcription of `sys` at step `h`.

@@ -8,7 +8,7 @@
 use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
-use num_dual::{Derivative, DualVec};
+use num_dual::{Derivative, Dual, DualVec};
 
 type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 
@@ -112,6 +112,47 @@ where
         DualVec::new(xi[i], Derivative::some(d.row(i).transpose()))
     });
     grad_part(&sys.reduced_lagrangian(&sd, &vd, &xid))
+}
+
+/// `νᵀ` [`pulled_back_gradient`]: `d/dε ℓ(s + c εν, v + εν, ξ + εDν)` at `ε = 0`, one
+/// evaluation of `ℓ` in a scalar dual along the fixed direction `ν` (where only the
+/// contraction with `ν` is needed, `NS` times fewer derivative lanes than the gradient).
+/// Its second derivatives in `(s, v, ξ, D)` are the curvature `∇²(νᵀP)` of a momentum.
+pub fn pulled_back_directional<
+    S,
+    T,
+    const DOF: usize,
+    const DIM: usize,
+    const NS: usize,
+    const NU: usize,
+>(
+    sys: &S,
+    s: &SVector<T, NS>,
+    c: f64,
+    v: &SVector<T, NS>,
+    xi: &SVector<T, DOF>,
+    d: &SMatrix<T, DOF, NS>,
+    nu: &SVector<f64, NS>,
+) -> T
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+    Dual<T>: Lift<S::Param>,
+{
+    let sd = SVector::<Dual<T>, NS>::from_fn(|i, _| {
+        Dual::new(
+            s[i],
+            if c == 0.0 {
+                T::zero()
+            } else {
+                T::from(c * nu[i])
+            },
+        )
+    });
+    let vd = SVector::<Dual<T>, NS>::from_fn(|i, _| Dual::new(v[i], T::from(nu[i])));
+    let dnu = d * nu.map(T::from);
+    let xid = SVector::<Dual<T>, DOF>::from_fn(|i, _| Dual::new(xi[i], dnu[i]));
+    sys.reduced_lagrangian(&sd, &vd, &xid).eps
 }
 
 /// [`pulled_back_gradient`] for inputs that are first-order vector duals in `N` seeds `θ`

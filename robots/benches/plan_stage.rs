@@ -7,7 +7,8 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use dmech::continuous::RungeKutta;
 use dmech::partials::seeded;
 use dmech::Discretisation;
-use dmech_ocp::derivatives::{stage_derivatives, stage_values};
+use dmech_ocp::derivatives::{generic_constraint_curvature, stage_derivatives, stage_values};
+use dmech_ocp::problem::StageProblem;
 use nalgebra::SVector;
 use num_dual::DualSVec64;
 use robots::wip::algebraic_current::WipAlgebraicCurrent;
@@ -46,6 +47,21 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("stage_derivatives", |b| {
         b.iter(|| stage_derivatives(&plan, 700, black_box(&x), &w, &zeta, None))
+    });
+    // The exact Hessian: the constraints' curvature by blocks and by the generic path, and
+    // everything the solver takes per stage with it.
+    let lam = SVector::<f64, 15>::repeat(0.3);
+    let nu = SVector::<f64, 5>::repeat(0.7);
+    g.bench_function("constraint_curvature_blocks", |b| {
+        b.iter(|| plan.constraint_curvature(700, black_box(&x), &w, &lam, &nu))
+    });
+    g.bench_function("constraint_curvature_generic", |b| {
+        b.iter(|| {
+            generic_constraint_curvature::<_, 15, 7, 5, 8>(&plan, 700, black_box(&x), &w, &lam, &nu)
+        })
+    });
+    g.bench_function("stage_derivatives_exact", |b| {
+        b.iter(|| stage_derivatives(&plan, 700, black_box(&x), &w, &zeta, Some(&lam)))
     });
     let rk1 = rk_plan::<_, 5>(&wip, &p, PlanBounds::default(), RungeKutta::Rk1);
     let (xr, wr) = rk_start::<Wip, 5, 15>(&wip, &p);

@@ -130,3 +130,47 @@ fn rk_dynamics_jacobian_equals_generic() {
         );
     }
 }
+
+/// The VI transcription's exact constraint curvature by blocks against the generic path
+/// (`Dual2`/hyper-duals over the whole stage through `dynamics` and `equality`), on the
+/// WIP: a nonlinear force (`tanh` friction) read by each quadrature, at the eight's start
+/// and at perturbed points, with random multipliers.
+#[test]
+fn block_constraint_curvature_equals_generic() {
+    use dmech_ocp::derivatives::generic_constraint_curvature;
+    use dmech_ocp::problem::StageProblem;
+    use robots::wip::plan::{varint_plan, PlanBounds};
+    let wip = Wip::default();
+    let p = eight(0.005);
+    let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
+    let mut rand = lcg(4242);
+    for q in [
+        ForcingQuadrature::Left,
+        ForcingQuadrature::Right,
+        ForcingQuadrature::Midpoint,
+    ] {
+        let mut plan_q =
+            varint_plan::<_, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
+        plan_q.stages.quadrature = q;
+        for k in [0, 700, 2100] {
+            for perturb in [0.0, 0.3] {
+                let x: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
+                let w: SVector<f64, 7> = ws[k].map(|v| v + perturb * rand());
+                let lam = SVector::<f64, 15>::from_fn(|_, _| 10.0 * rand());
+                let nu = SVector::<f64, 5>::from_fn(|_, _| 10.0 * rand());
+                let (hxx, hxw, hww) = plan_q.constraint_curvature(k, &x, &w, &lam, &nu);
+                let (rxx, rxw, rww) =
+                    generic_constraint_curvature::<_, 15, 7, 5, 8>(&plan_q, k, &x, &w, &lam, &nu);
+                let scale = rxx.amax().max(rxw.amax()).max(rww.amax());
+                let err = (hxx - rxx)
+                    .amax()
+                    .max((hxw - rxw).amax())
+                    .max((hww - rww).amax());
+                assert!(
+                    err <= ROUND_OFF * scale,
+                    "{q:?}, stage {k}, perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
+                );
+            }
+        }
+    }
+}

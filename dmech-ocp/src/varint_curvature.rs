@@ -1,0 +1,285 @@
+//! The exact curvature of the variational transcription's constraints,
+//! `∇²(λᵀf + νᵀe)`, by blocks (the first-order scheme).
+//!
+//! `νᵀe` is a third derivative of `ℓ`: the momenta are first derivatives, and the stage
+//! Hessian differentiates them twice more. Through the generic path
+//! ([`crate::derivatives::generic_constraint_curvature`]) that is `ℓ` in `Dual2` numbers
+//! over the whole stage vector, nested inside the vector dual of each momentum's gradient
+//! (2.5 ms a WIP stage). Here:
+//! - each momentum is contracted with `ν` by a *scalar* dual along `ν`
+//!   ([`dmech::partials::pulled_back_directional`]), not a gradient of `NS` lanes;
+//! - the equality reads three blocks, `s = s_k`, `p = (v_{k−1}, u_{k−1})` and
+//!   `q = (v_k, u_k)`, and each term only some of them (outgoing momentum: `s, q`;
+//!   incoming: `s, p`; the force: its quadrature's interval). One second-order pass per
+//!   pair of blocks (`Dual2` on the diagonal, hyper-duals off it), each evaluating only
+//!   the terms that read both blocks; the group coordinates are never seeded;
+//! - `λᵀf` is cheap (the group's `exp` and the connection) and goes through
+//!   [`block_hessian`] on the dynamics alone.
+
+use crate::derivatives::{block_hessian, hess2, seed2, seed_hyper, StageScalar};
+use crate::layout::segment;
+use crate::varint::{Terms, VarIntStages};
+use dmech::partials::pulled_back_directional;
+use dmech::variational::{discrete_force, incoming_variation, outgoing_variation};
+use dmech::{ForcingQuadrature, PrincipalKinematicSystem};
+use dmech_lie::Real;
+use nalgebra::{SMatrix, SVector};
+use num_dual::{Dual2SVec64, HyperDualSVec64};
+
+/// `λᵀ f(x, w)` of the variational transcription, for [`block_hessian`].
+struct DynamicsPart<'s, 'a, S, const NX: usize> {
+    stages: &'s VarIntStages<'a, S>,
+    lambda: &'s SVector<f64, NX>,
+}
+
+/// The sizes a [`DynamicsPart`] is evaluated at (a marker: the impl needs them named).
+struct Sizes<const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>;
+
+impl<
+        S,
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    > StageScalar<NX, NW> for (DynamicsPart<'_, '_, S, NX>, Sizes<DOF, DIM, NS, NU>)
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+{
+    fn eval<T: Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
+        let part = &self.0;
+        let f = part.stages.dynamics::<T, DOF, DIM, NS, NU, NX, NW>(x, w);
+        let mut v = T::zero();
+        for i in 0..NX {
+            if part.lambda[i] != 0.0 {
+                v += f[i] * part.lambda[i];
+            }
+        }
+        v
+    }
+}
+
+impl<S> VarIntStages<'_, S> {
+    /// `νᵀ e` over the blocks `s = s_k`, `p = (v_{k−1}, u_{k−1})`, `q = (v_k, u_k)`, the
+    /// selected terms only, each momentum contracted with `ν` by one scalar dual.
+    fn contracted_equality<
+        T: Real,
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NW: usize,
+    >(
+        &self,
+        terms: Terms,
+        s: &SVector<T, NS>,
+        p: &SVector<T, NW>,
+        q: &SVector<T, NW>,
+        nu: &SVector<f64, NS>,
+    ) -> T
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let ht = T::from(self.h);
+        let (v_prev, u_prev): (SVector<T, NS>, SVector<T, NU>) = (segment(p, 0), segment(p, NS));
+        let (v, u): (SVector<T, NS>, SVector<T, NU>) = (segment(q, 0), segment(q, NS));
+        let a_k = self.sys.connection(s);
+        let mut r = T::zero();
+        if terms.outgoing {
+            let (xi, d) = outgoing_variation::<S, T, DOF, DIM, NS, NU>(self.h, &v, &a_k);
+            r += pulled_back_directional::<S, T, DOF, DIM, NS, NU>(
+                self.sys, s, -self.h, &v, &xi, &d, nu,
+            ) / ht;
+        }
+        let s_prev = s - v_prev * ht;
+        if terms.incoming {
+            let (xi, d) = incoming_variation::<S, T, DOF, DIM, NS, NU>(
+                self.sys, self.h, &s_prev, &v_prev, &a_k,
+            );
+            r -= pulled_back_directional::<S, T, DOF, DIM, NS, NU>(
+                self.sys, &s_prev, 0.0, &v_prev, &xi, &d, nu,
+            ) / ht;
+        }
+        if terms.force {
+            let f = discrete_force::<S, T, DOF, DIM, NS, NU>(
+                self.sys,
+                self.quadrature,
+                &s_prev,
+                &v_prev,
+                &u_prev,
+                s,
+                &v,
+                &u,
+            );
+            for i in 0..NS {
+                r -= f[i] * nu[i];
+            }
+        }
+        r
+    }
+
+    /// `(∇²_xx, ∇²_xw, ∇²_ww)` of `νᵀe(x, w)` for the first-order scheme, by one
+    /// second-order pass per pair of the blocks `(s, p, q)` that some term reads together
+    /// (module documentation). Checked against the generic path in a test.
+    #[allow(clippy::type_complexity)]
+    pub fn equality_curvature<
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    >(
+        &self,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        nu: &SVector<f64, NS>,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+    )
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let l = self.layout;
+        l.check(NX, NW, NS + NU);
+        let s: SVector<f64, NS> = segment(x, l.s_at());
+        // (v_{k−1}, u_{k−1}) are adjacent in the state, in w's order.
+        let p: SVector<f64, NW> = segment(x, l.v_at());
+        let q = *w;
+        let (left, right) = match self.quadrature {
+            ForcingQuadrature::Left => (true, false),
+            ForcingQuadrature::Right => (false, true),
+            ForcingQuadrature::Midpoint => (true, true),
+        };
+        let every = Terms {
+            outgoing: true,
+            incoming: true,
+            force: true,
+        };
+        let prev = Terms {
+            outgoing: false,
+            incoming: true,
+            force: left,
+        };
+        let cur = Terms {
+            outgoing: true,
+            incoming: false,
+            force: right,
+        };
+        type D2<const N: usize> = Dual2SVec64<N>;
+        let hss = hess2(&self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+            every,
+            &seed2(&s),
+            &p.map(D2::<NS>::from_re),
+            &q.map(D2::<NS>::from_re),
+            nu,
+        ));
+        let hpp = hess2(&self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+            prev,
+            &s.map(D2::<NW>::from_re),
+            &seed2(&p),
+            &q.map(D2::<NW>::from_re),
+            nu,
+        ));
+        let hqq = hess2(&self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+            cur,
+            &s.map(D2::<NW>::from_re),
+            &p.map(D2::<NW>::from_re),
+            &seed2(&q),
+            nu,
+        ));
+        type Hd<const A: usize, const B: usize> = HyperDualSVec64<A, B>;
+        let mixed = |h: Hd<NS, NW>| h.eps1eps2.0.unwrap_or_else(SMatrix::zeros);
+        let (sh, ph) = seed_hyper(&s, &p);
+        let hsp = mixed(self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+            prev,
+            &sh,
+            &ph,
+            &q.map(Hd::<NS, NW>::from_re),
+            nu,
+        ));
+        let (sh, qh) = seed_hyper(&s, &q);
+        let hsq = mixed(self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+            cur,
+            &sh,
+            &p.map(Hd::<NS, NW>::from_re),
+            &qh,
+            nu,
+        ));
+        // p and q meet only in a force that reads both intervals.
+        let hpq = if left && right {
+            let force = Terms {
+                outgoing: false,
+                incoming: false,
+                force: true,
+            };
+            let (ph, qh) = seed_hyper(&p, &q);
+            self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+                force,
+                &s.map(Hd::<NW, NW>::from_re),
+                &ph,
+                &qh,
+                nu,
+            )
+            .eps1eps2
+            .0
+            .unwrap_or_else(SMatrix::zeros)
+        } else {
+            SMatrix::zeros()
+        };
+        let (sa, pa) = (l.s_at(), l.v_at());
+        let mut hxx = SMatrix::<f64, NX, NX>::zeros();
+        let mut hxw = SMatrix::<f64, NX, NW>::zeros();
+        hxx.fixed_view_mut::<NS, NS>(sa, sa).copy_from(&hss);
+        hxx.fixed_view_mut::<NW, NW>(pa, pa).copy_from(&hpp);
+        hxx.fixed_view_mut::<NS, NW>(sa, pa).copy_from(&hsp);
+        hxx.fixed_view_mut::<NW, NS>(pa, sa)
+            .copy_from(&hsp.transpose());
+        hxw.fixed_view_mut::<NS, NW>(sa, 0).copy_from(&hsq);
+        hxw.fixed_view_mut::<NW, NW>(pa, 0).copy_from(&hpq);
+        (hxx, hxw, hqq)
+    }
+
+    /// `(∇²_xx, ∇²_xw, ∇²_ww)` of `λᵀf + νᵀe`: the dynamics by [`block_hessian`], the
+    /// equality by [`VarIntStages::equality_curvature`] for the first-order scheme. `None`
+    /// for the midpoint scheme (its caller takes the generic path).
+    #[allow(clippy::type_complexity)]
+    pub fn constraint_curvature<
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    >(
+        &self,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        lambda: &SVector<f64, NX>,
+        nu: &SVector<f64, NS>,
+    ) -> Option<(
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+    )>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        if self.discretisation != dmech::Discretisation::FirstOrder {
+            return None;
+        }
+        let part = (
+            DynamicsPart {
+                stages: self,
+                lambda,
+            },
+            Sizes::<DOF, DIM, NS, NU>,
+        );
+        let (fxx, fxw, fww) = block_hessian(&part, x, w, true);
+        let (exx, exw, eww) = self.equality_curvature::<DOF, DIM, NS, NU, NX, NW>(x, w, nu);
+        Some((fxx + exx, fxw + exw, fww + eww))
+    }
+}
