@@ -28,6 +28,7 @@ use std::time::Instant;
 
 mod derivative_pass;
 mod filter;
+mod globals;
 mod inertia;
 mod iterate;
 mod kkt;
@@ -43,6 +44,8 @@ mod start;
 
 use derivative_pass::Workspace;
 use filter::Filter;
+pub use globals::GlobalIterate;
+use globals::GlobalSpec;
 use inertia::InertiaCorrection;
 use iterate::{Bounds, Elimination, Measures, Step};
 pub use iterate::{Iterate, SolveResult};
@@ -151,6 +154,8 @@ pub struct Solver<
     bounds: Vec<Bounds<NC>>,
     eqs: Vec<StateEquality>,
     eqs_at: Vec<Vec<usize>>,
+    /// The problem's global variables, if any (`globals.rs`).
+    globals: Option<GlobalSpec>,
 }
 
 impl<
@@ -165,9 +170,23 @@ impl<
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
+    /// The solver of `p`. Panics if the sizes do not fit (`NU` must be `NW − NE`, less the
+    /// globals' copies per stage) or the problem's globals are inconsistent: programming
+    /// errors of the problem's definition, reported with both sides.
     pub fn new(p: &'a P, opts: IpOptions) -> Self {
-        assert_eq!(NE + NU, NW, "NU must be NW − NE");
         let n = p.horizon();
+        let globals = p.globals().map(|g| {
+            if let Err(e) = g.check(n, NW) {
+                panic!("{e}");
+            }
+            GlobalSpec::new(g)
+        });
+        let nt = globals.as_ref().map_or(0, |g| g.g.per_stage);
+        assert_eq!(
+            NE + NU + nt,
+            NW,
+            "NU must be NW − NE − (globals per stage {nt})"
+        );
         let bounds = (0..n)
             .map(|k| {
                 let (lo, hi) = p.bounds(k);
@@ -192,6 +211,7 @@ where
             bounds,
             eqs,
             eqs_at,
+            globals,
         }
     }
     /// Solve from `start`. A problem whose cost per stage at the start is below one is
@@ -226,6 +246,7 @@ where
             bounds: self.bounds.clone(),
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
+            globals: self.globals.clone().map(|g| g.with_cost_scaled(c)),
         };
         // A cold start (no equality multipliers) has the initial bound multipliers 1 of
         // `initial_iterate`, IPOPT's initial value for the problem the solver works on;
@@ -248,6 +269,7 @@ where
             bounds: self.bounds.clone(),
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
+            globals: self.globals.clone(),
         }
     }
 
@@ -320,7 +342,7 @@ where
                 }
             }
             self.derivative_pass(&it, &mut ws, &mut tm);
-            let kkt = self.kkt_error(&it, &ws.terminal, ws.aux.iter().map(|a| a.kkt));
+            let kkt = self.kkt_error(&it, &ws.terminal, &ws.ders, ws.aux.iter().map(|a| a.kkt));
             let compl0 = self.complementarity(&it, 0.0, kkt.s_d);
             self.print_row(iter, &m, &kkt, mu, inertia.last, &last, t_start);
             if kkt.dual <= o.tol && compl0 <= o.tol && kkt.primal <= o.constr_viol_tol {
@@ -497,6 +519,21 @@ where
                     let z = it.z_hi[k][i] + alpha_dual * step.dz_hi[k][i];
                     let t = trial.t_hi[k][i];
                     trial.z_hi[k][i] = z.clamp(mu / (KAPPA_SIGMA * t), KAPPA_SIGMA * mu / t);
+                }
+            }
+        }
+        if let Some(gs) = &self.globals {
+            let (g, gd) = (&mut trial.globals, &step.globals);
+            for j in 0..g.p.len() {
+                if gs.has_lo[j] {
+                    let t = g.p[j] - gs.g.lo[j];
+                    let z = it.globals.z_lo[j] + alpha_dual * gd.dz_lo[j];
+                    g.z_lo[j] = z.clamp(mu / (KAPPA_SIGMA * t), KAPPA_SIGMA * mu / t);
+                }
+                if gs.has_hi[j] {
+                    let t = gs.g.hi[j] - g.p[j];
+                    let z = it.globals.z_hi[j] + alpha_dual * gd.dz_hi[j];
+                    g.z_hi[j] = z.clamp(mu / (KAPPA_SIGMA * t), KAPPA_SIGMA * mu / t);
                 }
             }
         }
