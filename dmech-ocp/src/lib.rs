@@ -27,6 +27,7 @@
 //! come from dual numbers, stage by stage. The design is written up in `docs/ocp.md`.
 
 pub mod derivatives;
+pub mod free_timing;
 pub mod global_riccati;
 pub mod ipm;
 pub mod kinematic_start;

@@ -245,6 +245,19 @@ impl<M: PlanModel<NS>, const NS: usize> PlanningProblem<3, NS, 2, NC> for WipPla
         // linearly.
         true
     }
+    /// The rate limit divides by the stage's actual step; the cost is the default's
+    /// `ratio · cost` (the energy of the stage at its step, in units of the nominal one).
+    fn constraints_at_step<T: Real>(
+        &self,
+        k: usize,
+        stage: &Stage<T, 3, NS, 2>,
+        ratio: T,
+    ) -> SVector<T, NC> {
+        let mut c = PlanningProblem::constraints(self, k, stage);
+        c[2] /= ratio;
+        c[3] /= ratio;
+        c
+    }
 }
 
 /// The WIP on a variational integrator (first order or midpoint).
@@ -351,6 +364,8 @@ pub struct PlanOutcome {
     pub max_violation: f64,
     pub timings: dmech_ocp::ipm::Timings,
     pub trajectory: PlannedTrajectory,
+    /// The stage times of a plan with free timing (`None`: `k h`).
+    pub times: Option<Vec<f64>>,
 }
 
 /// The solution in the full model's terms: the algebraic-current model's currents from
@@ -404,6 +419,7 @@ fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
         max_violation: r.max_violation,
         timings: r.timings,
         trajectory: t,
+        times: None,
     }
 }
 
@@ -452,30 +468,7 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
     let models = friction_continuation(model, stiff_explicit && M::CURRENT_DYNAMICS);
     match transcription {
         Transcription::VarInt(disc) => {
-            let seq = WipSequence {
-                model,
-                models,
-                bounds,
-                disc,
-            };
-            let settings = SequenceSettings {
-                coarsest_step: MESH_COARSEST_STEP,
-                restart_barrier: MESH_RESTART_BARRIER,
-                coarse_tol: MESH_COARSE_TOL,
-            };
-            let verbose = opts.verbose;
-            let progress = |m: &str| {
-                if verbose {
-                    crate::progress!("{m}");
-                }
-            };
-            let r = mesh_sequence::<_, NX, NW, NS, 2, NC>(
-                &seq,
-                problem.clone(),
-                settings,
-                opts,
-                &progress,
-            );
+            let r = varint_solve::<M, NS, NX, NW>(model, models, problem, bounds, disc, opts);
             let traj = varint_plan::<M, NS>(model, problem, bounds, disc)
                 .trajectory::<NS, NX, NW, NC>(&r.iterate);
             outcome::<M, NS, NX, NW>(model, r, traj, true)
@@ -498,6 +491,35 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
             outcome::<M, NS, NX, 2>(model, r, traj, false)
         }
     }
+}
+
+/// The VI plan by mesh sequencing over the friction continuation's `models`.
+fn varint_solve<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
+    model: &M,
+    models: Vec<M>,
+    problem: &PlanProblem,
+    bounds: PlanBounds,
+    disc: Discretisation,
+    opts: IpOptions,
+) -> SolveResult<NX, NW, NC> {
+    let seq = WipSequence {
+        model,
+        models,
+        bounds,
+        disc,
+    };
+    let settings = SequenceSettings {
+        coarsest_step: MESH_COARSEST_STEP,
+        restart_barrier: MESH_RESTART_BARRIER,
+        coarse_tol: MESH_COARSE_TOL,
+    };
+    let verbose = opts.verbose;
+    let progress = |m: &str| {
+        if verbose {
+            crate::progress!("{m}");
+        }
+    };
+    mesh_sequence::<_, NX, NW, NS, 2, NC>(&seq, problem.clone(), settings, opts, &progress)
 }
 
 /// The coarsest step of mesh sequencing: the VI plan starts on the mesh of step
