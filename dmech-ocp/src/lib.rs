@@ -37,6 +37,7 @@ pub mod refine;
 pub mod riccati;
 pub mod runge_kutta;
 pub mod sequencing;
+pub mod sparse_kkt;
 #[cfg(test)]
 mod test_rng;
 pub mod transcription;

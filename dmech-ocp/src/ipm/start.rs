@@ -99,6 +99,17 @@ where
                         g.z_hi[j] = prev.z_hi[j].max(WARM_MULT_FLOOR * mu / t);
                     }
                 }
+            } else {
+                // No globals before (a fixed-timing start): their bound multipliers on this
+                // barrier's central path.
+                for j in 0..g.p.len() {
+                    if gs.has_lo[j] {
+                        g.z_lo[j] = mu / (g.p[j] - gs.g.lo[j]);
+                    }
+                    if gs.has_hi[j] {
+                        g.z_hi[j] = mu / (gs.g.hi[j] - g.p[j]);
+                    }
+                }
             }
             it.globals = g;
             self.sync_globals(&mut it);

@@ -16,7 +16,8 @@ use super::simulate::Integrator;
 use super::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, SolveResult};
+use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
+use dmech_ocp::ipm::{IpOptions, SolveResult, Solver};
 use dmech_ocp::layout::Layout;
 use dmech_ocp::sequencing::{continuation, mesh_sequence, SequenceSettings, SequencedPlan};
 use dmech_ocp::transcription::{
@@ -520,6 +521,98 @@ fn varint_solve<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: us
         }
     };
     mesh_sequence::<_, NX, NW, NS, 2, NC>(&seq, problem.clone(), settings, opts, &progress)
+}
+
+/// Bounds on each segment's step ratio `h_j / h` in a plan with free timing: within a
+/// factor of two of the nominal step, so that the first-order integrator's error stays
+/// within twice that of the fixed-timing plan.
+pub const FREE_TIMING_RATIOS: (f64, f64) = (0.5, 2.0);
+
+/// A plan with free waypoint timing, and the fixed-timing plan it started from.
+pub struct FreeTimingOutcome {
+    pub fixed: PlanOutcome,
+    pub free: PlanOutcome,
+    /// Each segment's step ratio `h_j / h`, between consecutive waypoints.
+    pub ratios: Vec<f64>,
+}
+
+/// The plan with free waypoint timing (the first-order VI; total time fixed): the
+/// fixed-timing plan by mesh sequencing, then, from its solution, the problem whose
+/// segments between waypoints each have their own step `h_j = σ_j h`, `σ_j` in
+/// [`FREE_TIMING_RATIOS`], `Σ N_j σ_j = N` ([`dmech_ocp::free_timing`]). The fixed
+/// timing is a feasible point of the free problem, so its objective is an upper bound.
+pub fn plan_free_timing(
+    wip: &Wip,
+    problem: &PlanProblem,
+    bounds: PlanBounds,
+    current: CurrentModel,
+    opts: IpOptions,
+) -> Result<FreeTimingOutcome, String> {
+    match current {
+        CurrentModel::Dynamic => free_model::<Wip, 5, NX, 7, 9>(wip, problem, bounds, opts),
+        CurrentModel::Algebraic => free_model::<_, 3, NX_ALGEBRAIC, 5, 7>(
+            &WipAlgebraicCurrent::new(*wip),
+            problem,
+            bounds,
+            opts,
+        ),
+    }
+}
+
+/// [`plan_free_timing`] for one model: `NW0` the fixed-timing decision size, `NW = NW0 + 2`.
+fn free_model<
+    M: PlanModel<NS>,
+    const NS: usize,
+    const NX: usize,
+    const NW0: usize,
+    const NW: usize,
+>(
+    model: &M,
+    problem: &PlanProblem,
+    bounds: PlanBounds,
+    opts: IpOptions,
+) -> Result<FreeTimingOutcome, String> {
+    let disc = Discretisation::FirstOrder;
+    let models = friction_continuation(model, false);
+    let r = varint_solve::<M, NS, NX, NW0>(model, models, problem, bounds, disc, opts.clone());
+    let traj = varint_plan::<M, NS>(model, problem, bounds, disc)
+        .trajectory::<NS, NX, NW0, NC>(&r.iterate);
+    let start = r.iterate.clone();
+    let fixed = outcome::<M, NS, NX, NW0>(model, r, traj, true);
+    let timing = FreeTiming {
+        segment_starts: problem.stages[..problem.stages.len() - 1].to_vec(),
+        ratio_bounds: FREE_TIMING_RATIOS,
+        total: TotalTime::Fixed,
+    };
+    let ft = FreeTimingTranscription::new::<NS, NC>(
+        varint_plan::<M, NS>(model, problem, bounds, disc),
+        timing,
+    )
+    .map_err(|e| e.to_string())?;
+    if opts.verbose {
+        crate::progress!(
+            "free timing: {} segments, step ratios in [{}, {}], from the fixed-timing plan",
+            ft.segments(),
+            FREE_TIMING_RATIOS.0,
+            FREE_TIMING_RATIOS.1
+        );
+    }
+    // From the fixed optimum: a warm start at the barrier a refined mesh restarts at.
+    let o = IpOptions {
+        mu_init: MESH_RESTART_BARRIER,
+        ..opts
+    };
+    let s: Solver<_, NX, NW, NS, 2, NC> = Solver::new(&ft, o);
+    let r = s.solve(s.warm_iterate(ft.start_from_fixed::<NX, NW0, NW, NC>(start)));
+    let (ratios, _) = ft.times(&r.iterate);
+    let (plan, times) = ft.trajectory::<NS, NX, NW, NC>(&r.iterate);
+    let mut free = outcome::<M, NS, NX, NW>(model, r, plan, true);
+    free.times = Some(times);
+    Ok(FreeTimingOutcome {
+        fixed,
+        free,
+        ratios,
+    })
 }
 
 /// The coarsest step of mesh sequencing: the VI plan starts on the mesh of step
