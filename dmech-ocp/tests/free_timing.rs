@@ -5,7 +5,7 @@
 //! least-squares problem solved in closed form.
 
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, Solver, Status};
+use dmech_ocp::ipm::{IpOptions, KktMethod, Solver, Status};
 use dmech_ocp::problem::{GlobalEquality, Globals, StageProblem, StateEquality};
 use nalgebra::{DMatrix, DVector, SVector};
 
@@ -145,9 +145,14 @@ fn golden(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
 }
 
 fn solve(pr: &TwoPhase, tol: f64) -> (f64, f64, usize) {
+    solve_with(pr, tol, KktMethod::Riccati)
+}
+
+fn solve_with(pr: &TwoPhase, tol: f64, kkt: KktMethod) -> (f64, f64, usize) {
     let opts = IpOptions {
         tol,
         verbose: false,
+        kkt,
         ..Default::default()
     };
     let s: Solver<_, 2, 2, 0, 1, 0> = Solver::new(pr, opts);
@@ -223,4 +228,105 @@ fn symmetric_waypoint_keeps_the_timing() {
     println!("h1 = {h1:.14} (nominal {h}), J = {objective:.14} against {fixed:.14}");
     assert!((h1 - h).abs() < 1e-8 * h);
     assert!((objective - fixed).abs() < 10.0 * tol * fixed);
+}
+
+/// The speed limit of [`Fixed`]: active on the fixed-timing plan (the test checks it).
+const SPEED_LIMIT: f64 = 1.0;
+
+/// The same double integrator with the timing fixed (no globals): `w = u`.
+struct Fixed(TwoPhase);
+
+impl StageProblem<2, 1, 0, 1> for Fixed {
+    fn horizon(&self) -> usize {
+        self.0.horizon()
+    }
+    fn initial_state(&self) -> SVector<f64, 2> {
+        SVector::zeros()
+    }
+    fn dynamics<T: Real>(&self, k: usize, x: &SVector<T, 2>, w: &SVector<T, 1>) -> SVector<T, 2> {
+        let h = T::from(self.0.nominal());
+        self.0.dynamics(k, x, &SVector::from([w[0], h]))
+    }
+    fn equality<T: Real>(
+        &self,
+        _k: usize,
+        _x: &SVector<T, 2>,
+        _w: &SVector<T, 1>,
+    ) -> SVector<T, 0> {
+        SVector::zeros()
+    }
+    fn cost<T: Real>(&self, _k: usize, _x: &SVector<T, 2>, w: &SVector<T, 1>) -> T {
+        w[0] * w[0] * self.0.nominal()
+    }
+    /// A speed limit, active in the middle of the motion (a bound the barrier must handle).
+    fn constraints<T: Real>(
+        &self,
+        _k: usize,
+        x: &SVector<T, 2>,
+        _w: &SVector<T, 1>,
+    ) -> SVector<T, 1> {
+        SVector::from([x[1]])
+    }
+    fn bounds(&self, _k: usize) -> (SVector<f64, 1>, SVector<f64, 1>) {
+        (SVector::from([-SPEED_LIMIT]), SVector::from([SPEED_LIMIT]))
+    }
+    fn state_equalities(&self) -> Vec<StateEquality> {
+        self.0.state_equalities()
+    }
+}
+
+/// The two KKT paths along whole solves: the sparse LDLᵀ and the Riccati recursion take
+/// the same iterations to the same point, on a fixed-time problem with an active bound
+/// and on the free-timing one. Their steps differ by round-off (`sparse_kkt` tests), which
+/// the iteration does not amplify beyond the tolerance it solves to.
+#[test]
+fn sparse_ldlt_and_riccati_solve_alike() {
+    let pr = TwoPhase {
+        n1: 20,
+        n2: 20,
+        a: 0.25,
+        b: 1.0,
+        total: 2.0,
+    };
+    let tol = 1e-10;
+    let (h_r, j_r, it_r) = solve_with(&pr, tol, KktMethod::Riccati);
+    let (h_s, j_s, it_s) = solve_with(&pr, tol, KktMethod::SparseLdlt);
+    println!("free timing: Riccati h1 {h_r:.14} J {j_r:.14} ({it_r} its), sparse h1 {h_s:.14} J {j_s:.14} ({it_s} its)");
+    assert_eq!(it_r, it_s);
+    assert!((h_r - h_s).abs() <= tol * pr.nominal());
+    assert!((j_r - j_s).abs() <= tol * j_r);
+    let fixed = Fixed(pr);
+    let n = fixed.horizon();
+    let run = |kkt| {
+        let opts = IpOptions {
+            tol,
+            verbose: false,
+            kkt,
+            ..Default::default()
+        };
+        let s: Solver<_, 2, 1, 0, 1, 1> = Solver::new(&fixed, opts);
+        let r =
+            s.solve(s.initial_iterate(vec![SVector::zeros(); n + 1], vec![SVector::zeros(); n]));
+        assert_eq!(r.status, Status::Solved);
+        r
+    };
+    let (r, s) = (run(KktMethod::Riccati), run(KktMethod::SparseLdlt));
+    let du = r
+        .iterate
+        .w
+        .iter()
+        .zip(&s.iterate.w)
+        .map(|(a, b)| (a - b).amax())
+        .fold(0.0, f64::max);
+    println!(
+        "fixed timing: Riccati J {:.14} ({} its), sparse J {:.14} ({} its), inputs differ by {du:.1e}",
+        r.objective, r.iterations, s.objective, s.iterations
+    );
+    let peak = r.iterate.x.iter().map(|x| x[1].abs()).fold(0.0, f64::max);
+    println!("peak speed {peak:.6} (limit {SPEED_LIMIT})");
+    assert!(peak > SPEED_LIMIT - 1e-6, "the bound must be active");
+    assert_eq!(r.iterations, s.iterations);
+    assert!((r.objective - s.objective).abs() <= tol * r.objective);
+    // Inputs of order 1: both points are within the tolerance of the same optimum.
+    assert!(du <= 10.0 * tol.sqrt(), "{du:e}");
 }

@@ -19,7 +19,8 @@
 use super::*;
 use crate::global_riccati::{global_forward, global_sweep, GlobalSchur, LqCoupling};
 use crate::problem::Globals;
-use crate::riccati::sweep_lq;
+use crate::riccati::{sweep_lq, LqSolution};
+use crate::sparse_kkt::GlobalTerms;
 use nalgebra::{DMatrix, DVector};
 
 /// The globals' part of an iterate: `p`, the multipliers of its lower and upper bounds
@@ -244,7 +245,7 @@ where
 
     /// Every stage's coupling, in parallel, into `out`.
     #[allow(clippy::too_many_arguments)]
-    fn couplings(
+    pub(super) fn couplings(
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
@@ -268,6 +269,35 @@ where
         }
     }
 
+    /// The globals' own terms of the Newton system at `gi`: the barrier curvature plus the
+    /// shift `delta` on the diagonal, the gradient `c − μ/(p − lo) + μ/(hi − p)`, the
+    /// equalities `A δp = −(A p − b)`.
+    pub(super) fn global_terms(&self, gi: &GlobalIterate, mu: f64, delta: f64) -> GlobalTerms {
+        let Some(gs) = &self.globals else {
+            return GlobalTerms::default();
+        };
+        let ng = gs.g.len();
+        let (mut diag, mut grad) = (vec![delta; ng], gs.g.cost.clone());
+        for j in 0..ng {
+            if gs.has_lo[j] {
+                let t = gi.p[j] - gs.g.lo[j];
+                diag[j] += gi.z_lo[j] / t;
+                grad[j] -= mu / t;
+            }
+            if gs.has_hi[j] {
+                let t = gs.g.hi[j] - gi.p[j];
+                diag[j] += gi.z_hi[j] / t;
+                grad[j] += mu / t;
+            }
+        }
+        GlobalTerms {
+            diag,
+            grad,
+            eq_a: gs.g.equalities.iter().map(|e| e.a.clone()).collect(),
+            eq_rhs: gs.residuals(&gi.p).map(|r| -r).collect(),
+        }
+    }
+
     /// The reduced system of the globals (module doc) with primal shift `delta`: `δp` and
     /// the equalities' new multipliers, or `None` if its inertia is wrong.
     fn reduced_global_step(
@@ -279,31 +309,20 @@ where
     ) -> Option<(DVector<f64>, Vec<f64>)> {
         let gs = self.globals.as_ref()?;
         let (ng, ne) = (gs.g.len(), gs.g.equalities.len());
+        let terms = self.global_terms(gi, mu, delta);
         let mut kkt = DMatrix::<f64>::zeros(ng + ne, ng + ne);
         let mut rhs = DVector::<f64>::zeros(ng + ne);
         kkt.view_mut((0, 0), (ng, ng)).copy_from(&schur.psi);
         for j in 0..ng {
-            let mut grad = schur.psi_vec[j] + gs.g.cost[j];
-            let mut sigma = delta;
-            if gs.has_lo[j] {
-                let t = gi.p[j] - gs.g.lo[j];
-                sigma += gi.z_lo[j] / t;
-                grad -= mu / t;
-            }
-            if gs.has_hi[j] {
-                let t = gs.g.hi[j] - gi.p[j];
-                sigma += gi.z_hi[j] / t;
-                grad += mu / t;
-            }
-            kkt[(j, j)] += sigma;
-            rhs[j] = -grad;
+            kkt[(j, j)] += terms.diag[j];
+            rhs[j] = -(schur.psi_vec[j] + terms.grad[j]);
         }
-        for (i, (e, r)) in gs.g.equalities.iter().zip(gs.residuals(&gi.p)).enumerate() {
+        for (i, (a, r)) in terms.eq_a.iter().zip(&terms.eq_rhs).enumerate() {
             for j in 0..ng {
-                kkt[(ng + i, j)] = e.a[j];
-                kkt[(j, ng + i)] = e.a[j];
+                kkt[(ng + i, j)] = a[j];
+                kkt[(j, ng + i)] = a[j];
             }
-            rhs[ng + i] = -r;
+            rhs[ng + i] = *r;
         }
         // Inertia: n_g positive and n_e negative eigenvalues, none near zero.
         let eig = kkt.clone().symmetric_eigen().eigenvalues;
@@ -411,6 +430,28 @@ where
         let support = |k: usize| gs.g.support_of(k);
         let cps: Vec<LqCoupling<NX, NU, NW>> = couplings.iter().map(|c| c.0.clone()).collect();
         let sol = global_forward(&sweep, &schur, lq, &cps, &support, &SVector::zeros(), &dp);
+        self.recover_with_globals(it, ders, elim, couplings, sol, &dp, y, mu, dc)
+    }
+
+    /// The step from the LQ solution and the globals' step `δp`, `y_g`: the stages'
+    /// recovery with `W_θ δθ_k` added to their decisions, the globals' bound multipliers.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn recover_with_globals(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ders: &[StageDerivatives<NX, NW, NE, NC>],
+        elim: &[Elimination<NX, NW, NU>],
+        couplings: &[StageCoupling<NX, NW, NU>],
+        sol: LqSolution<NX, NU>,
+        dp: &DVector<f64>,
+        y: Vec<f64>,
+        mu: f64,
+        dc: f64,
+    ) -> Step<NX, NW, NC> {
+        let Some(gs) = self.globals.as_ref() else {
+            return self.recover(it, ders, elim, sol, mu, dc, None);
+        };
+        let support = |k: usize| gs.g.support_of(k);
         let dw_globals: Vec<SVector<f64, NW>> = (0..self.n)
             .map(|k| {
                 let mut theta = SVector::<f64, NW>::zeros();

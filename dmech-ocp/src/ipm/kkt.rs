@@ -70,6 +70,9 @@ where
         dc: f64,
         tm: &mut Timings,
     ) -> Result<(Step<NX, NW, NC>, f64), String> {
+        if self.opts.kkt == KktMethod::SparseLdlt {
+            return self.newton_step_sparse(it, ws, inertia, mu, dc, tm);
+        }
         if self.globals.is_some() {
             return self.newton_step_global(it, ws, inertia, mu, dc, tm);
         }

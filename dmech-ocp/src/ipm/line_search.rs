@@ -225,7 +225,11 @@ where
                 let mut found = None;
                 for _ in 0..SOC_MAX {
                     let t_soc = Instant::now();
-                    let sstep = if self.globals.is_some() {
+                    let sstep = if self.opts.kkt == KktMethod::SparseLdlt {
+                        self.sparse_correction(
+                            it, ws, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
+                        )
+                    } else if self.globals.is_some() {
                         self.global_correction(
                             it, ws, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
                         )

@@ -40,6 +40,7 @@ mod quasi_newton;
 mod recovery;
 mod restoration;
 mod scaling;
+mod sparse_step;
 mod start;
 
 use derivative_pass::Workspace;
@@ -51,7 +52,7 @@ use iterate::{Bounds, Elimination, Measures, Step};
 pub use iterate::{Iterate, SolveResult};
 use kkt::{KktError, StageAux};
 use line_search::LineSearch;
-pub use options::{IpOptions, Status, Timings};
+pub use options::{IpOptions, KktMethod, Status, Timings};
 use parallel::{par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
 use quasi_newton::QuasiNewton;
 use restoration::Restored;
@@ -156,6 +157,8 @@ pub struct Solver<
     eqs_at: Vec<Vec<usize>>,
     /// The problem's global variables, if any (`globals.rs`).
     globals: Option<GlobalSpec>,
+    /// The sparse KKT matrix's symbolic factorisation, once the sparse path needs it.
+    sparse: std::sync::OnceLock<Result<crate::sparse_kkt::SparseKkt, String>>,
 }
 
 impl<
@@ -212,6 +215,7 @@ where
             eqs,
             eqs_at,
             globals,
+            sparse: Default::default(),
         }
     }
     /// Solve from `start`. A problem whose cost per stage at the start is below one is
@@ -247,6 +251,7 @@ where
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
             globals: self.globals.clone().map(|g| g.with_cost_scaled(c)),
+            sparse: Default::default(),
         };
         // A cold start (no equality multipliers) has the initial bound multipliers 1 of
         // `initial_iterate`, IPOPT's initial value for the problem the solver works on;
@@ -270,6 +275,7 @@ where
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
             globals: self.globals.clone(),
+            sparse: Default::default(),
         }
     }
 
