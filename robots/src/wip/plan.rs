@@ -599,7 +599,10 @@ fn free_model<
     }
     // From the fixed optimum: a warm start at the barrier a refined mesh restarts at.
     let o = IpOptions {
-        mu_init: MESH_RESTART_BARRIER,
+        mu_init: std::env::var("DMECH_FREE_MU")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(MESH_RESTART_BARRIER),
         ..opts
     };
     let s: Solver<_, NX, NW, NS, 2, NC> = Solver::new(&ft, o);

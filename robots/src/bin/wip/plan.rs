@@ -4,7 +4,7 @@ use crate::common::{
     check_size, load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg,
     Failure, IntegratorArg,
 };
-use dmech_ocp::ipm::{IpOptions, Status};
+use dmech_ocp::ipm::{IpOptions, KktMethod, Status};
 use robots::io::OutputSet;
 use robots::wip::benchmarks;
 use robots::wip::plan::{plan, plan_free_timing, PlanBounds};
@@ -66,9 +66,20 @@ pub struct PlanArgs {
     /// timing's plan (docs/ocp.md, "Free waypoint timing"). Needs --integrator varint
     #[arg(long)]
     free_timing: bool,
+    /// Linear algebra of the Newton step: the Riccati recursion (augmented by the globals
+    /// of --free-timing) or faer's sparse LDLᵀ of the whole KKT matrix (docs/ocp.md)
+    #[arg(long, value_enum, default_value_t = KktArg::Riccati)]
+    kkt: KktArg,
     /// No iteration table on stderr
     #[arg(long)]
     quiet: bool,
+}
+
+/// `--kkt`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum KktArg {
+    Riccati,
+    Sparse,
 }
 
 /// `--u-max`: a voltage bound in (0, 5] V (the motors' supply is 5 V).
@@ -127,6 +138,10 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         verbose: !a.quiet,
         max_iter: a.max_iter,
         threads: a.threads.unwrap_or(defaults.threads),
+        kkt: match a.kkt {
+            KktArg::Riccati => KktMethod::Riccati,
+            KktArg::Sparse => KktMethod::SparseLdlt,
+        },
         ..defaults
     };
     let (integrator, current) = (a.integrator.name(), a.current.model().name());
