@@ -27,6 +27,8 @@
 //! come from dual numbers, stage by stage. The design is written up in `docs/ocp.md`.
 
 pub mod derivatives;
+pub mod free_timing;
+pub mod global_riccati;
 pub mod ipm;
 pub mod kinematic_start;
 pub mod layout;
@@ -35,6 +37,7 @@ pub mod refine;
 pub mod riccati;
 pub mod runge_kutta;
 pub mod sequencing;
+pub mod sparse_kkt;
 #[cfg(test)]
 mod test_rng;
 pub mod transcription;

@@ -16,6 +16,13 @@
 //!
 //! Every function is generic over the scalar: the solver takes exact derivatives with
 //! dual numbers. Nothing here knows about a particular robot.
+//!
+//! **Global variables** ([`Globals`], default none) couple every stage: a vector `p`
+//! (e.g. the step ratios of the segments of a plan with free timing) with bounds, linear
+//! equalities and a linear cost. A stage reads the globals it depends on through the last
+//! `per_stage` entries of its decision `w_k`, which the solver keeps equal to
+//! `p[support(k)]`: the stage functions keep their signature, and their derivatives in
+//! those entries are the derivatives in `p` (`docs/ocp.md`, "Free waypoint timing").
 
 use dmech::partials::{lift_vec, seeded, split_passes};
 use dmech_lie::Real;
@@ -27,6 +34,83 @@ pub struct StateEquality {
     pub stage: usize,
     pub index: usize,
     pub value: f64,
+}
+
+/// `aᵀp = b` on the global variables.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GlobalEquality {
+    pub a: Vec<f64>,
+    pub b: f64,
+}
+
+/// The global variables of a problem: `p` with `lo ≤ p ≤ hi` (infinite: no bound), linear
+/// equalities, the cost `cᵀp` added to the stage costs, and the globals each stage reads.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Globals {
+    /// The start value of `p` (its length is the number of globals).
+    pub start: Vec<f64>,
+    pub lo: Vec<f64>,
+    pub hi: Vec<f64>,
+    pub equalities: Vec<GlobalEquality>,
+    /// `c` of the linear cost `cᵀp`.
+    pub cost: Vec<f64>,
+    /// How many globals each stage reads: the last `per_stage` entries of `w_k`.
+    pub per_stage: usize,
+    /// `support[k · per_stage + i]`: the global that entry `NW − per_stage + i` of `w_k`
+    /// copies (an index may repeat).
+    pub support: Vec<usize>,
+}
+
+impl Globals {
+    /// The number of globals.
+    pub fn len(&self) -> usize {
+        self.start.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.start.is_empty()
+    }
+    /// The globals stage `k` reads, in the order of its decision's last entries.
+    pub fn support_of(&self, k: usize) -> &[usize] {
+        &self.support[k * self.per_stage..(k + 1) * self.per_stage]
+    }
+    /// `Err` naming the first inconsistency with a horizon of `n` stages and decisions of
+    /// size `nw`.
+    pub fn check(&self, n: usize, nw: usize) -> Result<(), String> {
+        let g = self.len();
+        if self.lo.len() != g || self.hi.len() != g || self.cost.len() != g {
+            return Err(format!(
+                "globals: start, lo, hi and cost must have the same length ({g}, {}, {}, {})",
+                self.lo.len(),
+                self.hi.len(),
+                self.cost.len()
+            ));
+        }
+        if self.per_stage > nw || self.support.len() != n * self.per_stage {
+            return Err(format!(
+                "globals: {} per stage of {nw} decisions, support of {} for {n} stages",
+                self.per_stage,
+                self.support.len()
+            ));
+        }
+        if let Some(&j) = self.support.iter().find(|&&j| j >= g) {
+            return Err(format!("globals: support names global {j} of {g}"));
+        }
+        if let Some(e) = self.equalities.iter().find(|e| e.a.len() != g) {
+            return Err(format!(
+                "globals: an equality has {} coefficients for {g} globals",
+                e.a.len()
+            ));
+        }
+        if let Some(j) =
+            (0..g).find(|&j| !(self.lo[j] <= self.start[j] && self.start[j] <= self.hi[j]))
+        {
+            return Err(format!(
+                "globals: start {} of global {j} is outside [{}, {}]",
+                self.start[j], self.lo[j], self.hi[j]
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// The problem. `NX` state, `NW` stage decision, `NE` stage equalities, `NC` inequalities.
@@ -87,6 +171,12 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
         crate::derivatives::generic_constraint_curvature::<Self, NX, NW, NE, NC>(
             self, k, x, w, lambda, nu,
         )
+    }
+    /// The global variables, if the problem has any (default: none, the pure stage
+    /// structure). The last `per_stage` entries of every `w_k` are then the globals' copies
+    /// (module documentation).
+    fn globals(&self) -> Option<Globals> {
+        None
     }
     /// `(f, F_x, F_w)` of the dynamics, exact. The default differentiates
     /// [`StageProblem::dynamics`] by two vector-dual passes (seeded in `x`, then in `w`); a

@@ -181,6 +181,7 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
         z_lo: bound(&coarse.z_lo),
         z_hi: bound(&coarse.z_hi),
         y: match_equality_multipliers(equalities, &coarse.y, nc, n_fine, dual_scale),
+        globals: Default::default(),
     }
 }
 
@@ -220,6 +221,7 @@ mod tests {
             z_lo: vec![SVector::repeat(2.0); nc],
             z_hi: vec![SVector::repeat(3.0); nc],
             y: vec![1.5, -2.0],
+            globals: Default::default(),
         }
     }
 

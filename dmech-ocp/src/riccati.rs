@@ -65,6 +65,7 @@ pub enum RiccatiError {
 /// caller can run it while the stages are still being formed (the solver condenses stage
 /// `k` on one thread while another sweeps through `k + 1 … N−1`).
 pub struct BackwardSweep<const NX: usize, const NU: usize> {
+    shift: f64,
     eye_x: SMatrix<f64, NX, NX>,
     eye_u: SMatrix<f64, NU, NU>,
     p_mat: SMatrix<f64, NX, NX>,
@@ -90,6 +91,7 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
         let p_mat = q_n + eye_x;
         let p_vec = *q_vec_n;
         BackwardSweep {
+            shift,
             eye_x,
             eye_u: SMatrix::<f64, NU, NU>::identity() * shift,
             p_mat,
@@ -135,6 +137,23 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
         Ok(())
     }
 
+    /// The primal shift of the sweep.
+    pub fn shift(&self) -> f64 {
+        self.shift
+    }
+
+    /// `(P_k, p_k)` of a swept stage (`k = N`: the terminal cost with the shift).
+    pub fn cost_to_go(&self, k: usize) -> &(SMatrix<f64, NX, NX>, SVector<f64, NX>) {
+        assert!(k >= self.next, "stage {k} is not swept yet");
+        &self.cost_to_go[k]
+    }
+
+    /// `(K_k, κ_k)` of a swept stage.
+    pub fn gain(&self, k: usize) -> &(SMatrix<f64, NU, NX>, SVector<f64, NU>) {
+        assert!(k >= self.next, "stage {k} is not swept yet");
+        &self.gains[k]
+    }
+
     /// The forward pass from `x0` once every stage has been swept.
     pub fn forward(&self, stages: &[LqStage<NX, NU>], x0: &SVector<f64, NX>) -> LqSolution<NX, NU> {
         assert_eq!(self.next, 0, "the backward sweep is not complete");
@@ -164,11 +183,22 @@ pub fn solve_lq<const NX: usize, const NU: usize>(
     x0: &SVector<f64, NX>,
     shift: f64,
 ) -> Result<LqSolution<NX, NU>, RiccatiError> {
+    Ok(sweep_lq(stages, q_n, q_vec_n, shift)?.forward(stages, x0))
+}
+
+/// The backward sweep over `stages[0..N]` and the terminal cost `(q_n, q_vec_n)` with the
+/// primal shift `shift`, complete.
+pub fn sweep_lq<const NX: usize, const NU: usize>(
+    stages: &[LqStage<NX, NU>],
+    q_n: &SMatrix<f64, NX, NX>,
+    q_vec_n: &SVector<f64, NX>,
+    shift: f64,
+) -> Result<BackwardSweep<NX, NU>, RiccatiError> {
     let mut sweep = BackwardSweep::new(stages.len(), q_n, q_vec_n, shift);
     for (k, st) in stages.iter().enumerate().rev() {
         sweep.step(k, st)?;
     }
-    Ok(sweep.forward(stages, x0))
+    Ok(sweep)
 }
 
 #[cfg(test)]

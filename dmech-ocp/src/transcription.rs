@@ -193,6 +193,23 @@ pub trait PlanningProblem<const NP: usize, const NS: usize, const NU: usize, con
     fn affine_in_configuration(&self) -> bool {
         false
     }
+    /// The running cost of stage `k` when its step is `ratio` times the nominal one (free
+    /// timing, [`crate::free_timing`]). Default: `ratio · cost`, a cost per stage being the
+    /// rectangle rule of a running cost over the step (the same at `ratio = 1`).
+    fn cost_at_step<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>, ratio: T) -> T {
+        self.cost(k, stage) * ratio
+    }
+    /// The path constraints of stage `k` at step ratio `ratio`. Default: the constraints
+    /// (pointwise in time); a constraint on a difference quotient, such as a rate limit,
+    /// overrides this to divide by the actual step.
+    fn constraints_at_step<T: Real>(
+        &self,
+        k: usize,
+        stage: &Stage<T, NP, NS, NU>,
+        _ratio: T,
+    ) -> SVector<T, NC> {
+        self.constraints(k, stage)
+    }
 }
 
 /// A problem borrowed: the transcription of a problem that lives elsewhere (one per mesh,
@@ -222,6 +239,17 @@ where
     }
     fn affine_in_configuration(&self) -> bool {
         (**self).affine_in_configuration()
+    }
+    fn cost_at_step<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>, ratio: T) -> T {
+        (**self).cost_at_step(k, stage, ratio)
+    }
+    fn constraints_at_step<T: Real>(
+        &self,
+        k: usize,
+        stage: &Stage<T, NP, NS, NU>,
+        ratio: T,
+    ) -> SVector<T, NC> {
+        (**self).constraints_at_step(k, stage, ratio)
     }
 }
 
@@ -254,7 +282,7 @@ pub fn state_equalities(layout: Layout, conditions: &[Condition]) -> Vec<StateEq
 }
 
 /// `x_0` from the start state.
-fn initial_state<const NP: usize, const NS: usize, const NU: usize, const NX: usize>(
+pub(crate) fn initial_state<const NP: usize, const NS: usize, const NU: usize, const NX: usize>(
     layout: Layout,
     start: &StartState<NP, NS, NU>,
 ) -> SVector<f64, NX> {

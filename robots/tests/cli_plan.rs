@@ -237,3 +237,110 @@ fn malformed_waypoint_files_exit_1() {
         .unwrap();
     assert_eq!(missing.status.code(), Some(1));
 }
+
+/// `--free-timing` on the hook at 20 ms: solved, its objective no higher than the fixed
+/// timing's (a feasible point of the free problem), the step ratios within their bounds,
+/// the segment durations summing to the fixed total, and the rate limit holding at each
+/// stage's own step.
+#[test]
+fn plans_a_short_waypoint_problem_with_free_timing() {
+    let dir = scratch("short-free-timing");
+    let file = dir.join("wp.json");
+    std::fs::write(
+        &file,
+        r#"{"name": "hook", "points": [[0, 0], [0.6, 0.2], [1.0, 0.6]], "duration": 7.0,
+            "accel": 0.2, "start_heading": 0.0, "end_heading": 0.8}"#,
+    )
+    .unwrap();
+    let h = 0.02;
+    let out = wip()
+        .args([
+            "plan",
+            file.to_str().unwrap(),
+            "--h",
+            "0.02",
+            "--free-timing",
+            "--quiet",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "wip plan --free-timing failed: {stderr}"
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    println!("{}", summary["free_timing"]);
+    assert_eq!(summary["status"], "solved");
+    let free = number(&summary, "objective");
+    let fixed = number(&summary["free_timing"]["fixed_timing"], "objective");
+    // No higher than the fixed timing's, up to the solver's tolerance on each.
+    assert!(
+        free <= fixed * (1.0 + 1e-6),
+        "free {free} against fixed {fixed}"
+    );
+    let ratios: Vec<f64> = summary["free_timing"]["step_ratios"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(ratios.len(), 2);
+    assert!(
+        ratios.iter().all(|&r| (0.5..=2.0).contains(&r)),
+        "{ratios:?}"
+    );
+    let durations: f64 = summary["free_timing"]["segment_durations_s"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .sum();
+    let n = number(&summary, "N");
+    assert!(
+        (durations - n * h).abs() < 1e-9 * n * h,
+        "{durations} against {}",
+        n * h
+    );
+    let csv = std::fs::read_to_string(dir.join("trajectory.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    let mut u_prev = [0.0, 0.0];
+    for w in rows.windows(2) {
+        let step = w[1][0] - w[0][0];
+        assert!(step > 0.0);
+        let (ur, ul) = (w[0][10], w[0][11]);
+        let tol = 1e-6;
+        assert!((ur - u_prev[0]).abs() <= 2.0 * step + tol, "{w:?}");
+        assert!((ul - u_prev[1]).abs() <= 2.0 * step + tol, "{w:?}");
+        u_prev = [ur, ul];
+    }
+}
+
+/// `--free-timing` needs the first-order variational integrator: exit 2 otherwise.
+#[test]
+fn free_timing_needs_the_variational_integrator() {
+    let out = wip()
+        .args([
+            "plan",
+            "eight",
+            "--free-timing",
+            "--integrator",
+            "rk1",
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--free-timing needs --integrator varint"),
+        "{stderr}"
+    );
+}

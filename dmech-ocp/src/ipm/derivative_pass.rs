@@ -20,6 +20,8 @@ pub(super) struct Workspace<
     pub(super) aux: Vec<StageAux<NX, NE, NC>>,
     pub(super) qn: Vec<QuasiNewton<NX, NW, NE>>,
     pub(super) terminal: TerminalDerivatives<NX>,
+    /// Each stage's coupling to the globals (empty without them; `globals.rs`).
+    pub(super) couplings: Vec<globals::StageCoupling<NX, NW, NU>>,
 }
 
 impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
@@ -37,6 +39,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
                 gx: SVector::zeros(),
                 hxx: SMatrix::zeros(),
             },
+            couplings: Vec::new(),
         }
     }
 

@@ -1,6 +1,7 @@
 //! The iterate and the result of a solve, and the per-iteration working data: the
 //! eliminated stage equality, the bounds, the Newton step, the residual measures.
 
+use super::globals::{GlobalIterate, GlobalStep};
 use super::{Status, Timings};
 use nalgebra::{SMatrix, SVector};
 
@@ -16,6 +17,8 @@ pub struct Iterate<const NX: usize, const NW: usize, const NC: usize> {
     pub z_lo: Vec<SVector<f64, NC>>,
     pub z_hi: Vec<SVector<f64, NC>>,
     pub y: Vec<f64>,
+    /// The global variables and their multipliers (empty without globals).
+    pub globals: GlobalIterate,
 }
 
 /// The result of a solve.
@@ -67,6 +70,7 @@ pub(super) struct Step<const NX: usize, const NW: usize, const NC: usize> {
     pub(super) dz_lo: Vec<SVector<f64, NC>>,
     pub(super) dz_hi: Vec<SVector<f64, NC>>,
     pub(super) y: Vec<f64>,
+    pub(super) globals: GlobalStep,
 }
 
 /// Residual measures at an iterate.

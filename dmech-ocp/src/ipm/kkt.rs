@@ -70,6 +70,12 @@ where
         dc: f64,
         tm: &mut Timings,
     ) -> Result<(Step<NX, NW, NC>, f64), String> {
+        if self.opts.kkt == KktMethod::SparseLdlt {
+            return self.newton_step_sparse(it, ws, inertia, mu, dc, tm);
+        }
+        if self.globals.is_some() {
+            return self.newton_step_global(it, ws, inertia, mu, dc, tm);
+        }
         let t1 = Instant::now();
         let n = self.n;
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
@@ -103,7 +109,7 @@ where
             }
         };
         inertia.succeeded(delta);
-        let step = self.recover(it, ders, elim, sol, mu, dc);
+        let step = self.recover(it, ders, elim, sol, mu, dc, None);
         tm.kkt += t1.elapsed().as_secs_f64();
         Ok((step, delta))
     }
@@ -123,37 +129,7 @@ where
         lq: &mut LqStage<NX, NU>,
         el: &mut Elimination<NX, NW, NU>,
     ) -> Result<(), String> {
-        let b = &self.bounds[k];
-        // Inequalities: Σ and the barrier gradient term.
-        let mut sigma = SVector::<f64, NC>::zeros();
-        let mut bc = SVector::<f64, NC>::zeros();
-        for i in 0..NC {
-            if b.has_lo[i] > 0.0 {
-                let s = it.z_lo[k][i] / it.t_lo[k][i];
-                let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
-                sigma[i] += s;
-                bc[i] -= mu / it.t_lo[k][i] - s * r;
-            }
-            if b.has_hi[i] > 0.0 {
-                let s = it.z_hi[k][i] / it.t_hi[k][i];
-                let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
-                sigma[i] += s;
-                bc[i] += mu / it.t_hi[k][i] - s * r;
-            }
-        }
-        let cx_s = SMatrix::<f64, NX, NC>::from_fn(|i, j| d.cx[(j, i)] * sigma[j]);
-        let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
-        let (mut hxx0, mut hxw0, mut hww0) = (d.hxx, d.hxw, d.hww);
-        if let Some(q) = qn {
-            hxx0 += q.bxx;
-            hxw0 += q.bxw;
-            hww0 += q.bww;
-        }
-        let hxx = hxx0 + cx_s * d.cx;
-        let hxw = hxw0 + cx_s * d.cw;
-        let hww = hww0 + cw_s * d.cw;
-        let gx = d.gx + d.cx.transpose() * bc;
-        let gw = d.gw + d.cw.transpose() * bc;
+        let (hxx, hxw, hww, gx, gw) = self.stage_hessian(k, it, d, qn, mu);
 
         // δw = w0 + wx δx + wu δu, with δv from the linearised stage equality.
         let Elimination { w0, wx, wu } = el;
@@ -202,6 +178,58 @@ where
         lq.b = d.fw * wu;
         lq.c = d.f + fw_v * d0 - it.x[k + 1];
         Ok(())
+    }
+
+    /// Stage `k`'s Hessian and gradient with its inequalities eliminated: the cost's and the
+    /// inequalities' curvature (and the SR1 blocks), `Cᵀ Σ C`, and the barrier terms.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn stage_hessian(
+        &self,
+        k: usize,
+        it: &Iterate<NX, NW, NC>,
+        d: &StageDerivatives<NX, NW, NE, NC>,
+        qn: Option<&QuasiNewton<NX, NW, NE>>,
+        mu: f64,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+        SVector<f64, NX>,
+        SVector<f64, NW>,
+    ) {
+        let b = &self.bounds[k];
+        // Inequalities: Σ and the barrier gradient term.
+        let mut sigma = SVector::<f64, NC>::zeros();
+        let mut bc = SVector::<f64, NC>::zeros();
+        for i in 0..NC {
+            if b.has_lo[i] > 0.0 {
+                let s = it.z_lo[k][i] / it.t_lo[k][i];
+                let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
+                sigma[i] += s;
+                bc[i] -= mu / it.t_lo[k][i] - s * r;
+            }
+            if b.has_hi[i] > 0.0 {
+                let s = it.z_hi[k][i] / it.t_hi[k][i];
+                let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
+                sigma[i] += s;
+                bc[i] += mu / it.t_hi[k][i] - s * r;
+            }
+        }
+        let cx_s = SMatrix::<f64, NX, NC>::from_fn(|i, j| d.cx[(j, i)] * sigma[j]);
+        let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
+        let (mut hxx0, mut hxw0, mut hww0) = (d.hxx, d.hxw, d.hww);
+        if let Some(q) = qn {
+            hxx0 += q.bxx;
+            hxw0 += q.bxw;
+            hww0 += q.bww;
+        }
+        let hxx = hxx0 + cx_s * d.cx;
+        let hxw = hxw0 + cx_s * d.cw;
+        let hww = hww0 + cw_s * d.cw;
+        let gx = d.gx + d.cx.transpose() * bc;
+        let gw = d.gw + d.cw.transpose() * bc;
+
+        (hxx, hxw, hww, gx, gw)
     }
 
     /// The terminal stage of the LQ problem: the terminal cost's curvature and gradient and
@@ -259,7 +287,15 @@ where
         for &j in &self.eqs_at[k] {
             gx[self.eqs[j].index] = 0.0;
         }
-        let dual = if k > 0 { gx.amax() } else { 0.0 }.max(gw.amax());
+        // The globals' copies are not free per stage: their gradient is summed over the
+        // stages into the globals' own (`globals.rs`).
+        let nt = self.globals.as_ref().map_or(0, |g| g.g.per_stage);
+        let gw_own = if nt == 0 {
+            gw.amax()
+        } else {
+            gw.rows(0, NW - nt).amax()
+        };
+        let dual = if k > 0 { gx.amax() } else { 0.0 }.max(gw_own);
         let mut primal = (d.f - it.x[k + 1]).amax().max(d.e.amax());
         let b = &self.bounds[k];
         for i in 0..NC {
@@ -285,6 +321,7 @@ where
         &self,
         it: &Iterate<NX, NW, NC>,
         terminal: &TerminalDerivatives<NX>,
+        ders: &[StageDerivatives<NX, NW, NE, NC>],
         per_stage: impl Iterator<Item = StageKkt>,
     ) -> KktError {
         let n = self.n;
@@ -322,6 +359,16 @@ where
             mult_sum += it.y[j].abs();
             mult_cnt += 1.0;
         }
+        let mut global_dual = 0.0f64;
+        if let Some(gs) = &self.globals {
+            let gi = &it.globals;
+            global_dual = self.global_gradient(it, ders).amax();
+            primal = primal.max(gs.violation(&gi.p).1);
+            let m = gi.y.iter().chain(&gi.z_lo).chain(&gi.z_hi);
+            mult_sum += m.clone().map(|v| v.abs()).sum::<f64>();
+            mult_cnt += m.count() as f64;
+        }
+        dual = dual.max(global_dual);
         let s_max = 100.0;
         let s_d = (mult_sum / mult_cnt.max(1.0)).max(s_max) / s_max;
         KktError {
@@ -344,6 +391,9 @@ where
                     compl = compl.max((it.t_hi[k][i] * it.z_hi[k][i] - mu).abs());
                 }
             }
+        }
+        if let Some(gs) = &self.globals {
+            compl = compl.max(gs.complementarity(&it.globals, mu));
         }
         compl / s_d
     }
@@ -511,6 +561,6 @@ where
             .ok()?;
         swept.ok()?;
         let sol = sweep.forward(lq, &SVector::zeros());
-        Some(self.recover(it, ders, elim, sol, mu, dc))
+        Some(self.recover(it, ders, elim, sol, mu, dc, None))
     }
 }

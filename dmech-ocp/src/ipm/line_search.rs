@@ -47,6 +47,27 @@ where
                 }
             }
         }
+        if let Some(gs) = &self.globals {
+            let (gi, gd) = (&it.globals, &step.globals);
+            for j in 0..gi.p.len() {
+                if gs.has_lo[j] {
+                    if gd.dp[j] < 0.0 {
+                        amax_p = amax_p.min(-tau * (gi.p[j] - gs.g.lo[j]) / gd.dp[j]);
+                    }
+                    if gd.dz_lo[j] < 0.0 {
+                        amax_d = amax_d.min(-tau * gi.z_lo[j] / gd.dz_lo[j]);
+                    }
+                }
+                if gs.has_hi[j] {
+                    if gd.dp[j] > 0.0 {
+                        amax_p = amax_p.min(tau * (gs.g.hi[j] - gi.p[j]) / gd.dp[j]);
+                    }
+                    if gd.dz_hi[j] < 0.0 {
+                        amax_d = amax_d.min(-tau * gi.z_hi[j] / gd.dz_hi[j]);
+                    }
+                }
+            }
+        }
         (amax_p, amax_d)
     }
 
@@ -57,7 +78,7 @@ where
         a: f64,
     ) -> Iterate<NX, NW, NC> {
         let n = self.n;
-        Iterate {
+        let mut trial = Iterate {
             x: (0..=n).map(|k| it.x[k] + s.dx[k] * a).collect(),
             w: (0..n).map(|k| it.w[k] + s.dw[k] * a).collect(),
             lambda: (0..n)
@@ -73,7 +94,20 @@ where
                 .zip(&s.y)
                 .map(|(y0, y1)| y0 + (y1 - y0) * a)
                 .collect(),
+            globals: it.globals.clone(),
+        };
+        if self.globals.is_some() {
+            let (g, gd) = (&mut trial.globals, &s.globals);
+            for (p, dp) in g.p.iter_mut().zip(&gd.dp) {
+                *p += dp * a;
+            }
+            for (y0, y1) in g.y.iter_mut().zip(&gd.y) {
+                *y0 += (y1 - *y0) * a;
+            }
+            // The decisions' copies of the globals exactly equal to them.
+            self.sync_globals(&mut trial);
         }
+        trial
     }
 }
 
@@ -191,20 +225,31 @@ where
                 let mut found = None;
                 for _ in 0..SOC_MAX {
                     let t_soc = Instant::now();
-                    let Some(sstep) = self.second_order_correction(
-                        it,
-                        &ws.ders,
-                        &ws.qn,
-                        &ws.terminal,
-                        &soc_vals,
-                        &soc_trial,
-                        soc_alpha,
-                        mu,
-                        dc,
-                        delta,
-                        &mut ws.lq,
-                        &mut ws.elim,
-                    ) else {
+                    let sstep = if self.opts.kkt == KktMethod::SparseLdlt {
+                        self.sparse_correction(
+                            it, ws, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
+                        )
+                    } else if self.globals.is_some() {
+                        self.global_correction(
+                            it, ws, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
+                        )
+                    } else {
+                        self.second_order_correction(
+                            it,
+                            &ws.ders,
+                            &ws.qn,
+                            &ws.terminal,
+                            &soc_vals,
+                            &soc_trial,
+                            soc_alpha,
+                            mu,
+                            dc,
+                            delta,
+                            &mut ws.lq,
+                            &mut ws.elim,
+                        )
+                    };
+                    let Some(sstep) = sstep else {
                         break;
                     };
                     tm.kkt += t_soc.elapsed().as_secs_f64();
@@ -268,6 +313,18 @@ where
                 }
                 if b.has_hi[i] > 0.0 {
                     dphi -= mu * step.dt_hi[k][i] / it.t_hi[k][i];
+                }
+            }
+        }
+        if let Some(gs) = &self.globals {
+            let (gi, gd) = (&it.globals, &step.globals);
+            for j in 0..gi.p.len() {
+                dphi += gs.g.cost[j] * gd.dp[j];
+                if gs.has_lo[j] {
+                    dphi -= mu * gd.dp[j] / (gi.p[j] - gs.g.lo[j]);
+                }
+                if gs.has_hi[j] {
+                    dphi += mu * gd.dp[j] / (gs.g.hi[j] - gi.p[j]);
                 }
             }
         }

@@ -67,11 +67,20 @@ where
             add(it.x[e.stage][e.index] - e.value);
         }
         obj += self.p.terminal_cost(&it.x[self.n]);
+        let mut barrier = obj - mu * logs;
+        if let Some(gs) = &self.globals {
+            let (sum, max) = gs.violation(&it.globals.p);
+            theta += sum;
+            theta_max = theta_max.max(max);
+            let c = gs.cost(&it.globals.p);
+            obj += c;
+            barrier += c + gs.log_barrier(&it.globals.p, mu);
+        }
         Measures {
             theta,
             theta_max,
             objective: obj,
-            barrier: obj - mu * logs,
+            barrier,
         }
     }
 

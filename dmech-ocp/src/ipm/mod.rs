@@ -28,6 +28,7 @@ use std::time::Instant;
 
 mod derivative_pass;
 mod filter;
+mod globals;
 mod inertia;
 mod iterate;
 mod kkt;
@@ -39,16 +40,19 @@ mod quasi_newton;
 mod recovery;
 mod restoration;
 mod scaling;
+mod sparse_step;
 mod start;
 
 use derivative_pass::Workspace;
 use filter::Filter;
+pub use globals::GlobalIterate;
+use globals::GlobalSpec;
 use inertia::InertiaCorrection;
 use iterate::{Bounds, Elimination, Measures, Step};
 pub use iterate::{Iterate, SolveResult};
 use kkt::{KktError, StageAux};
 use line_search::LineSearch;
-pub use options::{IpOptions, Status, Timings};
+pub use options::{IpOptions, KktMethod, Status, Timings};
 use parallel::{par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
 use quasi_newton::QuasiNewton;
 use restoration::Restored;
@@ -151,6 +155,10 @@ pub struct Solver<
     bounds: Vec<Bounds<NC>>,
     eqs: Vec<StateEquality>,
     eqs_at: Vec<Vec<usize>>,
+    /// The problem's global variables, if any (`globals.rs`).
+    globals: Option<GlobalSpec>,
+    /// The sparse KKT matrix's symbolic factorisation, once the sparse path needs it.
+    sparse: std::sync::OnceLock<Result<crate::sparse_kkt::SparseKkt, String>>,
 }
 
 impl<
@@ -165,9 +173,23 @@ impl<
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
+    /// The solver of `p`. Panics if the sizes do not fit (`NU` must be `NW − NE`, less the
+    /// globals' copies per stage) or the problem's globals are inconsistent: programming
+    /// errors of the problem's definition, reported with both sides.
     pub fn new(p: &'a P, opts: IpOptions) -> Self {
-        assert_eq!(NE + NU, NW, "NU must be NW − NE");
         let n = p.horizon();
+        let globals = p.globals().map(|g| {
+            if let Err(e) = g.check(n, NW) {
+                panic!("{e}");
+            }
+            GlobalSpec::new(g)
+        });
+        let nt = globals.as_ref().map_or(0, |g| g.g.per_stage);
+        assert_eq!(
+            NE + NU + nt,
+            NW,
+            "NU must be NW − NE − (globals per stage {nt})"
+        );
         let bounds = (0..n)
             .map(|k| {
                 let (lo, hi) = p.bounds(k);
@@ -192,6 +214,8 @@ where
             bounds,
             eqs,
             eqs_at,
+            globals,
+            sparse: Default::default(),
         }
     }
     /// Solve from `start`. A problem whose cost per stage at the start is below one is
@@ -226,6 +250,8 @@ where
             bounds: self.bounds.clone(),
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
+            globals: self.globals.clone().map(|g| g.with_cost_scaled(c)),
+            sparse: Default::default(),
         };
         // A cold start (no equality multipliers) has the initial bound multipliers 1 of
         // `initial_iterate`, IPOPT's initial value for the problem the solver works on;
@@ -248,6 +274,8 @@ where
             bounds: self.bounds.clone(),
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
+            globals: self.globals.clone(),
+            sparse: Default::default(),
         }
     }
 
@@ -320,7 +348,7 @@ where
                 }
             }
             self.derivative_pass(&it, &mut ws, &mut tm);
-            let kkt = self.kkt_error(&it, &ws.terminal, ws.aux.iter().map(|a| a.kkt));
+            let kkt = self.kkt_error(&it, &ws.terminal, &ws.ders, ws.aux.iter().map(|a| a.kkt));
             let compl0 = self.complementarity(&it, 0.0, kkt.s_d);
             self.print_row(iter, &m, &kkt, mu, inertia.last, &last, t_start);
             if kkt.dual <= o.tol && compl0 <= o.tol && kkt.primal <= o.constr_viol_tol {
@@ -497,6 +525,21 @@ where
                     let z = it.z_hi[k][i] + alpha_dual * step.dz_hi[k][i];
                     let t = trial.t_hi[k][i];
                     trial.z_hi[k][i] = z.clamp(mu / (KAPPA_SIGMA * t), KAPPA_SIGMA * mu / t);
+                }
+            }
+        }
+        if let Some(gs) = &self.globals {
+            let (g, gd) = (&mut trial.globals, &step.globals);
+            for j in 0..g.p.len() {
+                if gs.has_lo[j] {
+                    let t = g.p[j] - gs.g.lo[j];
+                    let z = it.globals.z_lo[j] + alpha_dual * gd.dz_lo[j];
+                    g.z_lo[j] = z.clamp(mu / (KAPPA_SIGMA * t), KAPPA_SIGMA * mu / t);
+                }
+                if gs.has_hi[j] {
+                    let t = gs.g.hi[j] - g.p[j];
+                    let z = it.globals.z_hi[j] + alpha_dual * gd.dz_hi[j];
+                    g.z_hi[j] = z.clamp(mu / (KAPPA_SIGMA * t), KAPPA_SIGMA * mu / t);
                 }
             }
         }

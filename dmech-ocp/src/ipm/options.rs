@@ -32,6 +32,20 @@ pub struct IpOptions {
     pub sr1_skip: f64,
     /// Wall-clock limit in seconds (reported as `TimeLimit`).
     pub time_limit: f64,
+    /// How the Newton step's linear system is solved (`docs/ocp.md`, "Free waypoint
+    /// timing": measured, the Riccati recursion is the faster).
+    pub kkt: KktMethod,
+}
+
+/// The linear algebra of the Newton step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum KktMethod {
+    /// The Riccati recursion over the stages, augmented by the globals' columns (Schur
+    /// complement) when the problem has globals.
+    #[default]
+    Riccati,
+    /// The whole condensed KKT matrix by faer's sparse `LDLᵀ` ([`crate::sparse_kkt`]).
+    SparseLdlt,
 }
 
 impl IpOptions {
@@ -59,6 +73,7 @@ impl Default for IpOptions {
             quasi_newton: true,
             sr1_skip: 1e-2,
             time_limit: f64::INFINITY,
+            kkt: KktMethod::Riccati,
         }
     }
 }

@@ -45,11 +45,15 @@ where
         t_start: Instant,
     ) -> SolveResult<NX, NW, NC> {
         tm.total = t_start.elapsed().as_secs_f64();
-        let objective = (0..self.n)
+        let mut objective = (0..self.n)
             .map(|k| self.p.cost(k, &it.x[k], &it.w[k]))
             .sum::<f64>()
             + self.p.terminal_cost(&it.x[self.n]);
-        let max_violation = self.max_violation(&it.x, &it.w);
+        let mut max_violation = self.max_violation(&it.x, &it.w);
+        if let Some(gs) = &self.globals {
+            objective += gs.cost(&it.globals.p);
+            max_violation = max_violation.max(gs.violation(&it.globals.p).1);
+        }
         SolveResult {
             status,
             iterate: it,
@@ -60,6 +64,9 @@ where
         }
     }
 
+    /// The step from the LQ solution: each stage's decision (with `dw_globals[k]` added,
+    /// the globals' part of a problem that has them), slacks and bound multipliers, and the
+    /// state equalities' multipliers.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn recover(
         &self,
@@ -69,6 +76,7 @@ where
         sol: LqSolution<NX, NU>,
         mu: f64,
         dc: f64,
+        dw_globals: Option<&[SVector<f64, NW>]>,
     ) -> Step<NX, NW, NC> {
         let LqSolution {
             x: dx,
@@ -87,6 +95,9 @@ where
             |k, (dwk, [dt_lo, dt_hi, dz_lo, dz_hi])| {
                 let c = &elim[k];
                 *dwk = c.w0 + c.wx * dx[k] + c.wu * du[k];
+                if let Some(g) = dw_globals {
+                    *dwk += g[k];
+                }
                 let d = &ders[k];
                 let cd = d.cx * dx[k] + d.cw * *dwk;
                 let b = &self.bounds[k];
@@ -128,6 +139,7 @@ where
             dz_lo,
             dz_hi,
             y,
+            globals: Default::default(),
         }
     }
 }

@@ -157,6 +157,14 @@ where
     ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
         self.p.equality_jacobian(k, x, w)
     }
+    /// The globals stay, with their equalities and bounds hard (they can always be met)
+    /// and without their cost.
+    fn globals(&self) -> Option<crate::problem::Globals> {
+        self.p.globals().map(|mut g| {
+            g.cost.iter_mut().for_each(|v| *v = 0.0);
+            g
+        })
+    }
 }
 
 /// How a restoration ended.

@@ -77,6 +77,12 @@ where
     fn affine_in_state(&self) -> bool {
         self.p.affine_in_state()
     }
+    fn globals(&self) -> Option<crate::problem::Globals> {
+        self.p.globals().map(|mut g| {
+            g.cost.iter_mut().for_each(|v| *v *= self.c);
+            g
+        })
+    }
     fn dynamics_jacobian(
         &self,
         k: usize,
@@ -124,9 +130,15 @@ impl<const NX: usize, const NW: usize, const NC: usize> Iterate<NX, NW, NC> {
     pub(super) fn with_duals_scaled(mut self, c: f64, scale_bounds: bool) -> Self {
         self.lambda.iter_mut().for_each(|l| *l *= c);
         self.y.iter_mut().for_each(|y| *y *= c);
+        self.globals.y.iter_mut().for_each(|y| *y *= c);
         if scale_bounds {
             self.z_lo.iter_mut().for_each(|z| *z *= c);
             self.z_hi.iter_mut().for_each(|z| *z *= c);
+            let g = &mut self.globals;
+            g.z_lo
+                .iter_mut()
+                .chain(g.z_hi.iter_mut())
+                .for_each(|z| *z *= c);
         }
         self
     }

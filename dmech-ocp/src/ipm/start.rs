@@ -42,9 +42,14 @@ where
             z_lo: vec![SVector::zeros(); self.n],
             z_hi: vec![SVector::zeros(); self.n],
             y: vec![0.0; self.eqs.len()],
+            globals: self
+                .globals
+                .as_ref()
+                .map_or_else(GlobalIterate::default, |g| g.start(None)),
             x,
             w,
         };
+        self.sync_globals(&mut it);
         for k in 0..self.n {
             let c = self.p.constraints(k, &it.x[k], &it.w[k]);
             let b = &self.bounds[k];
@@ -77,6 +82,38 @@ where
         let mut it = prev;
         it.x[0] = self.p.initial_state();
         let mu = self.opts.mu_init;
+        if let Some(gs) = &self.globals {
+            // Globals from the previous solution if it has them (kept, with their
+            // multipliers floored as the stages' below), else the problem's start.
+            let prev = std::mem::take(&mut it.globals);
+            let mut g = gs.start((prev.p.len() == gs.g.len()).then_some(&prev.p[..]));
+            if prev.p.len() == gs.g.len() && prev.y.len() == g.y.len() {
+                g.y = prev.y;
+                for j in 0..g.p.len() {
+                    if gs.has_lo[j] {
+                        let t = g.p[j] - gs.g.lo[j];
+                        g.z_lo[j] = prev.z_lo[j].max(WARM_MULT_FLOOR * mu / t);
+                    }
+                    if gs.has_hi[j] {
+                        let t = gs.g.hi[j] - g.p[j];
+                        g.z_hi[j] = prev.z_hi[j].max(WARM_MULT_FLOOR * mu / t);
+                    }
+                }
+            } else {
+                // No globals before (a fixed-timing start): their bound multipliers on this
+                // barrier's central path.
+                for j in 0..g.p.len() {
+                    if gs.has_lo[j] {
+                        g.z_lo[j] = mu / (g.p[j] - gs.g.lo[j]);
+                    }
+                    if gs.has_hi[j] {
+                        g.z_hi[j] = mu / (gs.g.hi[j] - g.p[j]);
+                    }
+                }
+            }
+            it.globals = g;
+            self.sync_globals(&mut it);
+        }
         for k in 0..self.n {
             let c = self.p.constraints(k, &it.x[k], &it.w[k]);
             let b = &self.bounds[k];

@@ -16,7 +16,8 @@ use super::simulate::Integrator;
 use super::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, SolveResult};
+use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
+use dmech_ocp::ipm::{IpOptions, SolveResult, Solver};
 use dmech_ocp::layout::Layout;
 use dmech_ocp::sequencing::{continuation, mesh_sequence, SequenceSettings, SequencedPlan};
 use dmech_ocp::transcription::{
@@ -245,6 +246,19 @@ impl<M: PlanModel<NS>, const NS: usize> PlanningProblem<3, NS, 2, NC> for WipPla
         // linearly.
         true
     }
+    /// The rate limit divides by the stage's actual step; the cost is the default's
+    /// `ratio · cost` (the energy of the stage at its step, in units of the nominal one).
+    fn constraints_at_step<T: Real>(
+        &self,
+        k: usize,
+        stage: &Stage<T, 3, NS, 2>,
+        ratio: T,
+    ) -> SVector<T, NC> {
+        let mut c = PlanningProblem::constraints(self, k, stage);
+        c[2] /= ratio;
+        c[3] /= ratio;
+        c
+    }
 }
 
 /// The WIP on a variational integrator (first order or midpoint).
@@ -351,6 +365,8 @@ pub struct PlanOutcome {
     pub max_violation: f64,
     pub timings: dmech_ocp::ipm::Timings,
     pub trajectory: PlannedTrajectory,
+    /// The stage times of a plan with free timing (`None`: `k h`).
+    pub times: Option<Vec<f64>>,
 }
 
 /// The solution in the full model's terms: the algebraic-current model's currents from
@@ -404,6 +420,7 @@ fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
         max_violation: r.max_violation,
         timings: r.timings,
         trajectory: t,
+        times: None,
     }
 }
 
@@ -452,30 +469,7 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
     let models = friction_continuation(model, stiff_explicit && M::CURRENT_DYNAMICS);
     match transcription {
         Transcription::VarInt(disc) => {
-            let seq = WipSequence {
-                model,
-                models,
-                bounds,
-                disc,
-            };
-            let settings = SequenceSettings {
-                coarsest_step: MESH_COARSEST_STEP,
-                restart_barrier: MESH_RESTART_BARRIER,
-                coarse_tol: MESH_COARSE_TOL,
-            };
-            let verbose = opts.verbose;
-            let progress = |m: &str| {
-                if verbose {
-                    crate::progress!("{m}");
-                }
-            };
-            let r = mesh_sequence::<_, NX, NW, NS, 2, NC>(
-                &seq,
-                problem.clone(),
-                settings,
-                opts,
-                &progress,
-            );
+            let r = varint_solve::<M, NS, NX, NW>(model, models, problem, bounds, disc, opts);
             let traj = varint_plan::<M, NS>(model, problem, bounds, disc)
                 .trajectory::<NS, NX, NW, NC>(&r.iterate);
             outcome::<M, NS, NX, NW>(model, r, traj, true)
@@ -498,6 +492,134 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
             outcome::<M, NS, NX, 2>(model, r, traj, false)
         }
     }
+}
+
+/// The VI plan by mesh sequencing over the friction continuation's `models`.
+fn varint_solve<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
+    model: &M,
+    models: Vec<M>,
+    problem: &PlanProblem,
+    bounds: PlanBounds,
+    disc: Discretisation,
+    opts: IpOptions,
+) -> SolveResult<NX, NW, NC> {
+    let seq = WipSequence {
+        model,
+        models,
+        bounds,
+        disc,
+    };
+    let settings = SequenceSettings {
+        coarsest_step: MESH_COARSEST_STEP,
+        restart_barrier: MESH_RESTART_BARRIER,
+        coarse_tol: MESH_COARSE_TOL,
+    };
+    let verbose = opts.verbose;
+    let progress = |m: &str| {
+        if verbose {
+            crate::progress!("{m}");
+        }
+    };
+    mesh_sequence::<_, NX, NW, NS, 2, NC>(&seq, problem.clone(), settings, opts, &progress)
+}
+
+/// Bounds on each segment's step ratio `h_j / h` in a plan with free timing: within a
+/// factor of two of the nominal step, so that the first-order integrator's error stays
+/// within twice that of the fixed-timing plan.
+pub const FREE_TIMING_RATIOS: (f64, f64) = (0.5, 2.0);
+
+/// The barrier the free-timing solve starts at from the fixed plan's solution. At the
+/// fixed optimum the bounds that will move (voltage rates, currents) are active; a small
+/// barrier holds their slacks within it, and the fraction-to-the-boundary rule cut the
+/// first steps to 1e-2. Measured (iterations of the free solve; zigzag and eight at
+/// 20 ms): 1e-4: failed after 191 / –; 1e-3: 49 / 91; 1e-2: 32 / 44; 1e-1: 65 / –; at
+/// 5 ms 1e-4 took 268 / 412, 1e-2 74 / 152.
+const FREE_TIMING_BARRIER: f64 = 1e-2;
+
+/// A plan with free waypoint timing, and the fixed-timing plan it started from.
+pub struct FreeTimingOutcome {
+    pub fixed: PlanOutcome,
+    pub free: PlanOutcome,
+    /// Each segment's step ratio `h_j / h`, between consecutive waypoints.
+    pub ratios: Vec<f64>,
+}
+
+/// The plan with free waypoint timing (the first-order VI; total time fixed): the
+/// fixed-timing plan by mesh sequencing, then, from its solution, the problem whose
+/// segments between waypoints each have their own step `h_j = σ_j h`, `σ_j` in
+/// [`FREE_TIMING_RATIOS`], `Σ N_j σ_j = N` ([`dmech_ocp::free_timing`]). The fixed
+/// timing is a feasible point of the free problem, so its objective is an upper bound.
+pub fn plan_free_timing(
+    wip: &Wip,
+    problem: &PlanProblem,
+    bounds: PlanBounds,
+    current: CurrentModel,
+    opts: IpOptions,
+) -> Result<FreeTimingOutcome, String> {
+    match current {
+        CurrentModel::Dynamic => free_model::<Wip, 5, NX, 7, 9>(wip, problem, bounds, opts),
+        CurrentModel::Algebraic => free_model::<_, 3, NX_ALGEBRAIC, 5, 7>(
+            &WipAlgebraicCurrent::new(*wip),
+            problem,
+            bounds,
+            opts,
+        ),
+    }
+}
+
+/// [`plan_free_timing`] for one model: `NW0` the fixed-timing decision size, `NW = NW0 + 2`.
+fn free_model<
+    M: PlanModel<NS>,
+    const NS: usize,
+    const NX: usize,
+    const NW0: usize,
+    const NW: usize,
+>(
+    model: &M,
+    problem: &PlanProblem,
+    bounds: PlanBounds,
+    opts: IpOptions,
+) -> Result<FreeTimingOutcome, String> {
+    let disc = Discretisation::FirstOrder;
+    let models = friction_continuation(model, false);
+    let r = varint_solve::<M, NS, NX, NW0>(model, models, problem, bounds, disc, opts.clone());
+    let traj = varint_plan::<M, NS>(model, problem, bounds, disc)
+        .trajectory::<NS, NX, NW0, NC>(&r.iterate);
+    let start = r.iterate.clone();
+    let fixed = outcome::<M, NS, NX, NW0>(model, r, traj, true);
+    let timing = FreeTiming {
+        segment_starts: problem.stages[..problem.stages.len() - 1].to_vec(),
+        ratio_bounds: FREE_TIMING_RATIOS,
+        total: TotalTime::Fixed,
+    };
+    let ft = FreeTimingTranscription::new::<NS, NC>(
+        varint_plan::<M, NS>(model, problem, bounds, disc),
+        timing,
+    )
+    .map_err(|e| e.to_string())?;
+    if opts.verbose {
+        crate::progress!(
+            "free timing: {} segments, step ratios in [{}, {}], from the fixed-timing plan",
+            ft.segments(),
+            FREE_TIMING_RATIOS.0,
+            FREE_TIMING_RATIOS.1
+        );
+    }
+    let o = IpOptions {
+        mu_init: FREE_TIMING_BARRIER,
+        ..opts
+    };
+    let s: Solver<_, NX, NW, NS, 2, NC> = Solver::new(&ft, o);
+    let r = s.solve(s.warm_iterate(ft.start_from_fixed::<NX, NW0, NW, NC>(start)));
+    let (ratios, _) = ft.times(&r.iterate);
+    let (plan, times) = ft.trajectory::<NS, NX, NW, NC>(&r.iterate);
+    let mut free = outcome::<M, NS, NX, NW>(model, r, plan, true);
+    free.times = Some(times);
+    Ok(FreeTimingOutcome {
+        fixed,
+        free,
+        ratios,
+    })
 }
 
 /// The coarsest step of mesh sequencing: the VI plan starts on the mesh of step

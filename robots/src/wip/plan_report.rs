@@ -14,7 +14,10 @@ pub fn reduced_trajectory(wip: &Wip, o: &PlanOutcome) -> Trajectory {
     let t = &o.trajectory;
     let n = t.g.len();
     Trajectory {
-        t: (0..n).map(|k| k as f64 * t.h).collect(),
+        t: match &o.times {
+            Some(times) => times.clone(),
+            None => (0..n).map(|k| k as f64 * t.h).collect(),
+        },
         x: (0..n)
             .map(|k| {
                 let g = Se2::new(t.g[k][0], t.g[k][1], t.g[k][2]);

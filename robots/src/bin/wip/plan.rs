@@ -4,10 +4,10 @@ use crate::common::{
     check_size, load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg,
     Failure, IntegratorArg,
 };
-use dmech_ocp::ipm::{IpOptions, Status};
+use dmech_ocp::ipm::{IpOptions, KktMethod, Status};
 use robots::io::OutputSet;
 use robots::wip::benchmarks;
-use robots::wip::plan::{plan, PlanBounds};
+use robots::wip::plan::{plan, plan_free_timing, PlanBounds};
 use robots::wip::plan_report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
 use robots::wip::simulate::trajectory_csv;
 use robots::wip::Wip;
@@ -61,9 +61,25 @@ pub struct PlanArgs {
     /// Worker threads of the solver (default: all cores, at most 8)
     #[arg(long, value_name = "N", value_parser = thread_count)]
     threads: Option<usize>,
+    /// Free waypoint timing: the planner chooses when each waypoint is reached (each
+    /// segment's step within [0.5, 2] of --step, total time fixed), starting from the fixed
+    /// timing's plan (docs/ocp.md, "Free waypoint timing"). Needs --integrator varint
+    #[arg(long)]
+    free_timing: bool,
+    /// Linear algebra of the Newton step: the Riccati recursion (augmented by the globals
+    /// of --free-timing) or faer's sparse LDLᵀ of the whole KKT matrix (docs/ocp.md)
+    #[arg(long, value_enum, default_value_t = KktArg::Riccati)]
+    kkt: KktArg,
     /// No iteration table on stderr
     #[arg(long)]
     quiet: bool,
+}
+
+/// `--kkt`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum KktArg {
+    Riccati,
+    Sparse,
 }
 
 /// `--u-max`: a voltage bound in (0, 5] V (the motors' supply is 5 V).
@@ -106,6 +122,15 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         BYTES_PER_STAGE,
         "--max-stages",
     )?;
+    if a.free_timing && a.integrator != IntegratorArg::Varint {
+        return Err(usage_error(
+            "plan",
+            format!(
+                "--free-timing needs --integrator varint (got {})",
+                a.integrator.name()
+            ),
+        ));
+    }
     let wip = Wip::new(load_params(a.params.as_deref())?);
     let mut files = OutputSet::create(&a.out)?;
     let defaults = IpOptions::default();
@@ -113,6 +138,10 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         verbose: !a.quiet,
         max_iter: a.max_iter,
         threads: a.threads.unwrap_or(defaults.threads),
+        kkt: match a.kkt {
+            KktArg::Riccati => KktMethod::Riccati,
+            KktArg::Sparse => KktMethod::SparseLdlt,
+        },
         ..defaults
     };
     let (integrator, current) = (a.integrator.name(), a.current.model().name());
@@ -130,14 +159,30 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         u_max: a.u_max,
         ..PlanBounds::default()
     };
-    let o = plan(
-        &wip,
-        &problem,
-        bounds,
-        a.integrator.transcription(),
-        a.current.model(),
-        opts,
-    );
+    let (o, free) = if a.free_timing {
+        let f = plan_free_timing(&wip, &problem, bounds, a.current.model(), opts)
+            .map_err(|e| Failure::Run(e.to_string()))?;
+        let fixed = (f.fixed.objective, f.fixed.iterations, f.fixed.timings.total);
+        say!(
+            "{}: fixed timing {} after {} iterations in {:.2} s, objective {:.6}",
+            problem.name,
+            f.fixed.status.code(),
+            fixed.1,
+            fixed.2,
+            fixed.0
+        );
+        (f.free, Some((fixed, f.ratios)))
+    } else {
+        let o = plan(
+            &wip,
+            &problem,
+            bounds,
+            a.integrator.transcription(),
+            a.current.model(),
+            opts,
+        );
+        (o, None)
+    };
     let traj = reduced_trajectory(&wip, &o);
     let csv = trajectory_csv(&traj)?;
     files.write("trajectory.csv", csv.as_bytes())?;
@@ -151,6 +196,28 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         &bounds,
         setup,
     );
+    let summary = match &free {
+        None => summary,
+        Some(((objective, iterations, time), ratios)) => {
+            let mut v: serde_json::Value =
+                serde_json::from_str(&summary).expect("summary_json writes JSON");
+            let t = &traj.t;
+            let durations: Vec<f64> = problem
+                .stages
+                .windows(2)
+                .map(|w| t[w[1]] - t[w[0]])
+                .collect();
+            v["free_timing"] = serde_json::json!({
+                "step_ratios": ratios,
+                "segment_durations_s": durations,
+                "waypoint_times_s": problem.stages.iter().map(|&k| t[k]).collect::<Vec<f64>>(),
+                "fixed_timing": {
+                    "objective": objective, "iterations": iterations, "solve_time_s": time
+                }
+            });
+            serde_json::to_string_pretty(&v).expect("JSON") + "\n"
+        }
+    };
     files.write("summary.json", summary.as_bytes())?;
     for (name, svg) in plots(&problem, &traj, &bounds) {
         files.write(&name, svg.as_bytes())?;

@@ -1,0 +1,193 @@
+//! The Newton step by faer's sparse `LDLᵀ` of the whole condensed KKT matrix
+//! ([`crate::sparse_kkt`], `IpOptions::kkt = KktMethod::SparseLdlt`): the same condensed
+//! stages and couplings as the Riccati path, the inertia read from `D`, the same inertia
+//! correction. With or without globals.
+
+use super::*;
+use crate::global_riccati::LqCoupling;
+use crate::sparse_kkt::{SparseKkt, SparseKktError};
+
+impl<
+        'a,
+        P,
+        const NX: usize,
+        const NW: usize,
+        const NE: usize,
+        const NU: usize,
+        const NC: usize,
+    > Solver<'a, P, NX, NW, NE, NU, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    /// The pattern's symbolic factorisation, built at the first sparse step of a solve.
+    fn sparse_kkt(&self) -> Result<&SparseKkt, String> {
+        self.sparse
+            .get_or_init(|| {
+                let (ng, ne, supports) = match &self.globals {
+                    Some(gs) => (
+                        gs.g.len(),
+                        gs.g.equalities.len(),
+                        (0..self.n).map(|k| gs.g.support_of(k).to_vec()).collect(),
+                    ),
+                    None => (0, 0, vec![Vec::new(); self.n]),
+                };
+                SparseKkt::new::<NX, NU>(self.n, ng, ne, supports).map_err(|e| format!("{e:?}"))
+            })
+            .as_ref()
+            .map_err(Clone::clone)
+    }
+
+    /// One sparse solve at shift `delta`: `None` if its inertia is wrong or it is
+    /// singular.
+    fn sparse_solve(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ws: &Workspace<NX, NW, NE, NU, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+    ) -> Result<Option<Step<NX, NW, NC>>, String> {
+        let kkt = self.sparse_kkt()?;
+        let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
+        let cps: Vec<LqCoupling<NX, NU, NW>> = ws.couplings.iter().map(|c| c.0.clone()).collect();
+        let terms = self.global_terms(&it.globals, mu, delta);
+        match kkt.solve(
+            &ws.lq,
+            &cps,
+            &q_n,
+            &q_vec_n,
+            &SVector::zeros(),
+            delta,
+            &terms,
+        ) {
+            Ok((sol, dp, y)) => Ok(Some(self.recover_with_globals(
+                it,
+                &ws.ders,
+                &ws.elim,
+                &ws.couplings,
+                sol,
+                &dp,
+                y,
+                mu,
+                dc,
+            ))),
+            Err(SparseKktError::Inertia { .. } | SparseKktError::Singular) => Ok(None),
+            Err(e) => Err(format!("{e:?}")),
+        }
+    }
+
+    /// The Newton step by the sparse path (see [`Solver::newton_step`]).
+    pub(super) fn newton_step_sparse(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        inertia: &mut InertiaCorrection,
+        mu: f64,
+        dc: f64,
+        tm: &mut Timings,
+    ) -> Result<(Step<NX, NW, NC>, f64), String> {
+        let t1 = Instant::now();
+        {
+            let (ders, qn) = (&ws.ders, &ws.qn);
+            let condense = |k: usize, l: &mut LqStage<NX, NU>, e: &mut Elimination<NX, NW, NU>| {
+                self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e)
+            };
+            // The closure borrows `ws` immutably; condense into fresh buffers, then move.
+            let mut lq = std::mem::take(&mut ws.lq);
+            let mut elim = std::mem::take(&mut ws.elim);
+            let failed = std::sync::Mutex::new(None::<(usize, String)>);
+            par_zip(&mut lq, &mut elim, self.opts.threads, |k, l, e| {
+                if let Err(msg) = condense(k, l, e) {
+                    let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
+                    if f.as_ref().is_none_or(|(j, _)| k < *j) {
+                        *f = Some((k, msg));
+                    }
+                }
+            });
+            ws.lq = lq;
+            ws.elim = elim;
+            if let Some((_, msg)) = failed.into_inner().unwrap_or_else(|p| p.into_inner()) {
+                return Err(msg);
+            }
+        }
+        self.fill_couplings(it, ws, mu)?;
+        let mut delta = 0.0;
+        let step = loop {
+            tm.factorizations += 1;
+            let t_r = Instant::now();
+            let r = self.sparse_solve(it, ws, mu, dc, delta)?;
+            tm.riccati += t_r.elapsed().as_secs_f64();
+            match r {
+                Some(s) => break s,
+                None => match inertia.next(delta) {
+                    Some(next) => delta = next,
+                    None => return Err("inertia correction failed".into()),
+                },
+            }
+        };
+        inertia.succeeded(delta);
+        tm.kkt += t1.elapsed().as_secs_f64();
+        Ok((step, delta))
+    }
+
+    /// The couplings of the condensed stages (zero without globals).
+    fn fill_couplings(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        mu: f64,
+    ) -> Result<(), String> {
+        if self.globals.is_some() {
+            let Workspace {
+                ders,
+                elim,
+                qn,
+                couplings,
+                ..
+            } = ws;
+            self.couplings(it, ders, qn, elim, mu, couplings)
+        } else {
+            ws.couplings
+                .resize_with(self.n, || (LqCoupling::zeros(), SMatrix::zeros()));
+            Ok(())
+        }
+    }
+
+    /// The second-order correction by the sparse path (see
+    /// [`Solver::second_order_correction`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn sparse_correction(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        trial_vals: &[StageValues<NX, NE, NC>],
+        trial: &Iterate<NX, NW, NC>,
+        alpha: f64,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+    ) -> Option<Step<NX, NW, NC>> {
+        let mut lq = std::mem::take(&mut ws.lq);
+        let mut elim = std::mem::take(&mut ws.elim);
+        let failed = std::sync::atomic::AtomicBool::new(false);
+        {
+            let (ders, qn) = (&ws.ders, &ws.qn);
+            par_zip(&mut lq, &mut elim, self.opts.threads, |k, l, e| {
+                let mut d = ders[k].clone();
+                let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
+                d.f = it.x[k + 1] + r;
+                d.e = d.e * alpha + trial_vals[k].e;
+                if self.condense(k, it, &d, qn.get(k), mu, dc, l, e).is_err() {
+                    failed.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+            });
+        }
+        ws.lq = lq;
+        ws.elim = elim;
+        if failed.into_inner() {
+            return None;
+        }
+        self.fill_couplings(it, ws, mu).ok()?;
+        self.sparse_solve(it, ws, mu, dc, delta).ok().flatten()
+    }
+}
