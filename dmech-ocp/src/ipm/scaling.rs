@@ -99,6 +99,20 @@ where
     ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
         self.p.equality_jacobian(k, x, w)
     }
+    fn constraint_curvature(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        lambda: &SVector<f64, NX>,
+        nu: &SVector<f64, NE>,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+    ) {
+        self.p.constraint_curvature(k, x, w, lambda, nu)
+    }
 }
 
 /// The objective scale `c = max(1, 1/s)` of `p` at the point `it` (module doc), or `None`

@@ -9,6 +9,7 @@ use robots::car::problems::CarProblem;
 use robots::car::report::{plots, summary_json, CarTrajectory};
 use robots::car::simulate::{simulate, CarIntegrator, CarState};
 use robots::car::Car;
+use robots::cli::HessianArg;
 use robots::io::{parse_input_columns, read_text, OutputSet};
 use robots::{progress, say};
 use std::path::PathBuf;
@@ -63,6 +64,9 @@ struct PlanArgs {
     /// Worker threads of the solver (default: all cores, at most 8)
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=64))]
     threads: Option<u64>,
+    /// Curvature of the constraints in the solver: SR1 (default) or the exact Hessian
+    #[arg(long, value_enum, default_value_t = HessianArg::Sr1)]
+    hessian: HessianArg,
     /// No iteration log
     #[arg(long)]
     quiet: bool,
@@ -167,12 +171,12 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
         );
     }
     let defaults = IpOptions::default();
-    let opts = IpOptions {
+    let opts = a.hessian.apply(IpOptions {
         verbose: !a.quiet,
         max_iter: a.max_iter,
         threads: a.threads.map_or(defaults.threads, |n| n as usize),
         ..defaults
-    };
+    });
     let bounds = CarBounds::default();
     let o = plan(&Car::default(), &problem, bounds, a.step, disc, opts)?;
     let traj = CarTrajectory::from_plan(&o);

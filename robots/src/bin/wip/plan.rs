@@ -5,6 +5,7 @@ use crate::common::{
     Failure, IntegratorArg,
 };
 use dmech_ocp::ipm::{IpOptions, KktMethod, Status};
+use robots::cli::HessianArg;
 use robots::io::OutputSet;
 use robots::wip::benchmarks;
 use robots::wip::plan::{plan, plan_free_timing, PlanBounds};
@@ -70,6 +71,9 @@ pub struct PlanArgs {
     /// of --free-timing) or faer's sparse LDLᵀ of the whole KKT matrix (docs/ocp.md)
     #[arg(long, value_enum, default_value_t = KktArg::Riccati)]
     kkt: KktArg,
+    /// Curvature of the constraints in the solver: SR1 (default) or the exact Hessian
+    #[arg(long, value_enum, default_value_t = HessianArg::Sr1)]
+    hessian: HessianArg,
     /// No iteration table on stderr
     #[arg(long)]
     quiet: bool,
@@ -134,7 +138,7 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
     let wip = Wip::new(load_params(a.params.as_deref())?);
     let mut files = OutputSet::create(&a.out)?;
     let defaults = IpOptions::default();
-    let opts = IpOptions {
+    let opts = a.hessian.apply(IpOptions {
         verbose: !a.quiet,
         max_iter: a.max_iter,
         threads: a.threads.unwrap_or(defaults.threads),
@@ -143,7 +147,7 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
             KktArg::Sparse => KktMethod::SparseLdlt,
         },
         ..defaults
-    };
+    });
     let (integrator, current) = (a.integrator.name(), a.current.model().name());
     let setup = t_setup.elapsed().as_secs_f64();
     if !a.quiet {
