@@ -140,10 +140,15 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         run.fell_at
             .map_or(String::new(), |t| format!("; FELL at t = {t:.2} s"))
     );
-    if let (Some(med), Some(max)) = (fig.qp_solve_ms_median, fig.qp_solve_ms_max) {
+    if let (Some(med), Some(max), Some(wall)) = (
+        fig.qp_solve_ms_median,
+        fig.qp_solve_ms_max,
+        fig.qp_wall_ms_max,
+    ) {
         say!(
-            "MPC: QP solve time per sample median {med:.3} ms, largest {max:.3} ms (the sample \
-             is 5 ms); {} samples fell back to the LQ move",
+            "MPC: QP solve time per sample (CPU) median {med:.3} ms, largest {max:.3} ms \
+             (wall-clock largest {wall:.3} ms; the sample is 5 ms); {} samples fell back to \
+             the LQ move",
             fig.qp_fallbacks
         );
     }

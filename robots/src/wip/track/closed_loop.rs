@@ -49,8 +49,10 @@ pub struct Sample {
 pub struct TrackRun {
     pub samples: Vec<Sample>,
     pub fell_at: Option<f64>,
-    /// The MPC's QP solve time per sample (s); empty for LQ.
+    /// The MPC's QP solve time per sample (s, the thread's CPU time); empty for LQ.
     pub qp_solve_s: Vec<f64>,
+    /// The same as wall-clock time (s).
+    pub qp_wall_s: Vec<f64>,
     /// Samples where the QP was not solved and the LQ move was applied instead.
     pub qp_fallbacks: usize,
 }
@@ -120,9 +122,11 @@ pub struct TrackFigures {
     pub feedback_voltage_max: f64,
     pub feedback_voltage_rms: f64,
     pub fell: bool,
-    /// The MPC's QP solve time per sample, median and largest (ms); `null` for LQ.
+    /// The MPC's QP solve time per sample as CPU time, median and largest (ms), and the
+    /// largest wall-clock time (ms); `null` for LQ.
     pub qp_solve_ms_median: Option<f64>,
     pub qp_solve_ms_max: Option<f64>,
+    pub qp_wall_ms_max: Option<f64>,
     pub qp_fallbacks: usize,
 }
 
@@ -142,6 +146,8 @@ impl TrackRun {
                 .then(|| 1e3 * super::monte_carlo::quantile(&self.qp_solve_s, 0.5)),
             qp_solve_ms_max: (!self.qp_solve_s.is_empty())
                 .then(|| 1e3 * self.qp_solve_s.iter().copied().fold(0.0, f64::max)),
+            qp_wall_ms_max: (!self.qp_wall_s.is_empty())
+                .then(|| 1e3 * self.qp_wall_s.iter().copied().fold(0.0, f64::max)),
             qp_fallbacks: self.qp_fallbacks,
         };
         let (mut sp, mut sh, mut su) = (0.0, 0.0, 0.0);
@@ -286,6 +292,7 @@ pub fn track<'a>(
             Controller::Mpc(mpc) => {
                 let m = mpc.feedback(k, &e, u_prev);
                 run.qp_solve_s.push(m.solve_s);
+                run.qp_wall_s.push(m.solve_wall_s);
                 run.qp_fallbacks += usize::from(!m.solved);
                 m.u_fb
             }
