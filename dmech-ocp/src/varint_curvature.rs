@@ -5,7 +5,7 @@
 //! Hessian differentiates them twice more. Through the generic path
 //! ([`crate::derivatives::generic_constraint_curvature`]) that is `ℓ` in `Dual2` numbers
 //! over the whole stage vector, nested inside the vector dual of each momentum's gradient
-//! (2.5 ms a WIP stage). Here:
+//! (over a millisecond a stage on the robots in `robots/`). Here:
 //! - each momentum is contracted with `ν` by a *scalar* dual along `ν`
 //!   ([`dmech::partials::pulled_back_directional`]), not a gradient of `NS` lanes;
 //! - the equality reads three blocks, `s = s_k`, `p = (v_{k−1}, u_{k−1})` and
