@@ -2,6 +2,7 @@
 //! front-wheel-steered car, and the file formats of their tools (`wip`, `car`).
 
 pub mod car;
+pub mod diagnose;
 pub mod io;
 pub mod plot;
 pub mod wip;

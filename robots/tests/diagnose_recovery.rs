@@ -8,10 +8,10 @@
 //! below; set it to redraw every case). The magnitudes' ranges are those of
 //! `generate::draw_effect` (docs/diagnose.md says how they were found).
 
+use robots::diagnose::{diagnose, DiagnoseOptions, Diagnosis, Plant};
 use robots::wip::diagnose::effects::Effect;
 use robots::wip::diagnose::generate::{draw_effect, generate, GeneratedLog, Rng, RunSettings};
-use robots::wip::diagnose::measured::Channel;
-use robots::wip::diagnose::selection::{diagnose, DiagnoseOptions, Diagnosis};
+use robots::wip::diagnose::{Channel, WipPlant};
 use robots::wip::WipParams;
 
 /// Log length of the generated cases (s).
@@ -39,8 +39,7 @@ fn noise_floor(g: &GeneratedLog, d: &Diagnosis) -> f64 {
         // The same rows as the residuals (the windows).
         for &(start, len) in &d.windows {
             for k in start..start + len {
-                let y = g.log.data[k][i];
-                if !y.is_nan() {
+                if let Some(y) = g.log.value(k, i) {
                     ss += (g.clean[k][i] - y).powi(2);
                     cnt += 1;
                 }
@@ -75,23 +74,25 @@ fn run_case(p: &WipParams, truth: &[(Effect, Vec<f64>)], seed: u64, threads: usi
         threads,
         ..Default::default()
     };
-    let d = diagnose(&g.log, p, &opts, &|_| {}).expect("a well-formed log");
+    let plant = WipPlant::new(*p);
+    let cat = plant.catalogue();
+    let d = diagnose(&plant, &g.log, &opts, &|_| {}).expect("a well-formed log");
     let floor = noise_floor(&g, &d);
     // Worst |θ̂ − θ|/σ̂ over the parameters of the true effects that were named.
     let mut z_max: f64 = 0.0;
     let mut line = format!(
         "seed {seed:>20}  named {:<28} E {:.3} -> {:.3} (floor {:.3})",
-        d.chosen.fit.candidate.name(),
+        d.chosen.fit.candidate.name(cat),
         d.error_before,
         d.error_after,
         floor
     );
-    let mut offset = 0;
-    for e in &d.chosen.fit.candidate.effects {
-        let k = e.n_params();
+    let effects: Vec<Effect> = d.effects.iter().map(|&e| Effect::ALL[e]).collect();
+    for e in &effects {
         if let Some((_, th)) = truth.iter().find(|(t, _)| t == e) {
-            for (j, &truth_j) in th.iter().enumerate().take(k) {
-                let (est, sd) = (d.chosen.fit.theta[offset + j], d.chosen.fit.std[offset + j]);
+            for (j, &truth_j) in th.iter().enumerate() {
+                let i = cat.effects[e.index()].params[j];
+                let (est, sd) = (d.chosen.fit.theta[i], d.chosen.fit.std[i]);
                 let z = (est - truth_j).abs() / sd;
                 z_max = z_max.max(z);
                 line += &format!(
@@ -103,12 +104,11 @@ fn run_case(p: &WipParams, truth: &[(Effect, Vec<f64>)], seed: u64, threads: usi
                 );
             }
         }
-        offset += k;
     }
     Outcome {
         truth: truth.first().map(|t| t.0),
         named: d.cause.clone(),
-        effects: d.effects.clone(),
+        effects,
         z_max,
         error_after: d.error_after,
         floor,
@@ -273,14 +273,15 @@ fn an_effect_outside_the_catalogue_is_unexplained() {
         ..Default::default()
     };
     let mut g = generate(&p, &[], seed, &settings).expect("the nominal LQR keeps the robot up");
-    for row in &mut g.log.data {
-        row[Channel::VAlpha.index()] += 0.1;
+    for k in 0..g.log.len() {
+        g.log.row_mut(k)[Channel::VAlpha.index()] += 0.1;
     }
-    let d = diagnose(&g.log, &p, &DiagnoseOptions::default(), &|_| {}).unwrap();
+    let plant = WipPlant::new(p);
+    let d = diagnose(&plant, &g.log, &DiagnoseOptions::default(), &|_| {}).unwrap();
     println!(
         "seed {seed}: cause {} ({}), E {:.3} -> {:.3}",
         d.cause,
-        d.chosen.fit.candidate.name(),
+        d.chosen.fit.candidate.name(plant.catalogue()),
         d.error_before,
         d.error_after
     );

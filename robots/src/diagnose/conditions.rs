@@ -1,6 +1,7 @@
 //! Where the model fails: which operating conditions a channel's residual follows. For
-//! each condition (wheel speed near zero, sign of the wheel speed, large commanded voltage,
-//! second half of the log, tilt above its median) the rows split into two groups, and the
+//! each condition (the plant's, e.g. wheel speed near zero, sign of the wheel speed, large
+//! commanded voltage, tilt above its median; and the second half of the log) the rows split
+//! into two groups, and the
 //! residual's normalised power `(r/σ)²` and mean `r/σ` are compared between them by a
 //! Welch statistic. Residuals are autocorrelated (a model error is slow), so each group's
 //! sample count is replaced by its effective count `n (1 − ρ₁)/(1 + ρ₁)` (AR(1)
@@ -8,15 +9,17 @@
 //! value is that of [`super::adequacy`] shared over every comparison.
 
 use super::adequacy::critical_z;
-use super::fit::Residuals;
-use super::measured::{Channel, MeasuredLog};
+use super::log::MeasuredLog;
+use super::noise::Residuals;
+use super::Indicator;
 
 /// One operating condition that a channel's residual follows.
 #[derive(Clone, Debug)]
 pub struct Condition {
-    pub channel: Channel,
+    /// Index of the channel in the plant's channels.
+    pub channel: usize,
     /// The condition, in words (e.g. "wheel speed near zero").
-    pub condition: &'static str,
+    pub condition: String,
     /// `"level"`: `(r/σ)²` differs; `"mean"`: `r/σ` differs.
     pub measure: &'static str,
     /// The measure inside and outside the condition.
@@ -26,72 +29,49 @@ pub struct Condition {
     pub z: f64,
 }
 
-/// The per-row condition indicators (`None` where undefined).
-fn indicators(log: &MeasuredLog) -> Vec<(&'static str, Vec<Option<bool>>)> {
+/// The second half of the log against the first: a trend in time, for every system.
+pub fn trend(log: &MeasuredLog) -> Indicator {
     let n = log.len();
-    let mut out = Vec::new();
-    // Mean wheel speed relative to the body, from the wheel-angle readings (central
-    // differences over two rows).
-    let wheel = |k: usize| -> Option<f64> {
-        let a = [Channel::PhiRRel, Channel::PhiLRel];
-        let (mut s, mut m) = (0.0, 0);
-        for c in a {
-            if k >= 1 && k + 1 < n {
-                if let (Some(y1), Some(y0)) = (log.value(k + 1, c), log.value(k - 1, c)) {
-                    s += (y1 - y0) / (2.0 * log.h);
-                    m += 1;
-                }
-            }
-        }
-        (m > 0).then(|| s / m as f64)
-    };
-    let w: Vec<Option<f64>> = (0..n).map(wheel).collect();
-    let median = |v: &mut Vec<f64>| -> Option<f64> {
-        if v.is_empty() {
-            return None;
-        }
-        v.sort_by(f64::total_cmp);
-        Some(v[v.len() / 2])
-    };
-    let mut aw: Vec<f64> = w.iter().flatten().map(|x| x.abs()).collect();
-    if median(&mut aw).is_some() {
-        // "Near zero": the slowest quarter of the rows.
-        let q1 = aw[aw.len() / 4];
-        out.push((
-            "wheel speed near zero (slowest quarter)",
-            w.iter().map(|x| x.map(|v| v.abs() <= q1)).collect(),
-        ));
-        out.push((
-            "wheel speed positive",
-            w.iter().map(|x| x.map(|v| v > 0.0)).collect(),
-        ));
+    Indicator {
+        name: "second half of the log (trend in time)".into(),
+        flags: (0..n).map(|k| Some(k >= n / 2)).collect(),
     }
-    let mut au: Vec<f64> = log.cmd.iter().map(|u| 0.5 * (u[0] + u[1]).abs()).collect();
-    if let Some(q) = median(&mut au) {
-        out.push((
-            "commanded voltage above its median",
-            log.cmd
-                .iter()
-                .map(|u| Some(0.5 * (u[0] + u[1]).abs() > q))
-                .collect(),
-        ));
+}
+
+/// Rows where a value lies above its median (`None` where the value is undefined).
+pub fn above_median(name: &str, values: &[Option<f64>]) -> Option<Indicator> {
+    let mut v: Vec<f64> = values.iter().flatten().copied().collect();
+    if v.is_empty() {
+        return None;
     }
-    out.push((
-        "second half of the log (trend in time)",
-        (0..n).map(|k| Some(k >= n / 2)).collect(),
-    ));
-    let mut tilt: Vec<f64> = (0..n)
-        .filter_map(|k| log.value(k, Channel::Alpha))
-        .collect();
-    if let Some(q) = median(&mut tilt) {
-        out.push((
-            "tilt above its median",
-            (0..n)
-                .map(|k| log.value(k, Channel::Alpha).map(|a| a > q))
-                .collect(),
-        ));
+    v.sort_by(f64::total_cmp);
+    let q = v[v.len() / 2];
+    Some(Indicator {
+        name: name.into(),
+        flags: values.iter().map(|x| x.map(|a| a > q)).collect(),
+    })
+}
+
+/// Rows where the magnitude of a value lies in its lowest quarter ("near zero").
+pub fn near_zero(name: &str, values: &[Option<f64>]) -> Option<Indicator> {
+    let mut v: Vec<f64> = values.iter().flatten().map(|x| x.abs()).collect();
+    if v.is_empty() {
+        return None;
     }
-    out
+    v.sort_by(f64::total_cmp);
+    let q1 = v[v.len() / 4];
+    Some(Indicator {
+        name: name.into(),
+        flags: values.iter().map(|x| x.map(|a| a.abs() <= q1)).collect(),
+    })
+}
+
+/// Rows where a value is positive.
+pub fn positive(name: &str, values: &[Option<f64>]) -> Indicator {
+    Indicator {
+        name: name.into(),
+        flags: values.iter().map(|x| x.map(|a| a > 0.0)).collect(),
+    }
 }
 
 struct Group {
@@ -109,26 +89,28 @@ impl Group {
     }
 }
 
-/// The conditions that the residual of the given channels follows, strongest first.
+/// The conditions (the plant's `ind` and a trend in time) that the residual of the given
+/// channels follows, strongest first.
 pub fn conditions(
     log: &MeasuredLog,
+    mut ind: Vec<Indicator>,
     res: &Residuals,
-    sigma: &[f64; 9],
-    channels: &[Channel],
+    sigma: &[f64],
+    channels: &[usize],
 ) -> Vec<Condition> {
-    let ind = indicators(log);
+    ind.push(trend(log));
     let critical = critical_z(2 * ind.len() * channels.len().max(1));
     let mut out = Vec::new();
     for &c in channels {
-        let i = c.index();
-        let s = sigma[i];
+        let s = sigma[c];
         if !s.is_finite() {
             continue;
         }
-        let x: Vec<Option<f64>> = res
-            .r
-            .iter()
-            .map(|r| r[i].is_finite().then(|| r[i] / s))
+        let x: Vec<Option<f64>> = (0..res.rows())
+            .map(|k| {
+                let r = res.get(k, c);
+                r.is_finite().then(|| r / s)
+            })
             .collect();
         // Lag-one autocorrelation of r/σ and of (r/σ)² (consecutive rows where both exist).
         let rho = |f: &dyn Fn(f64) -> f64| {
@@ -155,7 +137,7 @@ pub fn conditions(
         ] {
             let r1 = rho(f);
             let shrink = (1.0 - r1) / (1.0 + r1);
-            for (name, flags) in &ind {
+            for Indicator { name, flags } in &ind {
                 let mut g = [
                     Group {
                         n: 0.0,
@@ -188,7 +170,7 @@ pub fn conditions(
                 if z.abs() > critical {
                     out.push(Condition {
                         channel: c,
-                        condition: name,
+                        condition: name.clone(),
                         measure,
                         inside: g[1].mean(),
                         outside: g[0].mean(),
