@@ -58,6 +58,8 @@ pub struct Fit {
     pub m: usize,
     pub iterations: usize,
     pub converged: bool,
+    /// Stopped early because it could not beat the bound it was given.
+    pub abandoned: bool,
 }
 
 impl Fit {
@@ -91,7 +93,10 @@ pub(crate) struct WindowLin {
 }
 
 /// The fit stops when a Gauss–Newton step promises less than this reduction of the
-/// weighted residual sum of squares (one parameter must pay `ln m ≈ 10` in the BIC).
+/// criterion `m ln(RSS/m)` (one parameter must pay `ln m ≈ 10` in the BIC). A reduction
+/// `ΔRSS` of the weighted residual sum of squares changes the criterion by
+/// `m ΔRSS / RSS`: with weights at the noise (`RSS ≈ m`) the two are the same; on a log the
+/// model is far from (`RSS ≫ m`) a step of the same worth is larger in RSS.
 pub const CONVERGED_REDUCTION: f64 = 0.05;
 
 /// The most dual directions a linearisation carries (window state and free coordinates).
@@ -370,7 +375,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
         let mut theta = from_internal(cat, &to_internal(cat, theta0));
         let mut z: Vec<Vec<f64>> = z0.to_vec();
         let mut lambda = 1e-3;
-        let (mut iterations, mut converged) = (0, false);
+        let (mut iterations, mut converged, mut abandoned) = (0, false, false);
         let mut cov = DMatrix::from_element(k, k, f64::INFINITY);
         'outer: for it in 0..self.setup.max_iterations {
             iterations = it + 1;
@@ -392,6 +397,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
                 let predicted = predicted_reduction(&lins, &dz, &dp);
                 if let Some(bound) = abandon_above {
                     if it >= 2 && rss - 3.0 * predicted.max(0.0) > bound {
+                        abandoned = true;
                         break 'outer;
                     }
                 }
@@ -416,7 +422,9 @@ impl<'a, P: Plant> Fitter<'a, P> {
                         // Converged when the model promised (and the step delivered) less
                         // than a hundredth of what one parameter must pay in the
                         // information criterion.
-                        if rel < 1e-9 || predicted < CONVERGED_REDUCTION {
+                        let worth = predicted * lins.iter().map(|l| l.m).sum::<usize>() as f64
+                            / rss.max(1e-300);
+                        if rel < 1e-9 || worth < CONVERGED_REDUCTION {
                             converged = true;
                             break 'outer;
                         }
@@ -444,6 +452,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             m,
             iterations,
             converged,
+            abandoned,
         }
     }
 

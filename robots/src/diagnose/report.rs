@@ -236,7 +236,7 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
         let _ = writeln!(s, "## Where the model fails\n");
         let _ = writeln!(
             s,
-            "The operating conditions that the remaining residual follows, in the channels that fail their tests: `(r/σ)²` (level) or `r/σ` (mean) inside and outside the condition, and the Welch statistic with effective sample counts (docs/diagnose.md). This is where an effect is missing.\n"
+            "The operating conditions that the remaining residual follows, in the channels that fail their tests: `(r/σ)²` (level) or `r/σ` (mean) inside and outside the condition, and `z`, a t statistic paired over windows (per window the difference of the log level or of the mean) on the normal scale (docs/diagnose.md). This is where an effect is missing.\n"
         );
         let _ = writeln!(
             s,

@@ -2,15 +2,18 @@
 //! (the combinations the log determines, [`super::identify`]); then every effect of the
 //! catalogue is screened and fitted, scored by the Bayesian information criterion (a
 //! parameter must pay `ln m` in `m ln(RSS/m)`), the best is kept if it beats the base model;
-//! if the residual is still above the noise, pairs with the best are tried. The verdict is
+//! if the residual is still above the noise, effects are added one at a time (forward
+//! selection: every remaining effect with the chosen ones, the best by the criterion kept)
+//! up to [`DiagnoseOptions::max_effects`]. The verdict is
 //! defined here (docs/diagnose.md §5).
 
 use super::adequacy::{channel_tests, ChannelTest};
 use super::conditions::Condition;
 use super::fit::{Fit, FitSetup, Fitter, Screened};
+use super::identify::DETERMINED;
 use super::identify::{identify, Identifiability};
 use super::log::MeasuredLog;
-use super::model::Candidate;
+use super::model::{Candidate, Catalogue};
 use super::noise::{normalised_error, raw_noise, residual_noise, Residuals};
 use super::Plant;
 use std::time::Instant;
@@ -24,8 +27,9 @@ pub struct DiagnoseOptions {
     pub max_iterations: usize,
     /// A model "explains" the log when its error is at most this (1 = the noise floor).
     pub explained: f64,
-    /// Try pairs of effects when the best single effect leaves the error above `explained`.
-    pub pairs: bool,
+    /// The most effects named together: while the chosen ones leave the error above
+    /// `explained`, another is added if it pays for its parameters (1: single effects only).
+    pub max_effects: usize,
     /// At most this many single effects are fitted to convergence after screening.
     pub max_full_fits: usize,
     /// Effects of the catalogue left out, by name (to test what the tool says about an
@@ -43,7 +47,7 @@ impl Default for DiagnoseOptions {
             threads: std::thread::available_parallelism().map_or(2, |n| n.get()),
             max_iterations: 15,
             explained: 1.2,
-            pairs: true,
+            max_effects: 2,
             max_full_fits: usize::MAX,
             exclude: Vec::new(),
             calibrate: Vec::new(),
@@ -96,6 +100,43 @@ pub struct Scored {
     pub fitted: bool,
     /// Parameters outside their physical range; such a candidate is never named.
     pub implausible: Vec<String>,
+    /// Effect parameters the log does not determine: a standard deviation above
+    /// [`DETERMINED`] of the parameter's plausible range. Such a candidate is not named
+    /// either (its effect is confounded with others, or invisible in this log).
+    pub undetermined: Vec<String>,
+}
+
+impl Scored {
+    /// Whether the candidate may be named: every parameter plausible and determined.
+    pub fn nameable(&self) -> bool {
+        self.implausible.is_empty() && self.undetermined.is_empty()
+    }
+}
+
+/// Whether a standard deviation is at most [`DETERMINED`] of a plausible range's width
+/// (false when it is NaN).
+fn determined(sd: f64, width: f64) -> bool {
+    sd <= DETERMINED * width
+}
+
+/// The effect parameters of a fit whose standard deviation exceeds [`DETERMINED`] of
+/// their plausible range, in words.
+fn undetermined(cat: &Catalogue, fit: &Fit) -> Vec<String> {
+    fit.candidate
+        .effect_params(cat)
+        .into_iter()
+        .filter(|&p| {
+            let (lo, hi) = cat.params[p].plausible;
+            !determined(fit.std[p], hi - lo)
+        })
+        .map(|p| {
+            let s = &cat.params[p];
+            format!(
+                "{} = {:.4e} ± {:.1e} (range {:.3e}–{:.3e})",
+                s.name, fit.theta[p], fit.std[p], s.plausible.0, s.plausible.1
+            )
+        })
+        .collect()
 }
 
 /// What the calibration found.
@@ -160,15 +201,21 @@ struct Session<'a, P: Plant> {
     t0: Instant,
     /// Residuals in the criterion (the nominal fit's count).
     m_res: f64,
+    /// Free coordinates of the calibration that effect candidates are built on (their
+    /// parameters count in the criterion even while held at the calibrated values).
+    base_free: usize,
 }
 
 impl<P: Plant> Session<'_, P> {
     fn score(&self, fit: Fit, fitted: bool) -> Scored {
         let cat = self.fitter.catalogue();
         let (_, error) = normalised_error(&self.fitter.residuals(&fit), &self.fitter.setup.sigma);
-        let k = fit.candidate.n_free(cat);
+        let c = &fit.candidate;
+        let on_base = c.calibration.is_empty() && !c.effects.is_empty();
+        let k = c.n_free(cat) + if on_base { self.base_free } else { 0 };
         Scored {
             implausible: fit.candidate.implausible(cat, &fit.theta),
+            undetermined: undetermined(cat, &fit),
             score: bic(&fit, k),
             fit,
             error,
@@ -193,7 +240,18 @@ impl<P: Plant> Session<'_, P> {
         let cat = self.fitter.catalogue();
         let m = self.m_res;
         let bound = best.map(|b| b * (1.0 + cand.n_free(cat) as f64 * m.ln() / m) + 50.0);
-        let f = self.fitter.fit(&cand, theta0, z0, bound, &|_| {});
+        let mut f = self.fitter.fit(&cand, theta0, z0, bound, &|_| {});
+        // A fit still descending when its iterations ran out, and leading, gets as many
+        // again: comparing it unconverged with candidates built on it would credit them
+        // with its unfinished descent.
+        if !f.converged && !f.abandoned && best.is_none_or(|b| f.rss < b) {
+            let more = self.fitter.fit(&cand, &f.theta, &f.z0, None, &|_| {});
+            if more.rss <= f.rss {
+                let iterations = f.iterations + more.iterations;
+                f = more;
+                f.iterations = iterations;
+            }
+        }
         let s = self.score(f, true);
         self.say(&cand.name(cat), &s);
         s
@@ -369,6 +427,7 @@ pub fn diagnose<P: Plant>(
         progress,
         t0,
         m_res: 1.0,
+        base_free: 0,
     };
     let nominal_theta = cat.nominal();
     let z_init = ss.fitter.initial_states();
@@ -402,6 +461,9 @@ pub fn diagnose<P: Plant>(
     } else {
         Some(calibrate(&ss, &calibrated, &nominal)?)
     };
+    ss.base_free = calibration
+        .as_ref()
+        .map_or(0, |c| c.fit.fit.candidate.calibration.len());
     let mut base = calibration
         .as_ref()
         .map_or_else(|| nominal.clone(), |c| c.fit.clone());
@@ -451,7 +513,7 @@ pub fn diagnose<P: Plant>(
     }
     let mut chosen = candidates
         .iter()
-        .filter(|c| c.fitted && c.implausible.is_empty())
+        .filter(|c| c.fitted && c.nameable())
         .filter(|c| c.fit.candidate.effects.len() <= 1)
         .filter(|c| {
             calibration.is_none()
@@ -472,59 +534,48 @@ pub fn diagnose<P: Plant>(
             calibration.is_some(),
         );
     }
-    if opts.pairs && !is_base(&chosen) && chosen.error > opts.explained {
+    while !is_base(&chosen)
+        && chosen.fit.candidate.effects.len() < opts.max_effects
+        && chosen.error > opts.explained
+    {
         progress(&format!(
-            "  {} leaves the error at {:.3} times the noise: trying pairs",
+            "  {} leaves the error at {:.3} times the noise: adding another effect",
             chosen.fit.candidate.name(cat),
             chosen.error
         ));
-        let single = chosen.clone();
-        let e1 = single.fit.candidate.effects[0];
-        let mut best_rss = single.fit.rss;
+        let current = chosen.clone();
+        let mut best_rss = current.fit.rss;
         for &e in &open {
-            if e == e1 {
+            if current.fit.candidate.effects.contains(&e) {
                 continue;
             }
-            let cand = Candidate::of(vec![e1, e]);
-            let start = cand.start_from(cat, &single.fit.theta);
-            let s = ss.fit(cand, &start, &single.fit.z0, Some(best_rss));
+            let mut effects = current.fit.candidate.effects.clone();
+            effects.push(e);
+            let cand = Candidate::of(effects);
+            let start = cand.start_from(cat, &current.fit.theta);
+            let s = ss.fit(cand, &start, &current.fit.z0, Some(best_rss));
             best_rss = best_rss.min(s.fit.rss);
-            if s.score < chosen.score && s.implausible.is_empty() {
+            if s.score < chosen.score && s.nameable() {
                 chosen = s.clone();
             }
             candidates.push(s);
         }
-        if chosen.fit.candidate.effects.len() > 1 {
-            reweigh_all(
-                &mut ss,
-                log,
-                &mut chosen,
-                &mut nominal,
-                &mut base,
-                calibration.is_some(),
-            );
+        if chosen.fit.candidate == current.fit.candidate {
+            break;
         }
-        candidates.retain(|c| c.fit.candidate != single.fit.candidate);
-        candidates.push(single);
+        reweigh_all(
+            &mut ss,
+            log,
+            &mut chosen,
+            &mut nominal,
+            &mut base,
+            calibration.is_some(),
+        );
     }
     // After a calibration, the chosen effects and the calibrated combinations are refitted
     // together: the calibration was made without them.
     if let (Some(c), false) = (&calibration, is_base(&chosen)) {
-        let mut cand = chosen.fit.candidate.clone();
-        cand.calibration = c.identifiability.directions();
-        progress(&format!(
-            "  refitting {} with the calibration free",
-            chosen.fit.candidate.name(cat)
-        ));
-        let f = ss
-            .fitter
-            .fit(&cand, &chosen.fit.theta, &chosen.fit.z0, None, &|_| {});
-        let joint = ss.score(f, true);
-        ss.say(&cand.name(cat), &joint);
-        if joint.implausible.is_empty() && joint.fit.rss <= chosen.fit.rss {
-            chosen = joint.clone();
-        }
-        candidates.push(joint);
+        chosen = joint_refit(&ss, c, chosen, &base, &mut candidates);
     }
     for c in candidates.iter_mut() {
         if c.fit.candidate == nominal.fit.candidate {
@@ -537,11 +588,17 @@ pub fn diagnose<P: Plant>(
     }
     candidates.sort_by(|a, b| a.score.total_cmp(&b.score));
     // A refit under new weights can move the chosen parameters out of their range.
-    if !chosen.implausible.is_empty() {
+    if !chosen.nameable() {
         progress(&format!(
-            "  {} ends outside its physical range ({}): not named",
+            "  {} ends outside its physical range or undetermined ({}): not named",
             chosen.fit.candidate.name(cat),
-            chosen.implausible.join("; ")
+            chosen
+                .implausible
+                .iter()
+                .chain(&chosen.undetermined)
+                .cloned()
+                .collect::<Vec<_>>()
+                .join("; ")
         ));
         chosen = base.clone();
     }
@@ -565,6 +622,65 @@ pub fn diagnose<P: Plant>(
         sigma,
     );
     finite_outputs(d)
+}
+
+/// After a calibration, the chosen effects and the calibrated combinations refitted
+/// together (the calibration was made without the effects). An effect whose parameters
+/// become undetermined or implausible there is confounded with the calibration: it is
+/// dropped (its parameters back at their nominal values) and the rest refitted.
+fn joint_refit<P: Plant>(
+    ss: &Session<P>,
+    c: &Calibration,
+    chosen: Scored,
+    base: &Scored,
+    candidates: &mut Vec<Scored>,
+) -> Scored {
+    let cat = ss.fitter.catalogue();
+    let mut effects = chosen.fit.candidate.effects.clone();
+    let mut theta = chosen.fit.theta.clone();
+    while !effects.is_empty() {
+        let cand = Candidate {
+            effects: effects.clone(),
+            calibration: c.identifiability.directions(),
+        };
+        (ss.progress)(&format!(
+            "  refitting {} with the calibration free",
+            Candidate::of(effects.clone()).name(cat)
+        ));
+        let joint = ss.fit(cand, &theta, &chosen.fit.z0, None);
+        candidates.push(joint.clone());
+        if joint.nameable() {
+            return joint;
+        }
+        let bad: Vec<usize> = effects
+            .iter()
+            .copied()
+            .filter(|&e| {
+                cat.effects[e].params.iter().any(|&p| {
+                    let (lo, hi) = cat.params[p].plausible;
+                    !determined(joint.fit.std[p], hi - lo)
+                        || !cat.params[p].is_plausible(joint.fit.theta[p])
+                })
+            })
+            .collect();
+        if bad.is_empty() {
+            return chosen;
+        }
+        (ss.progress)(&format!(
+            "  {} confounded with the calibration: dropped",
+            bad.iter()
+                .map(|&e| cat.effects[e].name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+        for &e in &bad {
+            for &p in &cat.effects[e].params {
+                theta[p] = cat.params[p].nominal;
+            }
+        }
+        effects.retain(|e| !bad.contains(e));
+    }
+    base.clone()
 }
 
 /// Re-weigh after a choice: `chosen`, the nominal model and (after a calibration) the
@@ -591,7 +707,6 @@ fn calibrate<P: Plant>(
     params: &[usize],
     nominal: &Scored,
 ) -> Result<Calibration, DiagnoseError> {
-    let cat = ss.fitter.catalogue();
     let ident = identify(&ss.fitter, params, &nominal.fit.theta, &nominal.fit.z0)
         .ok_or(DiagnoseError::NotSimulable)?;
     for c in &ident.combinations {
@@ -610,11 +725,7 @@ fn calibrate<P: Plant>(
         effects: vec![],
         calibration: ident.directions(),
     };
-    let f = ss
-        .fitter
-        .fit(&cand, &nominal.fit.theta, &nominal.fit.z0, None, &|_| {});
-    let fit = ss.score(f, true);
-    ss.say(&cand.name(cat), &fit);
+    let fit = ss.fit(cand, &nominal.fit.theta, &nominal.fit.z0, None);
     Ok(Calibration {
         identifiability: ident,
         fit,
@@ -636,7 +747,7 @@ fn screened_only<P: Plant>(
         std[p] = sc.std[q];
     }
     let rss = (base.fit.rss - sc.reduction).max(0.0);
-    let k = cand.n_free(cat);
+    let k = cand.n_free(cat) + ss.base_free;
     let fit = Fit {
         cov: nalgebra::DMatrix::zeros(k, k),
         candidate: cand,
@@ -647,9 +758,11 @@ fn screened_only<P: Plant>(
         m: base.fit.m,
         iterations: 0,
         converged: false,
+        abandoned: false,
     };
     Scored {
         implausible: fit.candidate.implausible(cat, &fit.theta),
+        undetermined: undetermined(cat, &fit),
         score: bic(&fit, k),
         error: base.error * (rss / base.fit.rss.max(1e-300)).sqrt(),
         fit,
@@ -706,6 +819,7 @@ fn conclude<P: Plant>(
         log,
         fitter.plant.conditions(log),
         &res_after,
+        &fitter.windows,
         &sigma_final,
         &failing,
     );

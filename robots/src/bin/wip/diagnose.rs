@@ -15,7 +15,7 @@ use std::path::PathBuf;
 /// Finds which effect of the catalogue explains the difference between the log
 /// (docs/formats.md) and the model (tilt_offset, floor_slope, input_delay, voltage_gain,
 /// friction, wheel_radius_asymmetry, payload, dead_zone, stick_slip, tilt_filter,
-/// gear_backlash; pairs when one is not enough), refits its parameters with their
+/// gear_backlash; more together when one is not enough), refits its parameters with their
 /// uncertainty and reports the gain. With --calibrate, the robot's own parameters are
 /// calibrated first (the combinations the log determines). Writes
 /// DIR/diagnosis.json, DIR/params_refit.json (the refitted model as a parameter file that
@@ -52,11 +52,16 @@ pub struct DiagnoseArgs {
     /// Leave effects of the catalogue out (comma-separated names)
     #[arg(long, value_name = "NAMES")]
     exclude: Option<String>,
+    /// The most effects named together (added one at a time while the chosen ones leave
+    /// the error above the noise)
+    #[arg(long, value_name = "N", default_value = "2", value_parser = positive_count)]
+    max_effects: usize,
 }
 
 pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
     let mut opts = DiagnoseOptions {
         window_s: a.window,
+        max_effects: a.max_effects,
         ..Default::default()
     };
     if let Some(n) = a.threads {

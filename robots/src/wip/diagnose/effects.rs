@@ -180,15 +180,7 @@ pub fn wip_catalogue(p: &WipParams) -> Catalogue {
                 lin(names[0], 0.0, 0.02, (-0.3, 0.3)),
                 lin(names[1], 0.0, 0.02, (-0.3, 0.3)),
             ],
-            Effect::InputDelay => {
-                let mut s = lin(names[0], 0.0, 0.01, (0.0, 0.1));
-                // The prediction replaces the current's exponential lag `τ_e = L_m/R_m` by
-                // a pure delay of `τ_e`, exact in the impulse it gives the wheels but not in
-                // its shape: on generated runs this biases the fitted delay by 0.6–0.8 % of
-                // `τ_e` (docs/diagnose.md §3); the floor is 1 % of `τ_e`.
-                s.systematic = 0.01 * p.L_m / p.R_m;
-                vec![s]
-            }
+            Effect::InputDelay => vec![lin(names[0], 0.0, 0.01, (0.0, 0.1))],
             Effect::VoltageGain => {
                 let mut s = lin(names[0], 1.0, 0.1, (0.3, 3.0));
                 s.bounds = (0.05, 20.0);

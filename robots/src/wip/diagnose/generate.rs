@@ -373,6 +373,10 @@ impl Reference {
 pub struct GeneratedLog {
     pub log: MeasuredLog,
     pub clean: Vec<[f64; 9]>,
+    /// The true state per row in the prediction's coordinates
+    /// `(x, y, θ, α, φR, φL, v_α, φ̇R, φ̇L)` (to check the prediction model against the
+    /// truth).
+    pub states: Vec<[f64; 9]>,
 }
 
 /// Simulate a closed-loop run of the true model with the hidden `effects` and record it as
@@ -413,6 +417,7 @@ pub fn generate(
     let mut cmd_hist: Vec<[f64; 2]> = Vec::with_capacity(pre_roll + n);
     let mut log = WipPlant::empty_log(h);
     let mut clean = Vec::with_capacity(n);
+    let mut states = Vec::with_capacity(n);
     let (m_delay, f_delay) = {
         let tau = ext.delay;
         let m = (tau / h).floor();
@@ -494,6 +499,9 @@ pub fn generate(
             row[8] = meas_i[1];
             log.push_row(t, &cmd, &row);
             clean.push(truth);
+            states.push([
+                x.g.x, x.g.y, x.g.theta, x.s[0], x.s[1], x.s[2], x.v[0], x.v[1], x.v[2],
+            ]);
         }
         if k + 1 == pre_roll + n {
             break;
@@ -522,5 +530,5 @@ pub fn generate(
         }
     }
     log.channels_present_from_data();
-    Ok(GeneratedLog { log, clean })
+    Ok(GeneratedLog { log, clean, states })
 }

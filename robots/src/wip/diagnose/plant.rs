@@ -197,9 +197,13 @@ impl Plant for WipPlant {
             pred.mean_applied(&cmd, start.saturating_sub(1), h),
             modes,
         )?;
-        // The tilt reading through the firmware's complementary filter: the rate reading
-        // integrated, corrected towards the tilt with weight `a` per sample. Its state at
-        // the window's start is the reading there (`a = 1`: the tilt itself).
+        // The tilt reading through the firmware's complementary filter: the previous
+        // reading plus the rate reading's increment, corrected towards the tilt with weight
+        // `a` per sample (`a = 1`: the tilt itself). In this innovation form the residual is
+        // `a` times the tilt's error and the accelerometer's noise, white; simulated from
+        // the window's start instead, it would be that noise low-passed, which no white
+        // noise test passes. Where the previous reading is missing, the predicted one
+        // stands in.
         let a = pred.ext.accel_weight;
         let filtered = !(a - T::one()).vanishes();
         let (ai, vi) = (Channel::Alpha.index(), Channel::VAlpha.index());
@@ -215,7 +219,8 @@ impl Plant for WipPlant {
                     }
                 } else {
                     let g = log.value(k, vi).map_or(y[vi], T::from);
-                    (filter + g * h) * (T::one() - a) + tilt * a
+                    let prev = log.value(k - 1, ai).map_or(filter, T::from);
+                    (prev + g * h) * (T::one() - a) + tilt * a
                 };
                 y[ai] = filter;
             }
