@@ -3,6 +3,7 @@
 
 pub mod car;
 pub mod cli;
+pub mod diagnose;
 pub mod io;
 pub mod plot;
 pub mod wip;

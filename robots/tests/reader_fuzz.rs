@@ -3,9 +3,10 @@
 //! refuse its input; it must never panic, and what it accepts must be finite.
 
 use proptest::prelude::*;
+use robots::diagnose::Plant;
 use robots::io::{parse_csv, parse_inputs};
 use robots::wip::benchmarks;
-use robots::wip::diagnose::measured::{Channel, MeasuredLog};
+use robots::wip::diagnose::{Channel, WipPlant};
 use robots::wip::WipParams;
 
 /// Cases per property: enough to hit every token pool many times, small enough for CI.
@@ -139,7 +140,7 @@ proptest! {
         let text = String::from_utf8_lossy(&bytes);
         let _ = parse_csv(&text, "fuzz", true);
         let _ = parse_inputs(&text, "fuzz");
-        let _ = MeasuredLog::parse(&text, "fuzz");
+        let _ = WipPlant::new(WipParams::default()).parse_log(&text, "fuzz");
     }
 
     #[test]
@@ -151,17 +152,19 @@ proptest! {
             prop_assert!(s.t.windows(2).all(|w| w[1] > w[0]));
             prop_assert!(s.u.iter().flatten().all(|v| v.is_finite()));
         }
-        if let Ok(log) = MeasuredLog::parse(&text, "fuzz") {
+        if let Ok(log) = WipPlant::new(WipParams::default()).parse_log(&text, "fuzz") {
             prop_assert!(log.h.is_finite() && log.h > 0.0);
         }
     }
 
     #[test]
     fn the_log_reader_sets_aside_what_it_cannot_fit(text in log_text()) {
-        if let Ok(mut log) = MeasuredLog::parse(&text, "fuzz") {
+        let plant = WipPlant::new(WipParams::default());
+        if let Ok(mut log) = plant.parse_log(&text, "fuzz") {
             // What diagnose keeps lies within each channel's physical range.
-            if log.drop_out_of_range().is_ok() {
-                for row in &log.data {
+            if log.drop_out_of_range(plant.channels(), plant.inputs()).is_ok() {
+                for k in 0..log.len() {
+                    let row = log.row(k);
                     for c in Channel::ALL {
                         let v = row[c.index()];
                         prop_assert!(v.is_nan() || v.abs() <= c.range(), "{row:?}");

@@ -54,6 +54,21 @@ pub fn shape_acceleration<T: Lift<T>>(
     i: [T; 2],
     f_shape: [T; 3],
 ) -> Option<[T; 3]> {
+    shape_acceleration_with_response::<T, 0>(sys, alpha, w, i, f_shape, []).map(|(a, _)| a)
+}
+
+/// [`shape_acceleration`] and, with the same factorisation, the response of the shape
+/// accelerations to each unit generalised force `dirs[j]` on `(α, φR, φL)` (the
+/// accelerations are affine in the force): `wip diagnose`'s stick-slip law needs the
+/// torque that holds a wheel at rest relative to the body.
+pub fn shape_acceleration_with_response<T: Lift<T>, const K: usize>(
+    sys: &Wip<T>,
+    alpha: T,
+    w: [T; 3],
+    i: [T; 2],
+    f_shape: [T; 3],
+    dirs: [[T; 3]; K],
+) -> Option<([T; 3], [[T; 3]; K])> {
     let p = &sys.params;
     let (va, vr, vl) = (w[0], w[1], w[2]);
     let r_r = p.r + sys.wheel_radius_offsets[0];
@@ -128,10 +143,18 @@ pub fn shape_acceleration<T: Lift<T>>(
     // ν̇ = −(SᵀMS)⁻¹ Sᵀ (M Ṡ ν + K + P − 𝓕).
     let st = s.transpose();
     let sms = st * m * s;
-    let nud = -dmech::linalg::solve(&sms, &(st * rhs))?;
-    Some([
-        nud[0],
-        (nud[1] + p.d * nud[2]) / r_r,
-        (nud[1] - p.d * nud[2]) / r_l,
-    ])
+    let lu = dmech::linalg::Lu::new(&sms)?;
+    let shape = |nud: SVector<T, 3>| {
+        [
+            nud[0],
+            (nud[1] + p.d * nud[2]) / r_r,
+            (nud[1] - p.d * nud[2]) / r_l,
+        ]
+    };
+    let nud = -lu.solve(&(st * rhs));
+    let response = dirs.map(|f| {
+        let f6 = SVector::<T, 6>::from_column_slice(&[z, z, z, f[0], f[1], f[2]]);
+        shape(lu.solve(&(st * f6)))
+    });
+    Some((shape(nud), response))
 }

@@ -1,11 +1,12 @@
 //! `wip diagnose`: compare the model with a measured log, name the unmodelled effect, refit.
 
 use crate::common::{load_params, positive_count, positive_number, Failure};
+use robots::diagnose::report::{diagnosis_json, report_md, residual_plots};
+use robots::diagnose::{diagnose, DiagnoseOptions, Plant};
 use robots::io::OutputSet;
-use robots::wip::diagnose::measured::MeasuredLog;
+use robots::wip::diagnose::effects::CALIBRATED;
 use robots::wip::diagnose::refit::refit_params;
-use robots::wip::diagnose::report::{diagnosis_json, report_md, residual_plots};
-use robots::wip::diagnose::selection::{diagnose, DiagnoseOptions};
+use robots::wip::diagnose::WipPlant;
 use robots::{progress, say};
 use std::path::PathBuf;
 
@@ -13,8 +14,10 @@ use std::path::PathBuf;
 ///
 /// Finds which effect of the catalogue explains the difference between the log
 /// (docs/formats.md) and the model (tilt_offset, floor_slope, input_delay, voltage_gain,
-/// friction, wheel_radius_asymmetry, payload, dead_zone; pairs when one is not enough),
-/// refits its parameters with their uncertainty and reports the gain. Writes
+/// friction, wheel_radius_asymmetry, payload, dead_zone, stick_slip, tilt_filter,
+/// gear_backlash; more together when one is not enough), refits its parameters with their
+/// uncertainty and reports the gain. With --calibrate, the robot's own parameters are
+/// calibrated first (the combinations the log determines). Writes
 /// DIR/diagnosis.json, DIR/params_refit.json (the refitted model as a parameter file that
 /// plan and simulate read), DIR/report.md and DIR/residual_<channel>.svg. Method:
 /// docs/diagnose.md.
@@ -41,18 +44,48 @@ pub struct DiagnoseArgs {
     /// No progress on stderr
     #[arg(long)]
     quiet: bool,
+    /// Calibrate the robot's own parameters before judging effects: the combinations of
+    /// these parameter-file keys that the log determines (comma-separated; without a
+    /// value: m_b,l,I_byy,I_wyy,r,I_m,k_e,R_m,d_v,d_c)
+    #[arg(long, value_name = "KEYS", num_args = 0..=1, default_missing_value = "default")]
+    calibrate: Option<String>,
+    /// Leave effects of the catalogue out (comma-separated names)
+    #[arg(long, value_name = "NAMES")]
+    exclude: Option<String>,
+    /// The most effects named together (added one at a time while the chosen ones leave
+    /// the error above the noise)
+    #[arg(long, value_name = "N", default_value = "2", value_parser = positive_count)]
+    max_effects: usize,
 }
 
 pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
     let mut opts = DiagnoseOptions {
         window_s: a.window,
+        max_effects: a.max_effects,
         ..Default::default()
     };
     if let Some(n) = a.threads {
         opts.threads = n;
     }
+    let list = |s: &str| {
+        s.split(',')
+            .map(|x| x.trim().to_string())
+            .filter(|x| !x.is_empty())
+            .collect::<Vec<_>>()
+    };
+    if let Some(c) = &a.calibrate {
+        opts.calibrate = if c == "default" {
+            CALIBRATED.iter().map(|s| s.to_string()).collect()
+        } else {
+            list(c)
+        };
+    }
+    if let Some(e) = &a.exclude {
+        opts.exclude = list(e);
+    }
     let p = load_params(a.params.as_deref())?;
-    let log = MeasuredLog::read(&a.data)?;
+    let plant = WipPlant::new(p);
+    let log = plant.read_log(&a.data)?;
     let mut files = OutputSet::create(&a.out)?;
     if !a.quiet {
         for w in &log.warnings {
@@ -65,17 +98,18 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
             progress!("{line}");
         }
     };
-    let d = diagnose(&log, &p, &opts, &report)?;
-    let json = serde_json::to_string_pretty(&diagnosis_json(&d))
+    let d = diagnose(&plant, &log, &opts, &report).map_err(|e| e.to_string())?;
+    let json = serde_json::to_string_pretty(&diagnosis_json(&plant, &d))
         .map_err(|e| format!("diagnosis.json: {e}"))?;
     files.write("diagnosis.json", (json + "\n").as_bytes())?;
-    let md = report_md(&d, &log, &a.data.display().to_string());
+    let note = "`params_refit.json` holds the refitted model in the parameter-file format (`--params`): the robot's own parameters that the diagnosis moved (a calibration, friction, payload) go in; the other effects (sensor offset and filter, floor slope, delay, voltage gain, dead zone, unequal wheels, stick-slip, backlash) are not parameters of the model and are only reported here.";
+    let md = report_md(&plant, &d, &log, &a.data.display().to_string(), note);
     files.write("report.md", md.as_bytes())?;
-    for (name, svg) in residual_plots(&d, &log) {
+    for (name, svg) in residual_plots(&plant, &d, &log) {
         files.write(&name, svg.as_bytes())?;
     }
     // The refitted model as a parameter file that plan/simulate read.
-    let (refit, left_out) = refit_params(&d, &p);
+    let (refit, left_out) = refit_params(&plant, &d);
     refit
         .validate()
         .map_err(|e| format!("params_refit.json: {e}"))?;
@@ -89,17 +123,30 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
         d.gain,
         d.elapsed_s
     );
+    let cat = plant.catalogue();
     if !d.effects.is_empty() {
         let c = &d.chosen;
-        for ((n, v), u) in c
-            .fit
-            .candidate
-            .parameter_names()
-            .iter()
-            .zip(&c.fit.theta)
-            .zip(&c.fit.std)
-        {
-            say!("  {n} = {v:.6e} ± {u:.1e}");
+        for i in c.fit.candidate.effect_params(cat) {
+            say!(
+                "  {} = {:.6e} ± {:.1e}",
+                cat.params[i].name,
+                c.fit.theta[i],
+                c.fit.std[i]
+            );
+        }
+    }
+    if let Some(c) = &d.calibration {
+        for k in &c.identifiability.combinations {
+            say!(
+                "  {} {:<40} relative σ {:.2e}",
+                if k.determined {
+                    "calibrated"
+                } else {
+                    "left     "
+                },
+                k.name,
+                k.std
+            );
         }
     }
     if !left_out.is_empty() {

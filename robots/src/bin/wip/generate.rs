@@ -1,10 +1,12 @@
 //! `wip generate`: a synthetic measured log from a closed-loop run with hidden effects.
 
 use crate::common::{load_params, usage_error, Failure};
+use robots::diagnose::Plant;
 use robots::io::OutputSet;
 use robots::say;
 use robots::wip::diagnose::effects::Effect;
 use robots::wip::diagnose::generate::{draw_effect, generate, Rng, RunSettings};
+use robots::wip::diagnose::WipPlant;
 use std::path::PathBuf;
 
 /// Generate a synthetic measured log: a closed-loop run of a model with hidden effects.
@@ -86,7 +88,11 @@ pub fn run(a: GenerateArgs) -> Result<(), Failure> {
         ..Default::default()
     };
     let g = generate(&p, &effects, a.seed, &settings)?;
-    files.write("log.csv", g.log.to_csv().as_bytes())?;
+    let plant = WipPlant::new(p);
+    files.write(
+        "log.csv",
+        g.log.to_csv(plant.channels(), plant.inputs()).as_bytes(),
+    )?;
     let truth: Vec<serde_json::Value> = effects
         .iter()
         .map(|(e, theta)| {

@@ -1,10 +1,15 @@
-//! The catalogue of unmodelled effects (docs/formats.md, "Effect names") as extensions of the
-//! one WIP model: each effect changes a parameter of [`Wip`], the voltage the drivers apply,
-//! an external force, or a sensor reading. Nothing here copies the model; the equations of
-//! motion stay those derived by `dmech` from `ℓ`, `A` and the forcing.
+//! The WIP's catalogue of unmodelled effects (docs/formats.md, "Effect names") as
+//! extensions of the one WIP model: each effect changes a parameter of [`Wip`], the voltage
+//! the drivers apply, an external force, the friction law, or a sensor reading. Nothing here
+//! copies the model; the equations of motion stay those derived by `dmech` from `ℓ`, `A` and
+//! the forcing (the closed form, checked against them).
+//!
+//! The robot's own parameters that a calibration may move ([`CALIBRATED`]) are parameters
+//! of the catalogue too; the `friction` and `payload` effects free two of them each.
 
 use super::super::params::WipParams;
 use super::super::Wip;
+use crate::diagnose::model::{Catalogue, ParamSpec};
 use dmech_lie::Real;
 use nalgebra::SVector;
 
@@ -19,10 +24,13 @@ pub enum Effect {
     WheelRadiusAsymmetry,
     Payload,
     DeadZone,
+    StickSlip,
+    TiltFilter,
+    GearBacklash,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 8] = [
+    pub const ALL: [Effect; 11] = [
         Effect::TiltOffset,
         Effect::FloorSlope,
         Effect::InputDelay,
@@ -31,9 +39,12 @@ impl Effect {
         Effect::WheelRadiusAsymmetry,
         Effect::Payload,
         Effect::DeadZone,
+        Effect::StickSlip,
+        Effect::TiltFilter,
+        Effect::GearBacklash,
     ];
 
-    /// The name used in `diagnosis.json`.
+    /// The name used in `diagnosis.json` and by `wip generate --effect`.
     pub fn name(self) -> &'static str {
         match self {
             Effect::TiltOffset => "tilt_offset",
@@ -44,6 +55,9 @@ impl Effect {
             Effect::WheelRadiusAsymmetry => "wheel_radius_asymmetry",
             Effect::Payload => "payload",
             Effect::DeadZone => "dead_zone",
+            Effect::StickSlip => "stick_slip",
+            Effect::TiltFilter => "tilt_filter",
+            Effect::GearBacklash => "gear_backlash",
         }
     }
 
@@ -51,7 +65,7 @@ impl Effect {
         Effect::ALL.into_iter().find(|e| e.name() == name)
     }
 
-    /// Parameter names (the keys of `diagnosis.json`).
+    /// Parameter names (the keys of `diagnosis.json`), in the catalogue's order.
     pub fn parameter_names(self) -> &'static [&'static str] {
         match self {
             Effect::TiltOffset => &["b_rad"],
@@ -60,8 +74,11 @@ impl Effect {
             Effect::VoltageGain => &["gain"],
             Effect::Friction => &["d_v", "d_c"],
             Effect::WheelRadiusAsymmetry => &["r_R_m", "r_L_m"],
-            Effect::Payload => &["m_b_kg", "l_m"],
+            Effect::Payload => &["m_b", "l"],
             Effect::DeadZone => &["u0_V"],
+            Effect::StickSlip => &["f_static_Nm", "w_stribeck"],
+            Effect::TiltFilter => &["accel_weight"],
+            Effect::GearBacklash => &["backlash_rad"],
         }
     }
 
@@ -69,122 +86,259 @@ impl Effect {
         self.parameter_names().len()
     }
 
-    /// The parameter values for which the effect is absent (the nominal model).
-    pub fn nominal(self, p: &WipParams) -> Vec<f64> {
-        match self {
-            Effect::TiltOffset | Effect::InputDelay | Effect::DeadZone => vec![0.0],
-            Effect::FloorSlope => vec![0.0, 0.0],
-            Effect::VoltageGain => vec![1.0],
-            Effect::Friction => vec![p.d_v, p.d_c],
-            Effect::WheelRadiusAsymmetry => vec![p.r, p.r],
-            Effect::Payload => vec![p.m_b, p.l],
-        }
-    }
-
-    /// A typical size of a change of each parameter, for scaling the fit and for the
-    /// generator's magnitudes (see `docs/diagnose.md`).
-    pub fn scale(self, p: &WipParams) -> Vec<f64> {
-        match self {
-            Effect::TiltOffset => vec![0.01],
-            Effect::FloorSlope => vec![0.02, 0.02],
-            Effect::InputDelay => vec![0.01],
-            Effect::VoltageGain => vec![0.1],
-            Effect::Friction => vec![p.d_v, p.d_c],
-            Effect::WheelRadiusAsymmetry => vec![0.03 * p.r, 0.03 * p.r],
-            Effect::Payload => vec![0.2 * p.m_b, 0.2 * p.l],
-            Effect::DeadZone => vec![0.2],
-        }
-    }
-
-    /// A floor under each parameter's uncertainty from the prediction model's own
-    /// approximation, added in quadrature to the statistical one. Only the delay has one:
-    /// the prediction replaces the current's exponential lag `τ_e = L_m/R_m` by a pure
-    /// delay of `τ_e`, exact in the impulse it gives the wheels but not in its shape. On
-    /// generated runs (true model with the current dynamics) this biases the fitted delay
-    /// by 0.6–0.8 % of `τ_e` (1.6–2.1 µs at 12 ms; unchanged when the true model's
-    /// step is halved or the prediction's, so it is the reduction, not the integration);
-    /// the floor is 1 % of `τ_e` (docs/diagnose.md).
-    pub fn systematic(self, p: &WipParams) -> Vec<f64> {
-        match self {
-            Effect::InputDelay => vec![0.01 * p.L_m / p.R_m],
-            _ => vec![0.0; self.n_params()],
-        }
-    }
-
-    /// The physically plausible range `[lo, hi]` of each parameter: a fit may wander
-    /// outside while it converges, but a candidate whose parameters end outside is not
-    /// named. The bounds come from what the effect is, for a robot of parameters `p`:
-    /// - tilt offset and floor slope: at most 0.3 rad (17°; a robot mounted or driven
-    ///   further off is not "balancing with an offset");
-    /// - input delay: at most 0.1 s (ten 100 Hz control steps; the robot would not balance);
-    /// - voltage gain: 0.3–3 (a driver or battery off by more is a wiring error);
-    /// - friction: `d_c` up to the motor's stall torque at 12 V, `n_wm k_e 12/R_m` (the
-    ///   wheels could not turn); `d_v` up to ten times the back-EMF damping `n_wm² k_e²/R_m`;
-    /// - wheel radii: within ±25 % of `r` (a different wheel, not an asymmetry);
-    /// - payload: body mass 0.5–2 × `m_b` (a payload cannot weigh more than the robot),
-    ///   height of the centre of mass 0.2–5 × `l` and at most 0.5 m;
-    /// - dead zone: at most 3 V.
-    pub fn plausible(self, p: &WipParams) -> Vec<(f64, f64)> {
-        match self {
-            Effect::TiltOffset => vec![(-0.3, 0.3)],
-            Effect::FloorSlope => vec![(-0.3, 0.3), (-0.3, 0.3)],
-            Effect::InputDelay => vec![(0.0, 0.1)],
-            Effect::VoltageGain => vec![(0.3, 3.0)],
-            Effect::Friction => vec![
-                (0.0, 10.0 * p.n_wm * p.n_wm * p.k_e * p.k_e / p.R_m),
-                (0.0, p.n_wm * p.k_e * 12.0 / p.R_m),
-            ],
-            Effect::WheelRadiusAsymmetry => vec![(0.75 * p.r, 1.25 * p.r); 2],
-            Effect::Payload => vec![
-                (0.5 * p.m_b, 2.0 * p.m_b),
-                (0.2 * p.l, (5.0 * p.l).min(0.5)),
-            ],
-            Effect::DeadZone => vec![(0.0, 3.0)],
-        }
-    }
-
-    /// The parameters of `theta` outside [`Effect::plausible`], in words (empty: plausible).
-    pub fn implausible(self, theta: &[f64], p: &WipParams) -> Vec<String> {
-        self.parameter_names()
-            .iter()
-            .zip(theta)
-            .zip(self.plausible(p))
-            .filter(|((_, v), (lo, hi))| v.is_nan() || **v < *lo || **v > *hi)
-            .map(|((n, v), (lo, hi))| format!("{n} = {v:.4e} outside [{lo:.3e}, {hi:.3e}]"))
-            .collect()
-    }
-
-    /// Whether a parameter vector is physically admissible (the fit projects onto this set).
-    pub fn project(self, theta: &mut [f64], p: &WipParams) {
-        match self {
-            Effect::InputDelay | Effect::DeadZone => theta[0] = theta[0].max(0.0),
-            Effect::VoltageGain => theta[0] = theta[0].max(0.05),
-            Effect::Friction => {
-                theta[0] = theta[0].max(0.0);
-                theta[1] = theta[1].max(0.0);
-            }
-            Effect::WheelRadiusAsymmetry => {
-                for r in theta.iter_mut() {
-                    *r = r.clamp(0.5 * p.r, 2.0 * p.r);
-                }
-            }
-            Effect::Payload => {
-                theta[0] = theta[0].max(0.1 * p.m_b);
-                theta[1] = theta[1].max(0.1 * p.l);
-            }
-            Effect::TiltOffset | Effect::FloorSlope => {
-                for a in theta.iter_mut() {
-                    *a = a.clamp(-0.5, 0.5);
-                }
-            }
-        }
+    /// The effect's index in the catalogue of [`wip_catalogue`].
+    pub fn index(self) -> usize {
+        Effect::ALL.iter().position(|&e| e == self).expect("in ALL")
     }
 }
 
-/// The model with every effect's parameters; at [`ModelExtension::nominal`] it is the
-/// paper's model. Several effects can be active at once.
+/// The robot's own parameters a calibration may move (keys of the parameter file), and a
+/// typical relative change of each.
+pub const CALIBRATED: [&str; 10] = [
+    "m_b", "l", "I_byy", "I_wyy", "r", "I_m", "k_e", "R_m", "d_v", "d_c",
+];
+
+/// The parameter value of a [`WipParams`] key.
+pub fn param_value(p: &WipParams, key: &str) -> f64 {
+    let mut q = *p;
+    let v = q
+        .named_mut()
+        .into_iter()
+        .find(|(k, _)| *k == key)
+        .map(|(_, v)| *v);
+    v.unwrap_or_else(|| panic!("no parameter {key}"))
+}
+
+/// A robot parameter as a catalogue parameter: fitted in `ln θ`; admissible within a
+/// factor of 4 of the file's value unless the effect that frees it says otherwise.
+fn own(key: &str, p: &WipParams, plausible: Option<(f64, f64)>) -> ParamSpec {
+    let v = param_value(p, key);
+    let range = plausible.unwrap_or((v / 4.0, v * 4.0));
+    let mut s = ParamSpec::positive(key, v, 0.2, range);
+    if v <= 0.0 {
+        // A parameter the file sets to zero cannot be fitted in its logarithm.
+        s = ParamSpec::linear(key, v, 1e-3, (0.0, range.1.max(1e-3)));
+    }
+    s
+}
+
+/// The catalogue of the WIP with parameters `p`: every effect's parameters with their
+/// nominal values (the effect absent), scales, bounds and physically plausible ranges:
+/// - tilt offset and floor slope: at most 0.3 rad (17°; a robot mounted or driven further
+///   off is not "balancing with an offset");
+/// - input delay: at most 0.1 s (ten 100 Hz control steps; the robot would not balance);
+/// - voltage gain: 0.3–3 (a driver or battery off by more is a wiring error);
+/// - friction: `d_c` up to the motor's stall torque at 12 V, `n_wm k_e 12/R_m` (the wheels
+///   could not turn); `d_v` up to ten times the back-EMF damping `n_wm² k_e²/R_m`;
+/// - wheel radii: within ±25 % of `r` (a different wheel, not an asymmetry);
+/// - payload: body mass 0.5–2 × `m_b` (a payload cannot weigh more than the robot), height
+///   of the centre of mass 0.2–5 × `l` and at most 0.5 m;
+/// - dead zone: at most 3 V;
+/// - stick-slip: breakaway torque up to the stall torque at 12 V, Stribeck speed
+///   0.005–20 rad/s;
+/// - tilt filter: the accelerometer's weight per sample in `[0, 1]` (1: no filter);
+/// - gear backlash: at most 0.2 rad (11°) at the wheel;
+/// - the other calibrated parameters: within a factor 4 of the file's value (a robot off by
+///   more is another robot).
+pub fn wip_catalogue(p: &WipParams) -> Catalogue {
+    let mut cat = Catalogue::default();
+    let stall = p.n_wm * p.k_e * 12.0 / p.R_m;
+    let emf = p.n_wm * p.n_wm * p.k_e * p.k_e / p.R_m;
+    let lin = |n: &str, nominal: f64, scale: f64, range: (f64, f64)| {
+        ParamSpec::linear(n, nominal, scale, range)
+    };
+    let add = |cat: &mut Catalogue, e: Effect, specs: Vec<ParamSpec>| {
+        let idx: Vec<usize> = specs
+            .into_iter()
+            .map(|s| cat.param_index(&s.name).unwrap_or_else(|| cat.param(s)))
+            .collect();
+        cat.effect(e.name(), idx);
+    };
+    // Own parameters first, so that effects freeing them share the entries.
+    let d_v = own("d_v", p, Some((0.0, 10.0 * emf)));
+    let d_c = own("d_c", p, Some((0.0, stall)));
+    let m_b = own("m_b", p, Some((0.5 * p.m_b, 2.0 * p.m_b)));
+    let l = own("l", p, Some((0.2 * p.l, (5.0 * p.l).min(0.5))));
+    for s in [m_b, l, d_v, d_c] {
+        cat.param(s);
+    }
+    for key in CALIBRATED {
+        if cat.param_index(key).is_none() {
+            cat.param(own(key, p, None));
+        }
+    }
+    cat.calibration = CALIBRATED
+        .iter()
+        .filter_map(|k| cat.param_index(k))
+        .filter(|&i| cat.params[i].log)
+        .collect();
+    for e in Effect::ALL {
+        let names = e.parameter_names();
+        let specs = match e {
+            Effect::TiltOffset => vec![lin(names[0], 0.0, 0.01, (-0.3, 0.3))],
+            Effect::FloorSlope => vec![
+                lin(names[0], 0.0, 0.02, (-0.3, 0.3)),
+                lin(names[1], 0.0, 0.02, (-0.3, 0.3)),
+            ],
+            Effect::InputDelay => vec![lin(names[0], 0.0, 0.01, (0.0, 0.1))],
+            Effect::VoltageGain => {
+                let mut s = lin(names[0], 1.0, 0.1, (0.3, 3.0));
+                s.bounds = (0.05, 20.0);
+                vec![s]
+            }
+            Effect::Friction | Effect::Payload => names
+                .iter()
+                .map(|n| cat.params[cat.param_index(n).expect("own parameter")].clone())
+                .collect(),
+            Effect::WheelRadiusAsymmetry => (0..2)
+                .map(|j| {
+                    let mut s = lin(names[j], p.r, 0.03 * p.r, (0.75 * p.r, 1.25 * p.r));
+                    s.bounds = (0.5 * p.r, 2.0 * p.r);
+                    s
+                })
+                .collect(),
+            Effect::DeadZone => {
+                let mut s = lin(names[0], 0.0, 0.2, (0.0, 3.0));
+                s.bounds = (0.0, 10.0);
+                vec![s]
+            }
+            Effect::StickSlip => {
+                let mut f = lin(names[0], 0.0, 0.5 * p.d_c.max(1e-3), (0.0, stall));
+                f.start = 1.5 * p.d_c.max(1e-3);
+                f.bounds = (0.0, 2.0 * stall);
+                let mut w = lin(names[1], 0.3, 0.1, (0.005, 20.0));
+                w.bounds = (0.002, 50.0);
+                vec![f, w]
+            }
+            Effect::TiltFilter => vec![lin(names[0], 1.0, 0.05, (0.0, 1.0))],
+            Effect::GearBacklash => {
+                let mut s = lin(names[0], 0.0, 0.01, (0.0, 0.2));
+                s.bounds = (0.0, 0.5);
+                vec![s]
+            }
+        };
+        add(&mut cat, e, specs);
+    }
+    cat
+}
+
+/// Where each parameter of [`wip_catalogue`] sits in the full parameter vector.
+#[derive(Clone, Debug)]
+pub struct Layout {
+    own: Vec<(usize, usize)>,
+    b: usize,
+    slope: [usize; 2],
+    delay: usize,
+    gain: usize,
+    radii: [usize; 2],
+    dead_zone: usize,
+    stick: [usize; 2],
+    accel_weight: usize,
+    backlash: usize,
+    /// The file's wheel radius (the radius effect's values are relative to it).
+    r_file: f64,
+}
+
+impl Layout {
+    pub fn new(cat: &Catalogue, p: &WipParams) -> Self {
+        let at = |n: &str| {
+            cat.param_index(n)
+                .unwrap_or_else(|| panic!("catalogue has {n}"))
+        };
+        let mut q = *p;
+        let own = q
+            .named_mut()
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, (k, _))| cat.param_index(k).map(|j| (i, j)))
+            .collect();
+        Layout {
+            own,
+            b: at("b_rad"),
+            slope: [at("slope_x_rad"), at("slope_y_rad")],
+            delay: at("delay_s"),
+            gain: at("gain"),
+            radii: [at("r_R_m"), at("r_L_m")],
+            dead_zone: at("u0_V"),
+            stick: [at("f_static_Nm"), at("w_stribeck")],
+            accel_weight: at("accel_weight"),
+            backlash: at("backlash_rad"),
+            r_file: p.r,
+        }
+    }
+
+    /// The extension with the parameter vector `theta` on the robot `base`.
+    pub fn extension<T: Real>(&self, base: &WipParams, theta: &[T]) -> ModelExtension<T> {
+        let mut params = base.map(T::from);
+        {
+            let slots = params_slots(&mut params);
+            for &(i, j) in &self.own {
+                *slots[i] = theta[j];
+            }
+        }
+        let rf = T::from(self.r_file);
+        ModelExtension {
+            params,
+            tilt_offset: theta[self.b],
+            slope: [theta[self.slope[0]], theta[self.slope[1]]],
+            delay: theta[self.delay],
+            gain: theta[self.gain],
+            radius_offsets: [theta[self.radii[0]] - rf, theta[self.radii[1]] - rf],
+            dead_zone: theta[self.dead_zone],
+            stick: [theta[self.stick[0]], theta[self.stick[1]]],
+            accel_weight: theta[self.accel_weight],
+            backlash: theta[self.backlash],
+        }
+    }
+
+    /// A full parameter vector with the effects `set` (values in the order of
+    /// [`Effect::parameter_names`]) on top of the nominal values.
+    pub fn theta_with(&self, cat: &Catalogue, set: &[(Effect, Vec<f64>)]) -> Vec<f64> {
+        let mut theta = cat.nominal();
+        for (e, v) in set {
+            for (&p, &x) in cat.effects[e.index()].params.iter().zip(v) {
+                theta[p] = x;
+            }
+        }
+        theta
+    }
+}
+
+/// Mutable references to every field of a generic [`WipParams`], in the order of
+/// [`WipParams::named_mut`].
+fn params_slots<T>(p: &mut WipParams<T>) -> [&mut T; 22] {
+    [
+        &mut p.g,
+        &mut p.m_b,
+        &mut p.I_bxx,
+        &mut p.I_byy,
+        &mut p.I_bzz,
+        &mut p.m_w,
+        &mut p.I_wxx,
+        &mut p.I_wyy,
+        &mut p.I_wzz,
+        &mut p.l,
+        &mut p.r,
+        &mut p.d,
+        &mut p.d_v,
+        &mut p.d_c,
+        &mut p.d_0,
+        &mut p.I_m,
+        &mut p.I_g,
+        &mut p.n_wm,
+        &mut p.n_wg,
+        &mut p.k_e,
+        &mut p.L_m,
+        &mut p.R_m,
+    ]
+}
+
+/// The model with every effect's parameters; at the catalogue's nominal values it is the
+/// paper's model with the parameter file's values. Several effects can be active at once.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ModelExtension<T> {
+    /// The robot's own parameters (calibrated, or with a payload or friction effect).
+    pub params: WipParams<T>,
     /// The tilt sensor reads `α + b`.
     pub tilt_offset: T,
     /// Floor inclination `(σx, σy)`: the floor rises along +x by `σx` and along +y by `σy`.
@@ -193,57 +347,43 @@ pub struct ModelExtension<T> {
     pub delay: T,
     /// The drivers apply `κ u`.
     pub gain: T,
-    /// `(d_v, d_c)` of the gear/bearing friction.
-    pub friction: [T; 2],
-    /// `(r_R, r_L)`.
-    pub radii: [T; 2],
-    /// `(m_b, l)`.
-    pub payload: [T; 2],
+    /// `(δ_R, δ_L)`: the wheels' radii minus `r`.
+    pub radius_offsets: [T; 2],
     /// Dead zone half-width `u0`.
     pub dead_zone: T,
+    /// Stick-slip: breakaway torque `f_s` (0: the model's regularised Coulomb law) and
+    /// Stribeck speed `w_s`.
+    pub stick: [T; 2],
+    /// The tilt reading is a complementary filter with this accelerometer weight per
+    /// sample (1: the tilt itself).
+    pub accel_weight: T,
+    /// Lost motion between the motor (encoder) and the wheel, rad at the wheel.
+    pub backlash: T,
 }
 
 impl<T: Real> ModelExtension<T> {
     /// No effect: the paper's model with parameters `p`.
     pub fn nominal(p: &WipParams) -> Self {
-        let c = |x: f64| T::from(x);
+        let z = T::zero();
         ModelExtension {
-            tilt_offset: T::zero(),
-            slope: [T::zero(); 2],
-            delay: T::zero(),
+            params: p.map(T::from),
+            tilt_offset: z,
+            slope: [z; 2],
+            delay: z,
             gain: T::one(),
-            friction: [c(p.d_v), c(p.d_c)],
-            radii: [c(p.r), c(p.r)],
-            payload: [c(p.m_b), c(p.l)],
-            dead_zone: T::zero(),
-        }
-    }
-
-    /// Set one effect's parameters (in the order of [`Effect::parameter_names`]).
-    pub fn set(&mut self, effect: Effect, theta: &[T]) {
-        match effect {
-            Effect::TiltOffset => self.tilt_offset = theta[0],
-            Effect::FloorSlope => self.slope = [theta[0], theta[1]],
-            Effect::InputDelay => self.delay = theta[0],
-            Effect::VoltageGain => self.gain = theta[0],
-            Effect::Friction => self.friction = [theta[0], theta[1]],
-            Effect::WheelRadiusAsymmetry => self.radii = [theta[0], theta[1]],
-            Effect::Payload => self.payload = [theta[0], theta[1]],
-            Effect::DeadZone => self.dead_zone = theta[0],
+            radius_offsets: [z; 2],
+            dead_zone: z,
+            stick: [z, T::from(0.3)],
+            accel_weight: T::one(),
+            backlash: z,
         }
     }
 
     /// The WIP whose parameters carry the effects (`P = T`: dual parameters give
     /// derivatives with respect to them).
-    pub fn system(&self, base: &WipParams) -> Wip<T> {
-        let mut params = base.map(T::from);
-        params.d_v = self.friction[0];
-        params.d_c = self.friction[1];
-        params.m_b = self.payload[0];
-        params.l = self.payload[1];
-        let mut w = Wip::new(params);
-        let r = T::from(base.r);
-        w.wheel_radius_offsets = [self.radii[0] - r, self.radii[1] - r];
+    pub fn system(&self) -> Wip<T> {
+        let mut w = Wip::new(self.params);
+        w.wheel_radius_offsets = self.radius_offsets;
         w
     }
 
@@ -260,9 +400,46 @@ impl<T: Real> ModelExtension<T> {
         self.gain * dz
     }
 
-    /// The tilt sensor's reading of the tilt `α` (from the floor's normal).
+    /// The tilt sensor's reading of the tilt `α` (from the floor's normal), before any
+    /// filter.
     pub fn tilt_reading(&self, alpha: T) -> T {
         alpha + self.tilt_offset
+    }
+
+    /// Whether the stick-slip law replaces the model's regularised Coulomb friction.
+    pub fn sticks(&self) -> bool {
+        self.stick[0].re() > 0.0
+    }
+
+    /// The static limit of the stick-slip law: the holding torque a wheel at rest relative
+    /// to the body can take, at least the Coulomb level.
+    pub fn static_limit(&self) -> T {
+        let (fs, dc) = (self.stick[0], self.params.d_c);
+        if fs.re() > dc.re() {
+            fs
+        } else {
+            dc
+        }
+    }
+
+    /// The slip friction of the stick-slip law at relative speed `w` moving in direction
+    /// `sign` (±1): `d_v w + sign (d_c + (f_s − d_c)⁺ exp(−(w/w_s)²))`.
+    pub fn slip_friction(&self, w: T, sign: f64) -> T {
+        let p = &self.params;
+        let excess = self.static_limit() - p.d_c;
+        let ws = self.stick[1];
+        let x = w / ws;
+        p.d_v * w + (p.d_c + excess * (-(x * x)).exp()) * sign
+    }
+
+    /// The encoder's offset from the wheel through the gear's lost motion: the motor leads
+    /// the wheel by half the backlash in the direction of the torque it transmits (the
+    /// motor torque `k_e n_wm i`), smoothed over a tenth of the Coulomb level.
+    pub fn backlash_offset(&self, i: T) -> T {
+        let p = &self.params;
+        let scale = p.d_c * 0.1 + T::from(1e-4);
+        let x = p.k_e * p.n_wm * i / scale;
+        self.backlash * 0.5 * crate::wip::model::tanh_saturating(x)
     }
 
     /// The generalised shape force of gravity's component along an inclined floor, minus

@@ -3,13 +3,20 @@
 //! NOMINAL model, and realistic sensor noise (issue: tilt 0.003 rad, rate 0.02 rad/s,
 //! encoders quantised at 3600 counts/rev, currents 0.02 A, pose 1 mm / 0.005 rad at 50 Hz).
 
-use super::effects::{Effect, ModelExtension};
-use super::measured::MeasuredLog;
-use super::prediction::{Predictor, D, ND};
+use super::effects::{wip_catalogue, Effect, Layout, ModelExtension};
+use super::plant::WipPlant;
+use super::prediction::Predictor;
+pub use crate::diagnose::rng::Rng;
+use crate::diagnose::MeasuredLog;
 use crate::wip::{Wip, WipParams};
-use dmech::continuous::{ContinuousModel, ContinuousState, RungeKutta};
+use dmech::continuous::{acceleration_with_force, ContinuousModel, ContinuousState, RungeKutta};
 use dmech_lie::Se2;
 use nalgebra::{SMatrix, SVector};
+use num_dual::DualSVec64;
+
+/// Dual directions of the LQR design (four states, two inputs).
+const ND: usize = 6;
+type D = DualSVec64<ND>;
 
 /// Sensor noise of the generated logs (standard deviations; encoders are quantised).
 #[derive(Clone, Copy, Debug)]
@@ -38,74 +45,11 @@ impl Default for SensorNoise {
     }
 }
 
-/// A small deterministic generator (xoshiro256**), seeded by SplitMix64, with normal
-/// deviates by Box–Muller: reproducible logs without a dependency.
-#[derive(Clone, Debug)]
-pub struct Rng {
-    s: [u64; 4],
-    spare: Option<f64>,
-}
-
-impl Rng {
-    pub fn new(seed: u64) -> Self {
-        let mut z = seed;
-        let mut next = || {
-            z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut x = z;
-            x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            x ^ (x >> 31)
-        };
-        Rng {
-            s: [next(), next(), next(), next()],
-            spare: None,
-        }
-    }
-    pub fn next_u64(&mut self) -> u64 {
-        let r = self.s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
-        let t = self.s[1] << 17;
-        self.s[2] ^= self.s[0];
-        self.s[3] ^= self.s[1];
-        self.s[1] ^= self.s[2];
-        self.s[0] ^= self.s[3];
-        self.s[2] ^= t;
-        self.s[3] = self.s[3].rotate_left(45);
-        r
-    }
-    /// Uniform in `[0, 1)`.
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Uniform in `[a, b)`.
-    pub fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.uniform()
-    }
-    /// Standard normal.
-    pub fn normal(&mut self) -> f64 {
-        if let Some(z) = self.spare.take() {
-            return z;
-        }
-        let (u1, u2) = (1.0 - self.uniform(), self.uniform());
-        let r = (-2.0 * u1.ln()).sqrt();
-        let (s, c) = (2.0 * std::f64::consts::PI * u2).sin_cos();
-        self.spare = Some(r * s);
-        r * c
-    }
-    /// `±1` with equal probability.
-    pub fn sign(&mut self) -> f64 {
-        if self.uniform() < 0.5 {
-            -1.0
-        } else {
-            1.0
-        }
-    }
-}
-
 /// The magnitudes at which each effect is drawn in the tests and by `wip generate`, per
 /// parameter as `(nominal + sign · U(lo, hi) · scale)`; chosen so that the effect moves
 /// the readings clearly above the noise on a 20 s log (`docs/diagnose.md`).
 pub fn draw_effect(effect: Effect, p: &WipParams, rng: &mut Rng) -> Vec<f64> {
-    let nominal = effect.nominal(p);
+    let nominal = [p.d_v, p.d_c, p.m_b, p.l];
     match effect {
         Effect::TiltOffset => vec![rng.sign() * rng.range(0.01, 0.05)],
         Effect::FloorSlope => vec![
@@ -123,10 +67,13 @@ pub fn draw_effect(effect: Effect, p: &WipParams, rng: &mut Rng) -> Vec<f64> {
             vec![p.r + d / 2.0, p.r - d / 2.0]
         }
         Effect::Payload => vec![
-            nominal[0] * rng.range(1.1, 1.3),
-            nominal[1] * rng.range(1.1, 1.25),
+            nominal[2] * rng.range(1.1, 1.3),
+            nominal[3] * rng.range(1.1, 1.25),
         ],
         Effect::DeadZone => vec![rng.range(0.2, 0.5)],
+        Effect::StickSlip => vec![p.d_c * rng.range(1.5, 3.0), rng.range(0.1, 0.5)],
+        Effect::TiltFilter => vec![rng.range(0.02, 0.2)],
+        Effect::GearBacklash => vec![rng.range(0.01, 0.04)],
     }
 }
 
@@ -159,30 +106,189 @@ impl Default for RunSettings {
 /// `(v_α, φ̇R, φ̇L, iR, iL)`.
 type TrueState = ContinuousState<Se2<f64>, 5>;
 
-/// One RK4 step of the true model (dmech's continuous model with the floor's force).
-fn true_rk4(
-    ext: &ModelExtension<f64>,
-    sys: &Wip<f64>,
-    x: &TrueState,
-    u: [f64; 2],
-    dt: f64,
-) -> Result<TrueState, String> {
-    let floor = |y: &TrueState| ext.floor_force(sys, &y.s, y.g.theta);
-    ContinuousModel::step_with_force::<Wip<f64>, 3, 2, 5, 2>(
-        sys,
-        RungeKutta::Rk4,
-        dt,
-        x,
-        &SVector::<f64, 2>::new(u[0], u[1]),
-        &floor,
-    )
-    .map_err(|e| format!("the true model failed: {e:?}"))
+/// A wheel's mode in the true model under the stick-slip law.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum TrueWheel {
+    Stuck,
+    Slipping(f64),
+}
+
+/// The true model: the WIP of the extension with the dynamic current, by `dmech`'s generic
+/// path. Under the stick-slip law its friction comes as an external force: slip friction
+/// for a slipping wheel, and for a stuck wheel the torque that keeps it at rest relative to
+/// the body (the accelerations are affine in the force: two probes give the response).
+struct Truth<'a> {
+    ext: &'a ModelExtension<f64>,
+    sys: Wip<f64>,
+}
+
+impl Truth<'_> {
+    fn accel(
+        &self,
+        y: &TrueState,
+        u: &SVector<f64, 2>,
+        f: &SVector<f64, 5>,
+    ) -> Result<SVector<f64, 5>, String> {
+        acceleration_with_force::<Wip<f64>, f64, 3, 2, 5, 2>(&self.sys, &y.s, &y.v, u, f)
+            .ok_or_else(|| "the true model's mass matrix is singular".to_string())
+    }
+
+    /// The external shape force at `y` and the holding torques of the stuck wheels.
+    fn force(
+        &self,
+        y: &TrueState,
+        u: &SVector<f64, 2>,
+        modes: [TrueWheel; 2],
+    ) -> Result<(SVector<f64, 5>, [f64; 2]), String> {
+        let mut f = self.ext.floor_force(&self.sys, &y.s, y.g.theta);
+        if !self.ext.sticks() {
+            return Ok((f, [0.0; 2]));
+        }
+        let dir = |j: usize| {
+            let mut d = SVector::<f64, 5>::zeros();
+            d[0] = 1.0;
+            d[1 + j] = -1.0;
+            d
+        };
+        let w = [y.v[1] - y.v[0], y.v[2] - y.v[0]];
+        for j in 0..2 {
+            if let TrueWheel::Slipping(sign) = modes[j] {
+                f += dir(j) * self.ext.slip_friction(w[j], sign);
+            }
+        }
+        let stuck: Vec<usize> = (0..2).filter(|&j| modes[j] == TrueWheel::Stuck).collect();
+        if stuck.is_empty() {
+            return Ok((f, [0.0; 2]));
+        }
+        let a0 = self.accel(y, u, &f)?;
+        let wdot = |a: &SVector<f64, 5>, j: usize| a[1 + j] - a[0];
+        let g: Vec<SVector<f64, 5>> = stuck
+            .iter()
+            .map(|&j| self.accel(y, u, &(f + dir(j))).map(|a| a - a0))
+            .collect::<Result<_, _>>()?;
+        let mut hold = [0.0; 2];
+        if stuck.len() == 1 {
+            let j = stuck[0];
+            hold[j] = -wdot(&a0, j) / wdot(&g[0], j);
+        } else {
+            let m = nalgebra::Matrix2::new(
+                wdot(&g[0], 0),
+                wdot(&g[1], 0),
+                wdot(&g[0], 1),
+                wdot(&g[1], 1),
+            );
+            let x = m
+                .try_inverse()
+                .ok_or("the stuck wheels' response is singular")?
+                * nalgebra::Vector2::new(-wdot(&a0, 0), -wdot(&a0, 1));
+            hold = [x[0], x[1]];
+        }
+        for &j in &stuck {
+            f += dir(j) * hold[j];
+        }
+        Ok((f, hold))
+    }
+
+    fn rk4(
+        &self,
+        x: &TrueState,
+        u: [f64; 2],
+        dt: f64,
+        modes: [TrueWheel; 2],
+    ) -> Result<TrueState, String> {
+        let u = SVector::<f64, 2>::new(u[0], u[1]);
+        let force = |y: &TrueState| {
+            self.force(y, &u, modes)
+                .map(|r| r.0)
+                .unwrap_or_else(|_| SVector::from_element(f64::NAN))
+        };
+        ContinuousModel::step_with_force::<Wip<f64>, 3, 2, 5, 2>(
+            &self.sys,
+            RungeKutta::Rk4,
+            dt,
+            x,
+            &u,
+            &force,
+        )
+        .map_err(|e| format!("the true model failed: {e:?}"))
+    }
+
+    /// One step of the true model; under the stick-slip law a switch within the step (a
+    /// slipping wheel reaching rest, a stuck wheel's holding torque passing the static
+    /// limit) cuts it at the interpolated time.
+    fn step(
+        &self,
+        x: &TrueState,
+        u: [f64; 2],
+        dt: f64,
+        modes: &mut [TrueWheel; 2],
+    ) -> Result<TrueState, String> {
+        if !self.ext.sticks() {
+            return self.rk4(x, u, dt, *modes);
+        }
+        let limit = self.ext.static_limit();
+        let uv = SVector::<f64, 2>::new(u[0], u[1]);
+        let rel = |y: &TrueState| [y.v[1] - y.v[0], y.v[2] - y.v[0]];
+        let mut x = *x;
+        let mut remaining = dt;
+        for _ in 0..6 {
+            let m = *modes;
+            let (_, hold0) = self.force(&x, &uv, m)?;
+            let x1 = self.rk4(&x, u, remaining, m)?;
+            let (_, hold1) = self.force(&x1, &uv, m)?;
+            let (w0, w1) = (rel(&x), rel(&x1));
+            let mut first: Option<(f64, usize)> = None;
+            for j in 0..2 {
+                let frac = match m[j] {
+                    TrueWheel::Slipping(s) => (w1[j] * s < 0.0).then(|| w0[j] / (w0[j] - w1[j])),
+                    TrueWheel::Stuck => (hold1[j].abs() > limit)
+                        .then(|| (limit - hold0[j].abs()) / (hold1[j].abs() - hold0[j].abs())),
+                };
+                if let Some(fr) = frac {
+                    let fr = if fr.is_finite() {
+                        fr.clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    if first.is_none_or(|(g, _)| fr < g) {
+                        first = Some((fr, j));
+                    }
+                }
+            }
+            let Some((fr, j)) = first else {
+                return Ok(x1);
+            };
+            let piece = remaining * fr;
+            if piece > 0.0 {
+                x = self.rk4(&x, u, piece, m)?;
+            }
+            remaining -= piece;
+            match m[j] {
+                TrueWheel::Slipping(s) => {
+                    let mut trial = m;
+                    trial[j] = TrueWheel::Stuck;
+                    x.v[1 + j] = x.v[0];
+                    let (_, hold) = self.force(&x, &uv, trial)?;
+                    modes[j] = if hold[j].abs() <= limit {
+                        TrueWheel::Stuck
+                    } else {
+                        TrueWheel::Slipping(-s)
+                    };
+                }
+                TrueWheel::Stuck => modes[j] = TrueWheel::Slipping(hold1[j].signum()),
+            }
+            if remaining <= 1e-12 * dt {
+                return Ok(x);
+            }
+        }
+        self.rk4(&x, u, remaining, *modes)
+    }
 }
 
 /// A discrete LQR on the NOMINAL prediction model, linearised at rest upright: state
 /// `(α, v_α, φ̇R, φ̇L)`, input `(uR, uL)`, one sample step. Returns `K` with `u = −K e`.
 pub fn nominal_lqr(p: &WipParams, h: f64) -> Result<SMatrix<f64, 2, 4>, String> {
-    let pred = Predictor::<D>::new(ModelExtension::nominal(p), p);
+    let pred = Predictor::<D>::new(ModelExtension::nominal(p));
     let idx = [3usize, 6, 7, 8];
     let mut z = SVector::<D, 9>::zeros();
     for (d, &i) in idx.iter().enumerate() {
@@ -267,6 +373,10 @@ impl Reference {
 pub struct GeneratedLog {
     pub log: MeasuredLog,
     pub clean: Vec<[f64; 9]>,
+    /// The true state per row in the prediction's coordinates
+    /// `(x, y, θ, α, φR, φL, v_α, φ̇R, φ̇L)` (to check the prediction model against the
+    /// truth).
+    pub states: Vec<[f64; 9]>,
 }
 
 /// Simulate a closed-loop run of the true model with the hidden `effects` and record it as
@@ -279,11 +389,19 @@ pub fn generate(
 ) -> Result<GeneratedLog, String> {
     let mut rng = Rng::new(seed);
     let reference = Reference::draw(&mut rng);
-    let mut ext = ModelExtension::<f64>::nominal(p);
-    for (e, theta) in effects {
-        ext.set(*e, theta);
+    let cat = wip_catalogue(p);
+    let layout = Layout::new(&cat, p);
+    let ext: ModelExtension<f64> = layout.extension(p, &layout.theta_with(&cat, effects));
+    let mut sys = ext.system();
+    if ext.sticks() {
+        // The stick-slip law supplies the friction.
+        sys.params.d_v = 0.0;
+        sys.params.d_c = 0.0;
     }
-    let sys = ext.system(p);
+    let model = Truth { ext: &ext, sys };
+    let mut modes = [TrueWheel::Slipping(1.0); 2];
+    // The firmware's tilt estimate (a complementary filter), when the effect is on.
+    let mut filter: Option<f64> = None;
     let k_lqr = nominal_lqr(p, settings.h)?;
     let h = settings.h;
     let noise = settings.noise;
@@ -297,8 +415,9 @@ pub fn generate(
         v: SVector::zeros(),
     };
     let mut cmd_hist: Vec<[f64; 2]> = Vec::with_capacity(pre_roll + n);
-    let mut log = MeasuredLog::empty(h);
+    let mut log = WipPlant::empty_log(h);
     let mut clean = Vec::with_capacity(n);
+    let mut states = Vec::with_capacity(n);
     let (m_delay, f_delay) = {
         let tau = ext.delay;
         let m = (tau / h).floor();
@@ -308,20 +427,35 @@ pub fn generate(
         let t = (k as f64 - pre_roll as f64) * h;
         // Sensors at t_k.
         let alpha = x.s[0];
-        let truth = [
+        let lost = [ext.backlash_offset(x.v[3]), ext.backlash_offset(x.v[4])];
+        let mut truth = [
             x.g.x,
             x.g.y,
             x.g.theta,
             ext.tilt_reading(alpha),
             x.v[0],
-            x.s[1] - alpha,
-            x.s[2] - alpha,
+            x.s[1] - alpha + lost[0],
+            x.s[2] - alpha + lost[1],
             x.v[3],
             x.v[4],
         ];
         let quant = |a: f64| (a / q_enc).round() * q_enc;
-        let meas_alpha = truth[3] + noise.tilt * rng.normal();
+        let tilt = truth[3];
+        let mut meas_alpha = tilt + noise.tilt * rng.normal();
         let meas_rate = truth[4] + noise.rate * rng.normal();
+        if ext.accel_weight < 1.0 {
+            // The firmware's complementary filter f_k = (1 − a)(f_{k−1} + h g_k) + a acc_k,
+            // from the first accelerometer reading on; the clean reading is the filter
+            // with this sample's accelerometer noise removed (what a perfect model of the
+            // filter predicts from the previous reading).
+            let a = ext.accel_weight;
+            if let Some(f) = filter {
+                let prior = (1.0 - a) * (f + h * meas_rate);
+                truth[3] = prior + a * tilt;
+                meas_alpha = prior + a * meas_alpha;
+            }
+            filter = Some(meas_alpha);
+        }
         let enc = [quant(truth[5]), quant(truth[6])];
         let meas_i = [
             truth[7] + noise.current * rng.normal(),
@@ -363,8 +497,11 @@ pub fn generate(
             row[6] = enc[1];
             row[7] = meas_i[0];
             row[8] = meas_i[1];
-            log.push_row(t, cmd, &row);
+            log.push_row(t, &cmd, &row);
             clean.push(truth);
+            states.push([
+                x.g.x, x.g.y, x.g.theta, x.s[0], x.s[1], x.s[2], x.v[0], x.v[1], x.v[2],
+            ]);
         }
         if k + 1 == pre_roll + n {
             break;
@@ -388,10 +525,10 @@ pub fn generate(
             let n_sub = ((len / h) * settings.substeps as f64).ceil().max(1.0) as usize;
             let dt = len / n_sub as f64;
             for _ in 0..n_sub {
-                x = true_rk4(&ext, &sys, &x, ua, dt)?;
+                x = model.step(&x, ua, dt, &mut modes)?;
             }
         }
     }
     log.channels_present_from_data();
-    Ok(GeneratedLog { log, clean })
+    Ok(GeneratedLog { log, clean, states })
 }

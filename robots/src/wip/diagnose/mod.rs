@@ -1,13 +1,11 @@
-//! `wip diagnose`: compare the model with a measured log, find which unmodelled effect
-//! explains the difference, refit, report the gain (method: `docs/diagnose.md`).
+//! `wip diagnose`: the WIP's part of the generic diagnosis (`crate::diagnose`): its
+//! catalogue of effects, its prediction model, its plant, the synthetic logs of the tests
+//! and the refitted parameter file (method: `docs/diagnose.md`).
 
-pub mod adequacy;
-pub mod conditions;
 pub mod effects;
-pub mod fit;
 pub mod generate;
-pub mod measured;
+pub mod plant;
 pub mod prediction;
 pub mod refit;
-pub mod report;
-pub mod selection;
+
+pub use plant::{Channel, WipPlant};

@@ -1,36 +1,35 @@
 //! `params_refit.json`: the refitted model in the parameter-file format that
-//! `wip plan/simulate --params` read (a JSON object of the model's keys, SI). Effects that
-//! are parameters of the model (friction, payload) go into it; the others (sensor offset,
-//! floor slope, delay, voltage gain, dead zone, unequal wheels) are not parameters of the
+//! `wip plan/simulate --params` read (a JSON object of the model's keys, SI). The robot's
+//! own parameters that the diagnosis moved (a calibration, the friction and payload
+//! effects) go into it; the other effects (sensor offset and filter, floor slope, delay,
+//! voltage gain, dead zone, unequal wheels, stick-slip, backlash) are not parameters of the
 //! paper's model and are listed for the report instead.
 
-use super::effects::Effect;
-use super::selection::Diagnosis;
+use super::effects::{Effect, CALIBRATED};
+use super::plant::WipPlant;
+use crate::diagnose::{Diagnosis, Plant};
 use crate::wip::WipParams;
 
 /// The parameters of the refitted model, and the named effects the file cannot hold.
-pub fn refit_params(d: &Diagnosis, p: &WipParams) -> (WipParams, Vec<Effect>) {
-    let mut q = *p;
-    let mut left_out = Vec::new();
+pub fn refit_params(plant: &WipPlant, d: &Diagnosis) -> (WipParams, Vec<Effect>) {
+    let mut q = plant.params;
     if d.cause == "none" || d.cause == "unexplained" {
-        return (q, left_out);
+        return (q, Vec::new());
     }
-    let mut at = 0;
-    for &e in &d.chosen.fit.candidate.effects {
-        let th = &d.chosen.fit.theta[at..at + e.n_params()];
-        at += e.n_params();
-        match e {
-            Effect::Friction => {
-                q.d_v = th[0];
-                q.d_c = th[1];
+    let cat = plant.catalogue();
+    for (key, v) in q.named_mut() {
+        if CALIBRATED.contains(&key) {
+            if let Some(i) = cat.param_index(key) {
+                *v = d.chosen.fit.theta[i];
             }
-            Effect::Payload => {
-                q.m_b = th[0];
-                q.l = th[1];
-            }
-            _ => left_out.push(e),
         }
     }
+    let left_out = d
+        .effects
+        .iter()
+        .filter_map(|&e| Effect::ALL.get(e).copied())
+        .filter(|e| !matches!(e, Effect::Friction | Effect::Payload))
+        .collect();
     (q, left_out)
 }
 

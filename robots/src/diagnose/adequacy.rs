@@ -3,7 +3,7 @@
 //! log is found where a rule on the overall error alone cannot see it.
 //!
 //! For a channel with `n` residual samples `r_k` inside the prediction windows and noise
-//! level `σ̂` from first differences (`σ̂² = mean(Δr²)/2`, [`super::selection::difference_noise`]),
+//! level `σ̂` from first differences (`σ̂² = mean(Δr²)/2`, [`super::noise::difference_noise`]),
 //! three statistics are standard normal when the residual is white Gaussian noise:
 //!
 //! - mean: `z_M = mean(r)·√n/σ̂` (two-sided);
@@ -20,8 +20,8 @@
 //! false-alarm rate [`FALSE_ALARM`] per log, split evenly (Bonferroni) over the tests of
 //! every measured channel.
 
-use super::fit::Residuals;
-use super::measured::{Channel, MeasuredLog};
+use super::log::MeasuredLog;
+use super::noise::{sample_gap, Residuals};
 
 /// The probability that a log whose residual is pure white noise fails some test.
 pub const FALSE_ALARM: f64 = 1e-3;
@@ -29,7 +29,8 @@ pub const FALSE_ALARM: f64 = 1e-3;
 /// The three statistics of one channel.
 #[derive(Clone, Copy, Debug)]
 pub struct ChannelTest {
-    pub channel: Channel,
+    /// Index of the channel in the plant's channels.
+    pub channel: usize,
     /// Residual samples in the statistics.
     pub n: usize,
     pub z_mean: f64,
@@ -126,26 +127,21 @@ pub fn channel_tests(
     log: &MeasuredLog,
     res: &Residuals,
     windows: &[(usize, usize)],
-    sigma: &[f64; 9],
+    sigma: &[f64],
 ) -> Vec<ChannelTest> {
-    let channels: Vec<Channel> = Channel::ALL
-        .into_iter()
-        .filter(|c| log.present[c.index()] && sigma[c.index()].is_finite())
+    let channels: Vec<usize> = (0..log.n_channels)
+        .filter(|&c| log.present[c] && sigma[c].is_finite())
         .collect();
     let critical = critical_z(3 * channels.len());
     let mut out = Vec::new();
     for c in channels {
-        let i = c.index();
-        let s = sigma[i];
-        let ks: Vec<usize> = (0..log.len())
-            .filter(|&k| log.value(k, c).is_some())
-            .collect();
-        let gap = ks.windows(2).map(|w| w[1] - w[0]).min().unwrap_or(1);
+        let s = sigma[c];
+        let gap = sample_gap(log, c);
         let (mut n, mut sum, mut sum2, mut lag) = (0usize, 0.0, 0.0, 0.0);
         for &(start, len) in windows {
             let mut prev: Option<(usize, f64)> = None;
             for k in start..start + len {
-                let v = res.r[k][i];
+                let v = res.get(k, c);
                 if !v.is_finite() {
                     continue;
                 }
@@ -181,7 +177,8 @@ pub fn channel_tests(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wip::diagnose::generate::Rng;
+    use crate::diagnose::noise::difference_noise;
+    use crate::diagnose::rng::Rng;
 
     #[test]
     fn normal_quantile_matches_known_values() {
@@ -191,27 +188,22 @@ mod tests {
         assert!((normal_quantile(1e-6) + 4.753424308822899).abs() < 1e-7);
     }
 
+    /// A one-channel log whose residual is `r`.
     fn log_of(r: &[f64]) -> (MeasuredLog, Residuals) {
-        let mut log = MeasuredLog::empty(0.01);
-        let mut rows = Vec::new();
+        let mut log = MeasuredLog::empty(0.01, 1, 1);
+        let mut res = Residuals::new(r.len(), 1);
         for (k, v) in r.iter().enumerate() {
-            let mut row = [f64::NAN; 9];
-            row[Channel::Alpha.index()] = 0.0;
-            log.push_row(k as f64 * 0.01, [0.0, 0.0], &row);
-            let mut rr = [f64::NAN; 9];
-            rr[Channel::Alpha.index()] = *v;
-            rows.push(rr);
+            log.push_row(k as f64 * 0.01, &[0.0], &[0.0]);
+            res.set(k, 0, *v);
         }
         log.channels_present_from_data();
-        (log, Residuals { r: rows })
+        (log, res)
     }
 
     fn tests_of(r: &[f64]) -> ChannelTest {
         let (log, res) = log_of(r);
         let windows: Vec<(usize, usize)> = (0..r.len() / 50).map(|w| (w * 50, 50)).collect();
-        let mut sigma = [f64::NAN; 9];
-        sigma[Channel::Alpha.index()] =
-            crate::wip::diagnose::selection::difference_noise(r.iter().copied().enumerate(), 1);
+        let sigma = [difference_noise(r.iter().copied().enumerate(), 1)];
         channel_tests(&log, &res, &windows, &sigma)[0]
     }
 

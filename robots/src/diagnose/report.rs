@@ -1,27 +1,73 @@
-//! `diagnose`'s output files: `diagnosis.json` (docs/formats.md), `report.md` and residual
-//! plots before and after the refit, one per channel.
+//! `diagnose`'s output files for any plant: `diagnosis.json` (docs/formats.md), `report.md`
+//! and residual plots before and after the refit, one per channel.
 
-use super::measured::{Channel, MeasuredLog};
+use super::log::MeasuredLog;
+use super::model::Catalogue;
 use super::selection::{Diagnosis, Scored};
+use super::Plant;
 use crate::plot::{Plot, Series};
 use serde_json::{json, Map, Value};
 use std::fmt::Write as _;
 
-fn params_json(s: &Scored, values: &[f64]) -> Value {
+/// The candidate's effect parameters, by name, from a full vector of values.
+fn params_json(cat: &Catalogue, s: &Scored, values: &[f64]) -> Value {
     let mut m = Map::new();
-    for (name, v) in s.fit.candidate.parameter_names().iter().zip(values) {
-        m.insert((*name).to_string(), json!(v));
+    for p in s.fit.candidate.effect_params(cat) {
+        m.insert(cat.params[p].name.clone(), json!(values[p]));
     }
     Value::Object(m)
 }
 
-/// `diagnosis.json`.
-pub fn diagnosis_json(d: &Diagnosis) -> Value {
+/// The calibration: every combination of the system's own parameters with its relative
+/// standard deviation, and the calibrated parameters (the chosen model's values).
+fn calibration_json(cat: &Catalogue, d: &Diagnosis) -> Value {
+    let Some(c) = &d.calibration else {
+        return Value::Null;
+    };
+    let ident = &c.identifiability;
+    let combinations: Vec<Value> = ident
+        .combinations
+        .iter()
+        .map(|k| {
+            let mut w = Map::new();
+            for (&p, &x) in ident.params.iter().zip(&k.weights) {
+                w.insert(cat.params[p].name.clone(), json!(x));
+            }
+            json!({
+                "name": k.name,
+                "relative_std": if k.std.is_finite() { json!(k.std) } else { json!("infinite") },
+                "determined": k.determined,
+                "exponents": Value::Object(w),
+            })
+        })
+        .collect();
+    let mut values = Map::new();
+    let mut nominal = Map::new();
+    let mut std = Map::new();
+    for &p in &ident.params {
+        let name = cat.params[p].name.clone();
+        values.insert(name.clone(), json!(d.chosen.fit.theta[p]));
+        nominal.insert(name.clone(), json!(cat.params[p].nominal));
+        std.insert(name, json!(d.chosen.fit.std[p]));
+    }
+    json!({
+        "combinations": combinations,
+        "nominal": Value::Object(nominal),
+        "parameters": Value::Object(values),
+        "uncertainty_within_determined": Value::Object(std),
+        "error": c.fit.error,
+    })
+}
+
+/// `diagnosis.json` (docs/formats.md).
+pub fn diagnosis_json<P: Plant>(plant: &P, d: &Diagnosis) -> Value {
+    let cat = plant.catalogue();
+    let chans = plant.channels();
     let named = d.cause != "none" && d.cause != "unexplained";
     let (parameters, uncertainty) = if named {
         (
-            params_json(&d.chosen, &d.chosen.fit.theta),
-            params_json(&d.chosen, &d.chosen.fit.std),
+            params_json(cat, &d.chosen, &d.chosen.fit.theta),
+            params_json(cat, &d.chosen, &d.chosen.fit.std),
         )
     } else {
         (json!({}), json!({}))
@@ -31,10 +77,10 @@ pub fn diagnosis_json(d: &Diagnosis) -> Value {
         .iter()
         .map(|c| {
             json!({
-                "effect": c.fit.candidate.name(),
+                "effect": c.fit.candidate.name(cat),
                 "score": c.score,
-                "parameters": params_json(c, &c.fit.theta),
-                "uncertainty": params_json(c, &c.fit.std),
+                "parameters": params_json(cat, c, &c.fit.theta),
+                "uncertainty": params_json(cat, c, &c.fit.std),
                 "error": c.error,
                 "fitted": c.fitted,
                 "plausible": c.implausible.is_empty(),
@@ -43,17 +89,17 @@ pub fn diagnosis_json(d: &Diagnosis) -> Value {
         })
         .collect();
     let mut noise = Map::new();
-    for c in Channel::ALL {
-        let s = d.sigma_final[c.index()];
+    for (c, spec) in chans.iter().enumerate() {
+        let s = d.sigma_final[c];
         if s.is_finite() {
-            noise.insert(c.name().into(), json!(s));
+            noise.insert(spec.name.clone(), json!(s));
         }
     }
     let tests = |ts: &[super::adequacy::ChannelTest]| -> Vec<Value> {
         ts.iter()
             .map(|t| {
                 json!({
-                    "channel": t.channel.name(),
+                    "channel": chans[t.channel].name,
                     "n": t.n,
                     "z_mean": t.z_mean,
                     "z_level": t.z_level,
@@ -65,9 +111,9 @@ pub fn diagnosis_json(d: &Diagnosis) -> Value {
             })
             .collect()
     };
-    json!({
+    let mut out = json!({
         "cause": d.cause,
-        "effects": d.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "effects": d.effects.iter().map(|&e| cat.effects[e].name.clone()).collect::<Vec<_>>(),
         "parameters": parameters,
         "uncertainty": uncertainty,
         "error_before": d.error_before,
@@ -84,18 +130,30 @@ pub fn diagnosis_json(d: &Diagnosis) -> Value {
         },
         "flagged_readings": d.flagged,
         "conditions": d.conditions.iter().map(|c| json!({
-            "channel": c.channel.name(),
+            "channel": chans[c.channel].name,
             "condition": c.condition,
             "measure": c.measure,
             "inside": c.inside,
             "outside": c.outside,
             "z": c.z,
         })).collect::<Vec<_>>(),
-    })
+    });
+    if d.calibration.is_some() {
+        out["calibration"] = calibration_json(cat, d);
+    }
+    out
 }
 
-/// `report.md`.
-pub fn report_md(d: &Diagnosis, log: &MeasuredLog, source: &str) -> String {
+/// `report.md`; `refit_note` says what the plant's refitted parameter file holds.
+pub fn report_md<P: Plant>(
+    plant: &P,
+    d: &Diagnosis,
+    log: &MeasuredLog,
+    source: &str,
+    refit_note: &str,
+) -> String {
+    let cat = plant.catalogue();
+    let chans = plant.channels();
     let mut s = String::new();
     let _ = writeln!(s, "# Model validation: {source}\n");
     let _ = writeln!(s, "**Verdict.** {}\n", d.verdict);
@@ -126,21 +184,15 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
     );
     let _ = writeln!(s, "## Where the nominal model disagrees\n");
     let _ = writeln!(s, "| channel | σ (noise) | RMS/σ before | RMS/σ after | worst 1 s of the log (before) |\n|---|---|---|---|---|");
-    for c in Channel::ALL {
-        let i = c.index();
+    for (i, c) in chans.iter().enumerate() {
         if !d.channel_before[i].is_finite() {
             continue;
         }
-        let worst = worst_second(&d.residuals_before.r, i, log.h, d.sigma_final[i]);
+        let worst = worst_second(&d.residuals_before, i, log.h, d.sigma_final[i]);
         let _ = writeln!(
             s,
             "| {} | {:.3e} {} | {:.2} | {:.2} | {} |",
-            c.name(),
-            d.sigma_final[i],
-            c.unit(),
-            d.channel_before[i],
-            d.channel_after[i],
-            worst
+            c.name, d.sigma_final[i], c.unit, d.channel_before[i], d.channel_after[i], worst
         );
     }
     let _ = writeln!(
@@ -162,7 +214,7 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
             let _ = writeln!(
                 s,
                 "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {} |",
-                a.channel.name(),
+                chans[a.channel].name,
                 a.n,
                 b.z_mean,
                 b.z_level,
@@ -184,7 +236,7 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
         let _ = writeln!(s, "## Where the model fails\n");
         let _ = writeln!(
             s,
-            "The operating conditions that the remaining residual follows, in the channels that fail their tests: `(r/σ)²` (level) or `r/σ` (mean) inside and outside the condition, and the Welch statistic with effective sample counts (docs/diagnose.md). This is where an effect is missing.\n"
+            "The operating conditions that the remaining residual follows, in the channels that fail their tests: `(r/σ)²` (level) or `r/σ` (mean) inside and outside the condition, and `z`, a t statistic paired over windows (per window the difference of the log level or of the mean) on the normal scale (docs/diagnose.md). This is where an effect is missing.\n"
         );
         let _ = writeln!(
             s,
@@ -194,12 +246,7 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
             let _ = writeln!(
                 s,
                 "| {} | {} | {} | {:.2} | {:.2} | {:.1} |",
-                c.channel.name(),
-                c.condition,
-                c.measure,
-                c.inside,
-                c.outside,
-                c.z
+                chans[c.channel].name, c.condition, c.measure, c.inside, c.outside, c.z
             );
         }
         let _ = writeln!(s);
@@ -211,29 +258,25 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
         }
         let _ = writeln!(s);
     }
+    calibration_md(&mut s, cat, d);
     let _ = writeln!(s, "## Fitted parameters\n");
     if d.effects.is_empty() {
         let _ = writeln!(s, "None: no effect is named.\n");
     } else {
         let _ = writeln!(s, "| parameter | value | uncertainty (1σ) |\n|---|---|---|");
-        for ((n, v), u) in d
-            .chosen
-            .fit
-            .candidate
-            .parameter_names()
-            .iter()
-            .zip(&d.chosen.fit.theta)
-            .zip(&d.chosen.fit.std)
-        {
-            let _ = writeln!(s, "| `{n}` | {v:.6e} | {u:.2e} |");
+        for p in d.chosen.fit.candidate.effect_params(cat) {
+            let _ = writeln!(
+                s,
+                "| `{}` | {:.6e} | {:.2e} |",
+                cat.params[p].name, d.chosen.fit.theta[p], d.chosen.fit.std[p]
+            );
         }
         let _ = writeln!(s);
     }
     let _ = writeln!(s, "## Candidates\n");
-    let _ = writeln!(
-        s,
-        "`params_refit.json` holds the refitted model in the parameter-file format (`--params`): friction and payload are model parameters and go in; the other effects (sensor offset, floor slope, delay, voltage gain, dead zone, unequal wheels) are not parameters of the model and are only reported here.\n"
-    );
+    if !refit_note.is_empty() {
+        let _ = writeln!(s, "{refit_note}\n");
+    }
     let _ = writeln!(
         s,
         "Selection by the Bayesian information criterion `m ln(RSS/m) + k ln m` over the `m` weighted residuals (`k` effect parameters; the window states are common to all candidates); lower is better. \
@@ -247,16 +290,19 @@ Every effect is screened by one linearisation at the nominal model; the promisin
         let ps: Vec<String> = c
             .fit
             .candidate
-            .parameter_names()
+            .effect_params(cat)
             .iter()
-            .zip(&c.fit.theta)
-            .zip(&c.fit.std)
-            .map(|((n, v), u)| format!("{n} = {v:.4e} ± {u:.1e}"))
+            .map(|&p| {
+                format!(
+                    "{} = {:.4e} ± {:.1e}",
+                    cat.params[p].name, c.fit.theta[p], c.fit.std[p]
+                )
+            })
             .collect();
         let _ = writeln!(
             s,
             "| {} | {:.1} | {:.3} | {} | {} | {} |",
-            c.fit.candidate.name(),
+            c.fit.candidate.name(cat),
             c.score,
             c.error,
             if c.fitted { "yes" } else { "screened" },
@@ -271,15 +317,50 @@ Every effect is screened by one linearisation at the nominal model; the promisin
     s
 }
 
+/// The calibration's combinations and calibrated parameters, if any.
+fn calibration_md(s: &mut String, cat: &Catalogue, d: &Diagnosis) {
+    let Some(c) = &d.calibration else {
+        return;
+    };
+    let _ = writeln!(s, "## Calibration of the system's own parameters\n");
+    let _ = writeln!(
+        s,
+        "The Fisher information of the parameters' logarithms at the nominal fit, decomposed: each combination `Π θ_j^(w_j)` is determined by the log to the relative standard deviation shown; those at most {} are calibrated, the others stay at the parameter file's values (docs/diagnose.md). The calibrated model alone has error {:.3}.\n",
+        super::identify::DETERMINED,
+        c.fit.error
+    );
+    let _ = writeln!(s, "| combination | relative σ | |\n|---|---|---|");
+    for k in &c.identifiability.combinations {
+        let _ = writeln!(
+            s,
+            "| `{}` | {:.2e} | {} |",
+            k.name,
+            k.std,
+            if k.determined { "calibrated" } else { "left" }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n| parameter | file | calibrated | σ (within the determined combinations) |\n|---|---|---|---|"
+    );
+    for &p in &c.identifiability.params {
+        let _ = writeln!(
+            s,
+            "| `{}` | {:.4e} | {:.4e} | {:.2e} |",
+            cat.params[p].name, cat.params[p].nominal, d.chosen.fit.theta[p], d.chosen.fit.std[p]
+        );
+    }
+    let _ = writeln!(s);
+}
+
 /// The one-second stretch where `|r|/σ` is largest on average, as text.
-fn worst_second(r: &[[f64; 9]], c: usize, h: f64, sigma: f64) -> String {
+fn worst_second(r: &super::noise::Residuals, c: usize, h: f64, sigma: f64) -> String {
     let n = ((1.0 / h).round() as usize).max(1);
     let mut best = (0.0, 0usize);
     let mut k = 0;
-    while k + n <= r.len() {
-        let vals: Vec<f64> = r[k..k + n]
-            .iter()
-            .map(|x| x[c])
+    while k + n <= r.rows() {
+        let vals: Vec<f64> = (k..k + n)
+            .map(|j| r.get(j, c))
             .filter(|v| !v.is_nan())
             .collect();
         if !vals.is_empty() {
@@ -299,29 +380,26 @@ fn worst_second(r: &[[f64; 9]], c: usize, h: f64, sigma: f64) -> String {
 }
 
 /// Residual plots, one per channel: before (nominal) and after (refitted).
-pub fn residual_plots(d: &Diagnosis, log: &MeasuredLog) -> Vec<(String, String)> {
+pub fn residual_plots<P: Plant>(
+    plant: &P,
+    d: &Diagnosis,
+    log: &MeasuredLog,
+) -> Vec<(String, String)> {
     let mut out = Vec::new();
-    for c in Channel::ALL {
-        let i = c.index();
+    for (i, c) in plant.channels().iter().enumerate() {
         if !d.channel_before[i].is_finite() {
             continue;
         }
-        let pick = |r: &[[f64; 9]]| -> (Vec<f64>, Vec<f64>) {
-            r.iter()
-                .enumerate()
-                .filter(|(_, x)| !x[i].is_nan())
-                .map(|(k, x)| (log.t[k], x[i]))
-                .unzip()
+        let pick = |r: &super::noise::Residuals| -> (Vec<f64>, Vec<f64>) {
+            r.channel(i).map(|(k, v)| (log.t[k], v)).unzip()
         };
-        let (tb, yb) = pick(&d.residuals_before.r);
-        let (ta, ya) = pick(&d.residuals_after.r);
+        let (tb, yb) = pick(&d.residuals_before);
+        let (ta, ya) = pick(&d.residuals_after);
         let title = format!(
             "residual of {} (prediction − reading), noise σ = {:.2e} {}",
-            c.name(),
-            d.sigma_final[i],
-            c.unit()
+            c.name, d.sigma_final[i], c.unit
         );
-        let ylabel = format!("{} [{}]", c.name(), c.unit());
+        let ylabel = format!("{} [{}]", c.name, c.unit);
         let s = d.sigma_final[i];
         let plot = Plot {
             title: &title,
@@ -349,7 +427,7 @@ pub fn residual_plots(d: &Diagnosis, log: &MeasuredLog) -> Vec<(String, String)>
             markers: vec![],
             equal_axes: false,
         };
-        out.push((format!("residual_{}.svg", c.name()), plot.to_svg()));
+        out.push((format!("residual_{}.svg", c.name), plot.to_svg()));
     }
     out
 }

@@ -1,0 +1,785 @@
+//! Prediction-error fit on short windows (multiple shooting without continuity): the log is
+//! cut into windows; each window's initial state `z₀` is free, the candidate's free
+//! coordinates `β` are shared; the weighted residuals (prediction − reading)/σ_c over every
+//! window are minimised by Levenberg–Marquardt, with the window states eliminated by a Schur
+//! complement. Derivatives with respect to `z₀` and `β` come from one dual-number pass
+//! through the window's simulation.
+
+use super::log::MeasuredLog;
+use super::model::{from_internal, to_internal, Candidate, Catalogue, Direction};
+use super::noise::Residuals;
+use super::Plant;
+use nalgebra::{DMatrix, DVector};
+use num_dual::{DualNum, DualSVec64};
+
+/// How the log is cut and weighted.
+#[derive(Clone, Debug)]
+pub struct FitSetup {
+    /// First row of the first window (leaves room for the delayed commands before it).
+    pub first_row: usize,
+    /// Window length in samples.
+    pub window: usize,
+    /// Noise level of each channel (`∞` for channels not used).
+    pub sigma: Vec<f64>,
+    pub threads: usize,
+    pub max_iterations: usize,
+}
+
+impl FitSetup {
+    /// Consecutive windows `(start, len)` from `first_row`; a last piece shorter than half
+    /// a window is left out.
+    pub fn windows(&self, n_rows: usize) -> Vec<(usize, usize)> {
+        let mut w = Vec::new();
+        let mut start = self.first_row;
+        while start + self.window / 2 < n_rows {
+            let len = self.window.min(n_rows - start);
+            w.push((start, len));
+            start += len;
+        }
+        w
+    }
+}
+
+/// The result of fitting a candidate.
+#[derive(Clone, Debug)]
+pub struct Fit {
+    pub candidate: Candidate,
+    /// Every parameter of the catalogue (the free ones fitted, the others at their
+    /// reference values).
+    pub theta: Vec<f64>,
+    /// Standard deviation of every parameter the candidate frees (0 for the others), with
+    /// its systematic floor.
+    pub std: Vec<f64>,
+    /// Covariance of the free coordinates `β`.
+    pub cov: DMatrix<f64>,
+    pub z0: Vec<Vec<f64>>,
+    /// Weighted residual sum of squares and number of residuals.
+    pub rss: f64,
+    pub m: usize,
+    pub iterations: usize,
+    pub converged: bool,
+    /// Stopped early because it could not beat the bound it was given.
+    pub abandoned: bool,
+}
+
+impl Fit {
+    /// The values of the candidate's effect parameters, in order.
+    pub fn effect_values(&self, cat: &Catalogue) -> Vec<f64> {
+        self.candidate
+            .effect_params(cat)
+            .iter()
+            .map(|&p| self.theta[p])
+            .collect()
+    }
+    pub fn effect_std(&self, cat: &Catalogue) -> Vec<f64> {
+        self.candidate
+            .effect_params(cat)
+            .iter()
+            .map(|&p| self.std[p])
+            .collect()
+    }
+}
+
+/// A window's Gauss–Newton blocks: `A = J_zᵀJ_z`, `W = J_zᵀJ_β`, `V = J_βᵀJ_β`, the
+/// gradients `J_zᵀr`, `J_βᵀr`, and the window's weighted RSS and count.
+pub(crate) struct WindowLin {
+    pub a: DMatrix<f64>,
+    pub w: DMatrix<f64>,
+    pub v: DMatrix<f64>,
+    pub gz: DVector<f64>,
+    pub gp: DVector<f64>,
+    pub rss: f64,
+    pub m: usize,
+}
+
+/// The fit stops when a Gauss–Newton step promises less than this reduction of the
+/// criterion `m ln(RSS/m)` (one parameter must pay `ln m ≈ 10` in the BIC). A reduction
+/// `ΔRSS` of the weighted residual sum of squares changes the criterion by
+/// `m ΔRSS / RSS`: with weights at the noise (`RSS ≈ m`) the two are the same; on a log the
+/// model is far from (`RSS ≫ m`) a step of the same worth is larger in RSS.
+pub const CONVERGED_REDUCTION: f64 = 0.05;
+
+/// The most dual directions a linearisation carries (window state and free coordinates).
+pub const MAX_DIRECTIONS: usize = 40;
+
+pub struct Fitter<'a, P: Plant> {
+    pub plant: &'a P,
+    pub log: &'a MeasuredLog,
+    pub setup: FitSetup,
+    pub windows: Vec<(usize, usize)>,
+    /// Reference values of every parameter (the nominal model, or a calibrated one).
+    pub reference: Vec<f64>,
+    /// State components carried by dual directions (the others are additive).
+    dual_states: Vec<usize>,
+}
+
+impl<'a, P: Plant> Fitter<'a, P> {
+    pub fn new(plant: &'a P, log: &'a MeasuredLog, setup: FitSetup) -> Self {
+        let windows = setup.windows(log.len());
+        let additive: Vec<usize> = plant.additive().iter().map(|&(s, _)| s).collect();
+        let dual_states = (0..plant.state_dim())
+            .filter(|s| !additive.contains(s))
+            .collect();
+        Fitter {
+            plant,
+            log,
+            setup,
+            windows,
+            reference: plant.catalogue().nominal(),
+            dual_states,
+        }
+    }
+
+    pub fn catalogue(&self) -> &Catalogue {
+        self.plant.catalogue()
+    }
+
+    /// Initial window states from the readings themselves.
+    pub fn initial_states(&self) -> Vec<Vec<f64>> {
+        self.windows
+            .iter()
+            .map(|&(s, len)| self.plant.initial_state(self.log, s, len))
+            .collect()
+    }
+
+    fn weight(&self, c: usize) -> f64 {
+        let s = self.setup.sigma[c];
+        if s.is_finite() && s > 0.0 && self.log.present[c] {
+            1.0 / s
+        } else {
+            0.0
+        }
+    }
+
+    /// Weighted residual sum of squares and count of one window (f64 pass).
+    fn window_cost(
+        &self,
+        theta: &[f64],
+        (start, len): (usize, usize),
+        z0: &[f64],
+    ) -> Option<(f64, usize)> {
+        let y = self.plant.predict(self.log, start, len, z0, theta)?;
+        let nc = self.log.n_channels;
+        let chans = self.plant.channels();
+        let (mut rss, mut m) = (0.0, 0);
+        for j in 0..len {
+            for (c, spec) in chans.iter().enumerate() {
+                let wgt = self.weight(c);
+                if wgt == 0.0 {
+                    continue;
+                }
+                if let Some(meas) = self.log.value(start + j, c) {
+                    let r = spec.residual(y[j * nc + c], meas) * wgt;
+                    rss += r * r;
+                    m += 1;
+                }
+            }
+        }
+        (rss.is_finite()).then_some((rss, m))
+    }
+
+    /// The window's Gauss–Newton blocks for the free directions `dirs` at internal
+    /// coordinates `x` (one dual pass with `N ≥ dual states + directions`).
+    fn window_lin_n<const N: usize>(
+        &self,
+        x: &[f64],
+        dirs: &[Direction],
+        (start, len): (usize, usize),
+        z0: &[f64],
+    ) -> Option<WindowLin> {
+        type Dn<const N: usize> = DualSVec64<N>;
+        let cat = self.catalogue();
+        let nd = self.dual_states.len();
+        let k = dirs.len();
+        let nz = z0.len();
+        debug_assert!(nd + k <= N);
+        // x_j = x_ref_j + Σ_q B_jq β_q with β_q dual in direction nd + q.
+        let mut xd: Vec<Dn<N>> = x.iter().map(|&v| Dn::<N>::from(v)).collect();
+        for (q, d) in dirs.iter().enumerate() {
+            for &(j, b) in d {
+                xd[j] += Dn::<N>::from(0.0).derivative(nd + q) * b;
+            }
+        }
+        let theta: Vec<Dn<N>> = cat
+            .params
+            .iter()
+            .zip(xd)
+            .map(|(s, v)| if s.log { v.exp() } else { v })
+            .collect();
+        let mut zd: Vec<Dn<N>> = z0.iter().map(|&v| Dn::<N>::from(v)).collect();
+        for (d, &i) in self.dual_states.iter().enumerate() {
+            zd[i] = Dn::<N>::from(z0[i]).derivative(d);
+        }
+        let y = self.plant.predict(self.log, start, len, &zd, &theta)?;
+        let nc = self.log.n_channels;
+        let chans = self.plant.channels();
+        let additive = self.plant.additive();
+        let mut a = vec![0.0; nz * nz];
+        let mut w = vec![0.0; nz * k];
+        let mut v = vec![0.0; k * k];
+        let mut gz = vec![0.0; nz];
+        let mut gp = vec![0.0; k];
+        let mut jz = vec![0.0; nz];
+        let mut jp = vec![0.0; k];
+        let (mut rss, mut m) = (0.0, 0);
+        for j in 0..len {
+            for (c, spec) in chans.iter().enumerate() {
+                let wgt = self.weight(c);
+                if wgt == 0.0 {
+                    continue;
+                }
+                let Some(meas) = self.log.value(start + j, c) else {
+                    continue;
+                };
+                let yc = &y[j * nc + c];
+                let r = spec.residual(yc.re, meas) * wgt;
+                let g = yc
+                    .eps
+                    .unwrap_generic(nalgebra::Const::<N>, nalgebra::Const::<1>);
+                jz.fill(0.0);
+                for (d, &i) in self.dual_states.iter().enumerate() {
+                    jz[i] = g[d] * wgt;
+                }
+                for &(s, ch) in additive {
+                    if ch == c {
+                        jz[s] += wgt;
+                    }
+                }
+                for q in 0..k {
+                    jp[q] = g[nd + q] * wgt;
+                }
+                for p in 0..nz {
+                    if jz[p] == 0.0 {
+                        continue;
+                    }
+                    for q in 0..nz {
+                        a[p * nz + q] += jz[p] * jz[q];
+                    }
+                    for q in 0..k {
+                        w[p * k + q] += jz[p] * jp[q];
+                    }
+                    gz[p] += jz[p] * r;
+                }
+                for p in 0..k {
+                    for q in 0..k {
+                        v[p * k + q] += jp[p] * jp[q];
+                    }
+                    gp[p] += jp[p] * r;
+                }
+                rss += r * r;
+                m += 1;
+            }
+        }
+        let lin = WindowLin {
+            a: DMatrix::from_row_slice(nz, nz, &a),
+            w: DMatrix::from_row_slice(nz, k, &w),
+            v: DMatrix::from_row_slice(k, k, &v),
+            gz: DVector::from_vec(gz),
+            gp: DVector::from_vec(gp),
+            rss,
+            m,
+        };
+        let finite = lin
+            .a
+            .iter()
+            .chain(lin.w.iter())
+            .chain(lin.v.iter())
+            .all(|x| x.is_finite())
+            && rss.is_finite();
+        finite.then_some(lin)
+    }
+
+    pub(crate) fn window_lin(
+        &self,
+        x: &[f64],
+        dirs: &[Direction],
+        win: (usize, usize),
+        z0: &[f64],
+    ) -> Option<WindowLin> {
+        let n = self.dual_states.len() + dirs.len();
+        macro_rules! dispatch {
+            ($($b:literal),*) => {
+                match n {
+                    $(_ if n <= $b => self.window_lin_n::<$b>(x, dirs, win, z0),)*
+                    _ => panic!("{n} dual directions: more than {MAX_DIRECTIONS}"),
+                }
+            };
+        }
+        dispatch!(4, 6, 8, 10, 12, 16, 20, 24, 32, 40)
+    }
+
+    /// Run `f` over every window, on `threads` threads.
+    pub(crate) fn map_windows<R: Send>(&self, f: impl Fn(usize) -> R + Sync) -> Vec<R> {
+        let n = self.windows.len();
+        let threads = self.setup.threads.max(1).min(n.max(1));
+        let chunk = n.div_ceil(threads);
+        let f = &f;
+        std::thread::scope(|sc| {
+            let handles: Vec<_> = (0..threads)
+                .map(|t| {
+                    sc.spawn(move || {
+                        (t * chunk..((t + 1) * chunk).min(n))
+                            .map(f)
+                            .collect::<Vec<R>>()
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .flat_map(|h| h.join().expect("a fit thread panicked"))
+                .collect()
+        })
+    }
+
+    /// Total weighted cost; `None` if some window's simulation fails.
+    pub fn cost(&self, theta: &[f64], z0: &[Vec<f64>]) -> Option<(f64, usize)> {
+        let parts = self.map_windows(|wi| self.window_cost(theta, self.windows[wi], &z0[wi]));
+        parts
+            .into_iter()
+            .try_fold((0.0, 0), |(r, m), p| p.map(|(a, b)| (r + a, m + b)))
+    }
+
+    /// Linearise every window (`None` if one fails).
+    pub(crate) fn linearise(
+        &self,
+        theta: &[f64],
+        dirs: &[Direction],
+        z0: &[Vec<f64>],
+    ) -> Option<Vec<WindowLin>> {
+        let x = to_internal(self.catalogue(), theta);
+        self.map_windows(|wi| self.window_lin(&x, dirs, self.windows[wi], &z0[wi]))
+            .into_iter()
+            .collect()
+    }
+
+    /// Levenberg–Marquardt from `(theta0, z0)`, freeing the candidate's directions.
+    /// With `abandon_above`, the fit stops early once it cannot get below that cost: after
+    /// two iterations, when the cost less three times the reduction the next step
+    /// promises is still above it (the candidate cannot win).
+    pub fn fit(
+        &self,
+        cand: &Candidate,
+        theta0: &[f64],
+        z0: &[Vec<f64>],
+        abandon_above: Option<f64>,
+        progress: &dyn Fn(&str),
+    ) -> Fit {
+        let cat = self.catalogue();
+        let dirs = cand.directions(cat);
+        let k = dirs.len();
+        assert!(
+            self.dual_states.len() + k <= MAX_DIRECTIONS,
+            "{k} free coordinates: more than a linearisation carries"
+        );
+        let scale = DVector::from_iterator(k, dirs.iter().map(|d| direction_scale(cat, d)));
+        let mut theta = from_internal(cat, &to_internal(cat, theta0));
+        let mut z: Vec<Vec<f64>> = z0.to_vec();
+        let mut lambda = 1e-3;
+        let (mut iterations, mut converged, mut abandoned) = (0, false, false);
+        let mut cov = DMatrix::from_element(k, k, f64::INFINITY);
+        'outer: for it in 0..self.setup.max_iterations {
+            iterations = it + 1;
+            let Some(lins) = self.linearise(&theta, &dirs, &z) else {
+                break;
+            };
+            let rss: f64 = lins.iter().map(|l| l.rss).sum();
+            // The covariance of the candidates' table comes from the last linearisation;
+            // the chosen model's is recomputed at its final point (`final_std`).
+            cov = parameter_cov(&lins, k);
+            progress(&format!(
+                "  {:<28} it {:>2}  cost {:>12.3}",
+                cand.name(cat),
+                it,
+                rss
+            ));
+            loop {
+                let (dz, dp) = step(&lins, k, lambda, &scale);
+                let predicted = predicted_reduction(&lins, &dz, &dp);
+                if let Some(bound) = abandon_above {
+                    if it >= 2 && rss - 3.0 * predicted.max(0.0) > bound {
+                        abandoned = true;
+                        break 'outer;
+                    }
+                }
+                let mut x = to_internal(cat, &theta);
+                for (q, d) in dirs.iter().enumerate() {
+                    for &(j, b) in d {
+                        x[j] += b * dp[q];
+                    }
+                }
+                let theta_new = from_internal(cat, &x);
+                let z_new: Vec<Vec<f64>> = z
+                    .iter()
+                    .zip(&dz)
+                    .map(|(a, b)| a.iter().zip(b.iter()).map(|(p, q)| p + q).collect())
+                    .collect();
+                match self.cost(&theta_new, &z_new) {
+                    Some((rss_new, _)) if rss_new <= rss => {
+                        let rel = (rss - rss_new) / rss.max(1e-300);
+                        theta = theta_new;
+                        z = z_new;
+                        lambda = (lambda / 3.0).max(1e-9);
+                        // Converged when the model promised (and the step delivered) less
+                        // than a hundredth of what one parameter must pay in the
+                        // information criterion.
+                        let worth = predicted * lins.iter().map(|l| l.m).sum::<usize>() as f64
+                            / rss.max(1e-300);
+                        if rel < 1e-9 || worth < CONVERGED_REDUCTION {
+                            converged = true;
+                            break 'outer;
+                        }
+                        break;
+                    }
+                    _ => {
+                        lambda *= 4.0;
+                        if lambda > 1e8 {
+                            converged = true; // no descent left at this point
+                            break 'outer;
+                        }
+                    }
+                }
+            }
+        }
+        let (rss, m) = self.cost(&theta, &z).unwrap_or((f64::INFINITY, 0));
+        let std = param_std(cat, &dirs, &theta, &cov);
+        Fit {
+            candidate: cand.clone(),
+            theta,
+            std,
+            cov,
+            z0: z,
+            rss,
+            m,
+            iterations,
+            converged,
+            abandoned,
+        }
+    }
+
+    /// The covariance and standard deviations at the fit's own point (one more
+    /// linearisation; `fit` reports those of its last iteration, taken before its last
+    /// step), with each parameter's systematic floor added in quadrature.
+    pub fn final_std(&self, fit: &mut Fit) {
+        let cat = self.catalogue();
+        let dirs = fit.candidate.directions(cat);
+        if dirs.is_empty() {
+            return;
+        }
+        fit.cov = match self.linearise(&fit.theta, &dirs, &fit.z0) {
+            Some(l) => parameter_cov(&l, dirs.len()),
+            None => DMatrix::from_element(dirs.len(), dirs.len(), f64::INFINITY),
+        };
+        fit.std = param_std(cat, &dirs, &fit.theta, &fit.cov);
+    }
+
+    /// Screen effects with one linearisation at `theta` (window states `z0`): for each
+    /// effect, the Gauss–Newton step of its parameters with every window state
+    /// re-optimised, and the reduction of the cost it predicts.
+    pub fn screen(
+        &self,
+        effects: &[usize],
+        theta: &[f64],
+        z0: &[Vec<f64>],
+        rss: f64,
+        m: usize,
+    ) -> Option<Vec<Screened>> {
+        let cat = self.catalogue();
+        let all = Candidate::of(effects.to_vec());
+        let dirs = all.directions(cat);
+        // Windows whose linearisation is not finite (a prediction far off the data) are
+        // left out of the screening; the full fits see every window.
+        let x = to_internal(cat, theta);
+        let lins: Vec<WindowLin> = self
+            .map_windows(|wi| self.window_lin(&x, &dirs, self.windows[wi], &z0[wi]))
+            .into_iter()
+            .flatten()
+            .collect();
+        if lins.is_empty() {
+            return None;
+        }
+        let nz = self.plant.state_dim();
+        let mut out = Vec::new();
+        let mut offset = 0;
+        for &e in effects {
+            let np = cat.effects[e].params.len();
+            let idx: Vec<usize> = (offset..offset + np).collect();
+            offset += np;
+            let mut s = DMatrix::<f64>::zeros(np, np);
+            let mut g = DVector::<f64>::zeros(np);
+            for l in &lins {
+                let w = l.w.select_columns(&idx);
+                s += l.v.select_rows(&idx).select_columns(&idx);
+                g += l.gp.select_rows(&idx);
+                if let Some(ch) = damped(&l.a, 0.0).cholesky() {
+                    let x = ch.solve(&w);
+                    s -= w.transpose() * x;
+                    g -= w.transpose() * ch.solve(&l.gz);
+                }
+            }
+            let (delta, reduction, std) = match s.clone().try_inverse() {
+                Some(inv) => {
+                    let delta = -(&inv * &g);
+                    let red = g.dot(&(&inv * &g));
+                    let dof = (m as f64 - (nz * self.windows.len() + np) as f64).max(1.0);
+                    let s2 = (rss - red).max(0.0) / dof;
+                    let std = (0..np)
+                        .map(|i| (inv[(i, i)].max(0.0) * s2).sqrt())
+                        .collect();
+                    (delta, red, std)
+                }
+                None => (DVector::zeros(np), 0.0, vec![f64::INFINITY; np]),
+            };
+            let reduction = if reduction.is_finite() {
+                reduction.max(0.0)
+            } else {
+                0.0
+            };
+            let mut x2 = x.clone();
+            for (q, &p) in cat.effects[e].params.iter().enumerate() {
+                x2[p] += delta[q];
+            }
+            let theta2 = from_internal(cat, &x2);
+            out.push(Screened {
+                effect: e,
+                theta: cat.effects[e].params.iter().map(|&p| theta2[p]).collect(),
+                std,
+                reduction,
+            });
+        }
+        Some(out)
+    }
+
+    /// Unweighted residuals (prediction − reading) of a fitted model, per row and channel.
+    pub fn residuals(&self, fit: &Fit) -> Residuals {
+        self.residuals_at(&fit.theta, &fit.z0)
+    }
+
+    pub fn residuals_at(&self, theta: &[f64], z0: &[Vec<f64>]) -> Residuals {
+        let nc = self.log.n_channels;
+        let mut res = Residuals::new(self.log.len(), nc);
+        let chans = self.plant.channels();
+        let parts = self.map_windows(|wi| {
+            let (start, len) = self.windows[wi];
+            self.plant.predict(self.log, start, len, &z0[wi], theta)
+        });
+        for (&(start, len), y) in self.windows.iter().zip(parts) {
+            let Some(y) = y else { continue };
+            for j in 0..len {
+                for (c, spec) in chans.iter().enumerate() {
+                    if let Some(meas) = self.log.value(start + j, c) {
+                        res.set(start + j, c, spec.residual(y[j * nc + c], meas));
+                    }
+                }
+            }
+        }
+        res
+    }
+}
+
+/// A direction's typical size in internal coordinates: its parameters' scales, combined.
+fn direction_scale(cat: &Catalogue, d: &Direction) -> f64 {
+    let s: f64 = d
+        .iter()
+        .map(|&(j, b)| (cat.params[j].scale / b.abs().max(1e-300)).powi(-2))
+        .sum();
+    s.powf(-0.5)
+}
+
+/// Standard deviation of every parameter (0 where not free) from the covariance of the
+/// free coordinates, with the systematic floor in quadrature: `Cov x = B Cov β Bᵀ`, and
+/// `σ_θ = θ σ_x` for a parameter fitted in `ln θ`.
+fn param_std(cat: &Catalogue, dirs: &[Direction], theta: &[f64], cov: &DMatrix<f64>) -> Vec<f64> {
+    let mut var = vec![0.0; cat.params.len()];
+    let mut free = vec![false; cat.params.len()];
+    for (p, dp) in dirs.iter().enumerate() {
+        for (q, dq) in dirs.iter().enumerate() {
+            for &(i, bi) in dp {
+                for &(j, bj) in dq {
+                    if i == j {
+                        var[i] += bi * bj * cov[(p, q)];
+                    }
+                }
+            }
+        }
+        for &(i, _) in dp {
+            free[i] = true;
+        }
+    }
+    cat.params
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            if !free[i] {
+                return 0.0;
+            }
+            let sx = var[i].max(0.0).sqrt();
+            let st = if s.log { theta[i] * sx } else { sx };
+            if st.is_finite() {
+                st.hypot(s.systematic)
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}
+
+/// `RSS(0) − RSS(δ)` of the Gauss–Newton model for the step `δ = (Δz, Δβ)`.
+fn predicted_reduction(lins: &[WindowLin], dz: &[DVector<f64>], dp: &DVector<f64>) -> f64 {
+    let mut red = 0.0;
+    for (l, d) in lins.iter().zip(dz) {
+        let mut quad = d.dot(&(&l.a * d));
+        let mut lin = l.gz.dot(d);
+        if !dp.is_empty() {
+            quad += 2.0 * d.dot(&(&l.w * dp)) + dp.dot(&(&l.v * dp));
+            lin += l.gp.dot(dp);
+        }
+        red -= 2.0 * lin + quad;
+    }
+    red
+}
+
+/// What one linearisation predicts for an effect.
+#[derive(Clone, Debug)]
+pub struct Screened {
+    pub effect: usize,
+    /// Parameters after one Gauss–Newton step.
+    pub theta: Vec<f64>,
+    pub std: Vec<f64>,
+    /// Predicted reduction of the weighted residual sum of squares.
+    pub reduction: f64,
+}
+
+/// Damped window block `A + λ diag(A) + ridge` (the ridge keeps directions that no reading
+/// sees, such as an unmeasured position, from making it singular).
+fn damped(a: &DMatrix<f64>, lambda: f64) -> DMatrix<f64> {
+    let mut d = a.clone();
+    let top = a.diagonal().max().max(1e-300);
+    for i in 0..a.nrows() {
+        d[(i, i)] += lambda * a[(i, i)] + 1e-10 * top;
+    }
+    d
+}
+
+/// Covariance of the free coordinates at a linearisation, per entry the larger (on the
+/// diagonal) of
+/// - the classical `s² S⁻¹` (`S` the Schur complement of the Gauss–Newton matrix onto the
+///   free coordinates, `s²` the residual variance per degree of freedom): right when the
+///   weighted residuals are white with a common variance;
+/// - the cluster-robust sandwich `S⁻¹ (G/(G−1) Σ_w g_w g_wᵀ) S⁻¹` over the `G` windows,
+///   `g_w = gp_w − W_wᵀ A_w⁻¹ gz_w` the window's score with its own state eliminated: the
+///   windows are independent, but within a window the residuals are not white (sensor
+///   quantisation, and the prediction model's own approximations, which shift each
+///   window's preferred parameters a little). Without such correlation both agree.
+///
+/// The matrix returned is the one of the two whose trace (in units of each classical
+/// variance) is larger, so that it stays a covariance.
+pub(crate) fn parameter_cov(lins: &[WindowLin], k: usize) -> DMatrix<f64> {
+    if k == 0 {
+        return DMatrix::zeros(0, 0);
+    }
+    let s = schur(lins, k);
+    let Some(inv) = s.try_inverse() else {
+        return DMatrix::from_element(k, k, f64::INFINITY);
+    };
+    let g = lins.len() as f64;
+    let rss: f64 = lins.iter().map(|l| l.rss).sum();
+    let m: usize = lins.iter().map(|l| l.m).sum();
+    let nz = lins.first().map_or(0, |l| l.a.nrows());
+    let dof = (m as f64 - (nz * lins.len() + k) as f64).max(1.0);
+    let classical = &inv * (rss / dof);
+    let mut b = DMatrix::<f64>::zeros(k, k);
+    for l in lins {
+        let mut gw = l.gp.clone();
+        if let Some(ch) = damped(&l.a, 0.0).cholesky() {
+            gw -= l.w.transpose() * ch.solve(&l.gz);
+        }
+        b += &gw * gw.transpose();
+    }
+    let robust = &inv * b * &inv * (g / (g - 1.0).max(1.0));
+    // Per coordinate the larger variance; correlations from the matrix that gives it.
+    let mut out = classical.clone();
+    for i in 0..k {
+        for j in 0..k {
+            let (ci, cj) = (classical[(i, i)].max(0.0), classical[(j, j)].max(0.0));
+            let (ri, rj) = (robust[(i, i)].max(0.0), robust[(j, j)].max(0.0));
+            let (si, sj) = (ci.max(ri).sqrt(), cj.max(rj).sqrt());
+            let corr = if ri > ci {
+                robust[(i, j)] / (ri * rj).sqrt().max(1e-300)
+            } else {
+                classical[(i, j)] / (ci * cj).sqrt().max(1e-300)
+            };
+            out[(i, j)] = if i == j { si * si } else { corr * si * sj };
+        }
+    }
+    out
+}
+
+/// Schur complement `Σ V − Σ Wᵀ A⁻¹ W` of the Gauss–Newton matrix onto the free
+/// coordinates (the Fisher information of `β` under unit-variance weighted residuals).
+pub(crate) fn schur(lins: &[WindowLin], k: usize) -> DMatrix<f64> {
+    let mut s = DMatrix::<f64>::zeros(k, k);
+    for l in lins {
+        s += &l.v;
+        if k > 0 {
+            if let Some(ch) = damped(&l.a, 0.0).cholesky() {
+                let x = ch.solve(&l.w);
+                s -= l.w.transpose() * x;
+            }
+        }
+    }
+    s
+}
+
+/// One damped Gauss–Newton step: `(Δz per window, Δβ)`.
+fn step(
+    lins: &[WindowLin],
+    k: usize,
+    lambda: f64,
+    scale: &DVector<f64>,
+) -> (Vec<DVector<f64>>, DVector<f64>) {
+    let mut s = DMatrix::<f64>::zeros(k, k);
+    let mut rhs = DVector::<f64>::zeros(k);
+    let chols: Vec<_> = lins
+        .iter()
+        .map(|l| damped(&l.a, lambda).cholesky())
+        .collect();
+    for (l, ch) in lins.iter().zip(&chols) {
+        s += &l.v;
+        rhs -= &l.gp;
+        if let Some(ch) = ch {
+            if k > 0 {
+                let x = ch.solve(&l.w);
+                s -= l.w.transpose() * &x;
+                rhs += l.w.transpose() * ch.solve(&l.gz);
+            }
+        }
+    }
+    // Marquardt damping on the free coordinates, in their own scale.
+    for i in 0..k {
+        let d = s[(i, i)].max(1e-12 / (scale[i] * scale[i]));
+        s[(i, i)] += lambda * d;
+    }
+    let dp = if k > 0 {
+        s.clone()
+            .cholesky()
+            .map(|c| c.solve(&rhs))
+            .unwrap_or_else(|| DVector::zeros(k))
+    } else {
+        DVector::zeros(0)
+    };
+    let dz = lins
+        .iter()
+        .zip(&chols)
+        .map(|(l, ch)| match ch {
+            Some(ch) => {
+                let mut g = l.gz.clone();
+                if k > 0 {
+                    g += &l.w * &dp;
+                }
+                -ch.solve(&g)
+            }
+            None => DVector::zeros(l.a.nrows()),
+        })
+        .collect();
+    (dz, dp)
+}

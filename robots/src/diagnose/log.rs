@@ -1,0 +1,308 @@
+//! The measured log: a uniform time grid, the commanded inputs (zero-order hold) and the
+//! readings of a system's channels (missing where not measured). The file format is
+//! docs/formats.md, "Measured log"; the channels are the plant's.
+
+use crate::io::parse_csv;
+use std::fmt::Write as _;
+
+/// A measured channel: its CSV column, unit, and the largest magnitude a reading can
+/// physically have (a reading beyond it is a logging fault, not a measurement).
+#[derive(Clone, Debug)]
+pub struct ChannelSpec {
+    pub name: String,
+    pub unit: String,
+    pub range: f64,
+    /// An angle that wraps: residuals are taken modulo 2π.
+    pub wraps: bool,
+}
+
+impl ChannelSpec {
+    pub fn new(name: &str, unit: &str, range: f64) -> Self {
+        ChannelSpec {
+            name: name.into(),
+            unit: unit.into(),
+            range,
+            wraps: false,
+        }
+    }
+    /// Reading minus prediction residual (prediction − reading), wrapped for an angle.
+    pub fn residual(&self, predicted: f64, measured: f64) -> f64 {
+        let d = predicted - measured;
+        if self.wraps {
+            d - (d / std::f64::consts::TAU).round() * std::f64::consts::TAU
+        } else {
+            d
+        }
+    }
+}
+
+/// The largest magnitude of a commanded input that can be a command (10³ in the input's
+/// unit; the robots here run on a few volts).
+pub const COMMAND_RANGE: f64 = 1e3;
+
+/// A log: uniform time grid, commanded inputs, and the readings (NaN = not measured).
+#[derive(Clone, Debug)]
+pub struct MeasuredLog {
+    pub h: f64,
+    pub t: Vec<f64>,
+    /// Inputs per row, `n_inputs` each.
+    inputs: Vec<f64>,
+    pub n_inputs: usize,
+    /// Readings per row, `n_channels` each.
+    data: Vec<f64>,
+    pub n_channels: usize,
+    /// Which channels the log has (a column with at least one value).
+    pub present: Vec<bool>,
+    /// Non-fatal remarks (unknown or duplicated columns), for stderr and the report.
+    pub warnings: Vec<String>,
+}
+
+impl MeasuredLog {
+    pub fn empty(h: f64, n_inputs: usize, n_channels: usize) -> Self {
+        MeasuredLog {
+            h,
+            t: Vec::new(),
+            inputs: Vec::new(),
+            n_inputs,
+            data: Vec::new(),
+            n_channels,
+            present: vec![false; n_channels],
+            warnings: Vec::new(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    pub fn push_row(&mut self, t: f64, input: &[f64], row: &[f64]) {
+        assert_eq!(input.len(), self.n_inputs);
+        assert_eq!(row.len(), self.n_channels);
+        self.t.push(t);
+        self.inputs.extend_from_slice(input);
+        self.data.extend_from_slice(row);
+    }
+
+    /// The inputs commanded at row `k` (held until row `k + 1`).
+    pub fn input(&self, k: usize) -> &[f64] {
+        &self.inputs[k * self.n_inputs..(k + 1) * self.n_inputs]
+    }
+
+    /// The readings of row `k` (NaN where not measured).
+    pub fn row(&self, k: usize) -> &[f64] {
+        &self.data[k * self.n_channels..(k + 1) * self.n_channels]
+    }
+
+    pub fn row_mut(&mut self, k: usize) -> &mut [f64] {
+        &mut self.data[k * self.n_channels..(k + 1) * self.n_channels]
+    }
+
+    pub fn value(&self, k: usize, c: usize) -> Option<f64> {
+        let v = self.data[k * self.n_channels + c];
+        (!v.is_nan()).then_some(v)
+    }
+
+    /// Mark as present every channel with at least one value.
+    pub fn channels_present_from_data(&mut self) {
+        for c in 0..self.n_channels {
+            self.present[c] = (0..self.len()).any(|k| self.value(k, c).is_some());
+        }
+    }
+
+    /// Set a channel aside entirely (not fitted, not tested).
+    pub fn drop_channel(&mut self, c: usize) {
+        for k in 0..self.len() {
+            self.data[k * self.n_channels + c] = f64::NAN;
+        }
+        self.present[c] = false;
+    }
+
+    /// Drop (set to missing) every reading beyond its channel's range, and say which; an
+    /// input beyond [`COMMAND_RANGE`] cannot be dropped (the model needs every input) and
+    /// is an error.
+    pub fn drop_out_of_range(
+        &mut self,
+        channels: &[ChannelSpec],
+        inputs: &[String],
+    ) -> Result<Vec<String>, String> {
+        let mut flagged = Vec::new();
+        for k in 0..self.len() {
+            for (j, name) in inputs.iter().enumerate() {
+                let u = self.input(k)[j];
+                if u.is_nan() || u.abs() > COMMAND_RANGE {
+                    return Err(format!(
+                        "row {k} (t = {}), column '{name}': command {u} is outside ±{COMMAND_RANGE}",
+                        self.t[k]
+                    ));
+                }
+            }
+            for (c, spec) in channels.iter().enumerate() {
+                let v = self.row(k)[c];
+                if v.abs() > spec.range {
+                    flagged.push(format!(
+                        "row {k} (t = {}), column '{}': reading {v:e} {} is outside ±{} and is not fitted",
+                        self.t[k], spec.name, spec.unit, spec.range
+                    ));
+                    self.row_mut(k)[c] = f64::NAN;
+                }
+            }
+        }
+        if !flagged.is_empty() {
+            self.channels_present_from_data();
+        }
+        Ok(flagged)
+    }
+
+    /// Channels whose readings equal an earlier channel's in every row: a copy is not a
+    /// second measurement, and counting it would weigh one sensor twice in the fit and in
+    /// the error measure. Returns `(copy, original)` pairs.
+    pub fn duplicated_channels(&self) -> Vec<(usize, usize)> {
+        let mut out = Vec::new();
+        for c in 0..self.n_channels {
+            if !self.present[c] {
+                continue;
+            }
+            let original = (0..c).find(|&o| {
+                self.present[o]
+                    && (0..self.len()).all(|k| {
+                        let (a, b) = (self.row(k)[c], self.row(k)[o]);
+                        a == b || (a.is_nan() && b.is_nan())
+                    })
+            });
+            if let Some(o) = original {
+                out.push((c, o));
+            }
+        }
+        out
+    }
+
+    /// The log as CSV text (docs/formats.md), empty fields for missing samples.
+    pub fn to_csv(&self, channels: &[ChannelSpec], inputs: &[String]) -> String {
+        let mut s = String::from("t");
+        for n in inputs {
+            let _ = write!(s, ",{n}");
+        }
+        let cols: Vec<usize> = (0..self.n_channels).filter(|&c| self.present[c]).collect();
+        for &c in &cols {
+            let _ = write!(s, ",{}", channels[c].name);
+        }
+        s.push('\n');
+        for k in 0..self.len() {
+            let _ = write!(s, "{:.6}", self.t[k]);
+            for u in self.input(k) {
+                let _ = write!(s, ",{u:.6}");
+            }
+            for &c in &cols {
+                match self.value(k, c) {
+                    Some(v) => {
+                        let _ = write!(s, ",{v:.7e}");
+                    }
+                    None => s.push(','),
+                }
+            }
+            s.push('\n');
+        }
+        s
+    }
+
+    /// Parse a log with the given channels and input columns. Every malformed input is an
+    /// error naming the line and the column.
+    pub fn parse(
+        text: &str,
+        what: &str,
+        channels: &[ChannelSpec],
+        inputs: &[String],
+    ) -> Result<Self, String> {
+        let csv = parse_csv(text, what, true)?;
+        let need = || {
+            std::iter::once("t".to_string())
+                .chain(inputs.iter().cloned())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let col = |n: &str| {
+            csv.column(n)
+                .ok_or_else(|| format!("{what}: missing required column '{n}' (need {})", need()))
+        };
+        let ct = col("t")?;
+        let cin: Vec<usize> = inputs.iter().map(|n| col(n)).collect::<Result<_, _>>()?;
+        let mut warnings = Vec::new();
+        for h in &csv.header {
+            let known =
+                h == "t" || inputs.iter().any(|n| n == h) || channels.iter().any(|c| &c.name == h);
+            if !known {
+                warnings.push(format!("{what}: unknown column '{h}' ignored"));
+            }
+        }
+        if csv.rows.len() < 2 {
+            return Err(format!(
+                "{what}: needs at least two data rows, found {}",
+                csv.rows.len()
+            ));
+        }
+        let chan_cols: Vec<(usize, usize)> = channels
+            .iter()
+            .enumerate()
+            .filter_map(|(c, spec)| csv.column(&spec.name).map(|i| (c, i)))
+            .collect();
+        if chan_cols.is_empty() {
+            let names: Vec<&str> = channels.iter().map(|c| c.name.as_str()).collect();
+            return Err(format!(
+                "{what}: no measured channel (expected some of {})",
+                names.join(", ")
+            ));
+        }
+        let h = csv.rows[1][ct] - csv.rows[0][ct];
+        let mut log = MeasuredLog::empty(h, inputs.len(), channels.len());
+        log.warnings = warnings;
+        let mut u = vec![0.0; inputs.len()];
+        let mut data = vec![f64::NAN; channels.len()];
+        for (row, &line) in csv.rows.iter().zip(&csv.lines) {
+            for (c, name) in std::iter::once((ct, "t"))
+                .chain(cin.iter().zip(inputs).map(|(&c, n)| (c, n.as_str())))
+            {
+                if row[c].is_nan() {
+                    return Err(format!(
+                        "{what}: line {line}, column '{name}': missing value"
+                    ));
+                }
+            }
+            let t = row[ct];
+            if let Some(&prev) = log.t.last() {
+                if t <= prev {
+                    return Err(format!(
+                        "{what}: line {line}, column 't': time {t} is not after the previous {prev}"
+                    ));
+                }
+                if ((t - prev) - h).abs() > 1e-3 * h {
+                    return Err(format!(
+                        "{what}: line {line}, column 't': step {} differs from the first step {h} (the grid must be uniform)",
+                        t - prev
+                    ));
+                }
+            }
+            for (j, &c) in cin.iter().enumerate() {
+                u[j] = row[c];
+            }
+            data.fill(f64::NAN);
+            for &(c, i) in &chan_cols {
+                data[c] = row[i];
+            }
+            log.push_row(t, &u, &data);
+        }
+        log.channels_present_from_data();
+        for &(c, _) in &chan_cols {
+            if !log.present[c] {
+                return Err(format!(
+                    "{what}: column '{}' has no values (every sample empty or NaN)",
+                    channels[c].name
+                ));
+            }
+        }
+        Ok(log)
+    }
+}

@@ -1,0 +1,109 @@
+//! Model validation by short-horizon prediction error, for any system that can predict its
+//! own readings (docs/diagnose.md): given a measured log, show where the model disagrees
+//! with the data, which unmodelled effect of a catalogue explains the difference, calibrate
+//! the system's own parameters, and measure the gain.
+//!
+//! Nothing here knows a particular robot. A system supplies a [`Plant`]: its channels and
+//! inputs, a catalogue of effects with their parameters ([`Catalogue`]), a prediction of
+//! the readings over a window from an initial state (generic in the scalar, so that one
+//! pass in dual numbers gives the derivatives), and the operating conditions worth
+//! testing the residual against. The WIP's plant is `crate::wip::diagnose::plant`; a toy
+//! system in `tests/diagnose_toy.rs` shows the machinery on a second system.
+//!
+//! One concept per module: [`log`] (the measured log), [`model`] (parameters, effects,
+//! candidates), [`fit`] (the windows' Levenberg–Marquardt fit and its uncertainty),
+//! [`noise`] (noise levels and the error measure), [`adequacy`] (is anything left),
+//! [`conditions`] (where the model fails), [`identify`] (which parameter combinations a log
+//! determines), [`selection`] (the diagnosis), [`report`] (the output files).
+
+pub mod adequacy;
+pub mod conditions;
+pub mod fit;
+pub mod identify;
+pub mod log;
+pub mod model;
+pub mod noise;
+pub mod report;
+pub mod rng;
+pub mod selection;
+
+pub use log::{ChannelSpec, MeasuredLog};
+pub use model::{Candidate, Catalogue, EffectSpec, ParamSpec};
+pub use selection::{diagnose, DiagnoseError, DiagnoseOptions, Diagnosis};
+
+use dmech::Lift;
+use dmech_lie::Real;
+use num_dual::DualSVec64;
+
+/// Scalars a prediction runs in: `f64` (values) and dual vectors (values and derivatives
+/// with respect to a window's initial state and the free parameters).
+pub trait FitScalar: Real + Lift<Self> {
+    /// Zero in value and in every derivative: an effect at this value, and not free, can
+    /// be skipped.
+    fn vanishes(&self) -> bool;
+}
+
+impl FitScalar for f64 {
+    fn vanishes(&self) -> bool {
+        *self == 0.0
+    }
+}
+
+impl<const N: usize> FitScalar for DualSVec64<N> {
+    fn vanishes(&self) -> bool {
+        self.re == 0.0
+            && self
+                .eps
+                .unwrap_generic(nalgebra::Const::<N>, nalgebra::Const::<1>)
+                .iter()
+                .all(|&e| e == 0.0)
+    }
+}
+
+/// One operating condition: per row of the log, whether the condition holds (`None` where
+/// it is undefined). The residual of a failing channel is compared inside and outside.
+#[derive(Clone, Debug)]
+pub struct Indicator {
+    pub name: String,
+    pub flags: Vec<Option<bool>>,
+}
+
+/// A system that `diagnose` can compare with a log.
+///
+/// The prediction of a window starts from a state `z₀` of [`Plant::state_dim`] components,
+/// fitted per window; the parameters `θ` are the whole catalogue's ([`Catalogue::params`]),
+/// every one at its nominal value except those a candidate frees. At nominal values the
+/// prediction is the system's own model.
+pub trait Plant: Sync {
+    /// The measured channels, in the order of the predicted readings.
+    fn channels(&self) -> &[ChannelSpec];
+    /// The names of the input columns (the commands), in the order of
+    /// [`MeasuredLog::input`].
+    fn inputs(&self) -> &[String];
+    /// The effects and parameters the diagnosis may free.
+    fn catalogue(&self) -> &Catalogue;
+    /// Components of a window's initial state.
+    fn state_dim(&self) -> usize;
+    /// `(state, channel)` pairs: the state component adds to that channel's reading with
+    /// coefficient one and enters nothing else (a position along a symmetry). Its Jacobian
+    /// column is then a constant and needs no dual direction.
+    fn additive(&self) -> &[(usize, usize)];
+    /// Rows of the log needed before the first window (commands that a delay reaches back to).
+    fn history(&self, h: f64) -> usize;
+    /// A first guess of the state at row `start` from the readings of the window
+    /// `start..start + len`.
+    fn initial_state(&self, log: &MeasuredLog, start: usize, len: usize) -> Vec<f64>;
+    /// The predicted readings of rows `start..start + len`, row after row
+    /// (`len × channels().len()` values), from the state `z0` at `start` with parameters
+    /// `theta`; `None` if the model cannot be simulated there.
+    fn predict<T: FitScalar>(
+        &self,
+        log: &MeasuredLog,
+        start: usize,
+        len: usize,
+        z0: &[T],
+        theta: &[T],
+    ) -> Option<Vec<T>>;
+    /// Operating conditions the residual may follow (the diagnosis adds a trend in time).
+    fn conditions(&self, log: &MeasuredLog) -> Vec<Indicator>;
+}

@@ -1,0 +1,286 @@
+//! The WIP as a [`Plant`] of the generic diagnosis: its channels and inputs, its catalogue
+//! of effects, its prediction of a window (the [`Predictor`] and the sensors), and the
+//! operating conditions worth testing its residual against.
+
+use super::effects::{wip_catalogue, Layout};
+use super::prediction::{Predictor, Wheel, NZ};
+use crate::diagnose::conditions::{above_median, near_zero, positive};
+use crate::diagnose::model::Catalogue;
+use crate::diagnose::{ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant};
+use crate::wip::WipParams;
+use nalgebra::SVector;
+
+/// A measured channel of the WIP. The order is that of [`Predictor::readings`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Channel {
+    X,
+    Y,
+    Theta,
+    Alpha,
+    VAlpha,
+    PhiRRel,
+    PhiLRel,
+    IR,
+    IL,
+}
+
+impl Channel {
+    pub const ALL: [Channel; 9] = [
+        Channel::X,
+        Channel::Y,
+        Channel::Theta,
+        Channel::Alpha,
+        Channel::VAlpha,
+        Channel::PhiRRel,
+        Channel::PhiLRel,
+        Channel::IR,
+        Channel::IL,
+    ];
+    /// The CSV column name.
+    pub fn name(self) -> &'static str {
+        [
+            "x", "y", "theta", "alpha", "v_alpha", "phiR_rel", "phiL_rel", "iR", "iL",
+        ][self.index()]
+    }
+    pub fn unit(self) -> &'static str {
+        ["m", "m", "rad", "rad", "rad/s", "rad", "rad", "A", "A"][self.index()]
+    }
+    pub fn index(self) -> usize {
+        self as usize
+    }
+    /// The largest magnitude a reading of this channel can physically have; a reading
+    /// beyond it is a logging fault, not a measurement. Generous on purpose: a position of
+    /// 10 km, a heading or wheel angle of 10⁶ rad (40 km of a 4 cm wheel), a tilt of 2π,
+    /// a tilt rate of 10³ rad/s (gyros saturate near 35 rad/s), a current of 10³ A.
+    pub fn range(self) -> f64 {
+        [
+            1e4,
+            1e4,
+            1e6,
+            std::f64::consts::TAU,
+            1e3,
+            1e6,
+            1e6,
+            1e3,
+            1e3,
+        ][self.index()]
+    }
+    pub fn spec(self) -> ChannelSpec {
+        let mut s = ChannelSpec::new(self.name(), self.unit(), self.range());
+        s.wraps = self == Channel::Theta;
+        s
+    }
+}
+
+/// The WIP with parameters `params` and its catalogue.
+pub struct WipPlant {
+    pub params: WipParams,
+    catalogue: Catalogue,
+    layout: Layout,
+    channels: Vec<ChannelSpec>,
+    inputs: Vec<String>,
+}
+
+/// The longest input delay the fit may reach (the catalogue's bound), for the rows kept
+/// before the first window.
+const MAX_DELAY: f64 = 0.1;
+
+impl WipPlant {
+    pub fn new(params: WipParams) -> Self {
+        let catalogue = wip_catalogue(&params);
+        let layout = Layout::new(&catalogue, &params);
+        WipPlant {
+            params,
+            catalogue,
+            layout,
+            channels: Channel::ALL.iter().map(|c| c.spec()).collect(),
+            inputs: vec!["uR".into(), "uL".into()],
+        }
+    }
+
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// Parse a measured log with the WIP's columns.
+    pub fn parse_log(&self, text: &str, what: &str) -> Result<MeasuredLog, String> {
+        MeasuredLog::parse(text, what, &self.channels, &self.inputs)
+    }
+
+    pub fn read_log(&self, path: &std::path::Path) -> Result<MeasuredLog, crate::io::ReadError> {
+        let what = format!("{}", path.display());
+        let text = crate::io::read_text(path, &what)?;
+        self.parse_log(&text, &what)
+            .map_err(crate::io::ReadError::Content)
+    }
+
+    /// An empty log with the WIP's inputs and channels.
+    pub fn empty_log(h: f64) -> MeasuredLog {
+        MeasuredLog::empty(h, 2, Channel::ALL.len())
+    }
+}
+
+impl Plant for WipPlant {
+    fn channels(&self) -> &[ChannelSpec] {
+        &self.channels
+    }
+    fn inputs(&self) -> &[String] {
+        &self.inputs
+    }
+    fn catalogue(&self) -> &Catalogue {
+        &self.catalogue
+    }
+    fn state_dim(&self) -> usize {
+        NZ
+    }
+    fn additive(&self) -> &[(usize, usize)] {
+        // x, y and the wheel angles enter only their own readings (translation and wheel
+        // rotation are symmetries of the dynamics).
+        &[(0, 0), (1, 1), (4, 5), (5, 6)]
+    }
+    fn history(&self, h: f64) -> usize {
+        (MAX_DELAY / h).ceil() as usize + 2
+    }
+
+    /// Pose from the nearest pose sample, tilt and rate from the first readings, wheel
+    /// rates from encoder differences.
+    fn initial_state(&self, log: &MeasuredLog, s: usize, len: usize) -> Vec<f64> {
+        let h = log.h;
+        let near = |c: Channel| -> f64 {
+            (s..(s + len).min(log.len()))
+                .find_map(|k| log.value(k, c.index()))
+                .unwrap_or(0.0)
+        };
+        let alpha = near(Channel::Alpha);
+        let va = near(Channel::VAlpha);
+        let rate = |c: Channel| -> f64 {
+            let (a, b) = (s.saturating_sub(2), (s + 2).min(log.len() - 1));
+            match (log.value(a, c.index()), log.value(b, c.index())) {
+                (Some(x), Some(y)) if b > a => (y - x) / ((b - a) as f64 * h) + va,
+                _ => 0.0,
+            }
+        };
+        vec![
+            near(Channel::X),
+            near(Channel::Y),
+            near(Channel::Theta),
+            alpha,
+            near(Channel::PhiRRel) + alpha,
+            near(Channel::PhiLRel) + alpha,
+            va,
+            rate(Channel::PhiRRel),
+            rate(Channel::PhiLRel),
+        ]
+    }
+
+    fn predict<T: FitScalar>(
+        &self,
+        log: &MeasuredLog,
+        start: usize,
+        len: usize,
+        z0: &[T],
+        theta: &[T],
+    ) -> Option<Vec<T>> {
+        let ext = self.layout.extension(&self.params, theta);
+        let pred = Predictor::new(ext);
+        let h = log.h;
+        let cmd = |k: usize| {
+            let u = log.input(k.min(log.len() - 1));
+            [u[0], u[1]]
+        };
+        let mut z = SVector::<T, NZ>::from_column_slice(z0);
+        let slip = |w: T| Wheel::Slipping(if w.re() >= 0.0 { 1 } else { -1 });
+        let mut modes = [slip(z[7] - z[6]), slip(z[8] - z[6])];
+        let mut out = Vec::with_capacity(len * 9);
+        let mut wdot = pred.wheel_acceleration(
+            &z,
+            pred.mean_applied(&cmd, start.saturating_sub(1), h),
+            modes,
+        )?;
+        // The tilt reading through the firmware's complementary filter: the previous
+        // reading plus the rate reading's increment, corrected towards the tilt with weight
+        // `a` per sample (`a = 1`: the tilt itself). In this innovation form the residual is
+        // `a` times the tilt's error and the accelerometer's noise, white; simulated from
+        // the window's start instead, it would be that noise low-passed, which no white
+        // noise test passes. Where the previous reading is missing, the predicted one
+        // stands in.
+        let a = pred.ext.accel_weight;
+        let filtered = !(a - T::one()).vanishes();
+        let (ai, vi) = (Channel::Alpha.index(), Channel::VAlpha.index());
+        let mut filter = T::zero();
+        for k in start..start + len {
+            let mut y = pred.readings(&z, pred.current_voltage(&cmd, k, h), wdot);
+            if filtered {
+                let tilt = y[ai];
+                filter = if k == start {
+                    match log.value(k, ai) {
+                        Some(r) => tilt * a + (T::one() - a) * r,
+                        None => tilt,
+                    }
+                } else {
+                    let g = log.value(k, vi).map_or(y[vi], T::from);
+                    let prev = log.value(k - 1, ai).map_or(filter, T::from);
+                    (prev + g * h) * (T::one() - a) + tilt * a
+                };
+                y[ai] = filter;
+            }
+            out.extend_from_slice(&y);
+            if k + 1 < start + len {
+                (z, wdot) = pred.advance(&z, &cmd, k, h, &mut modes)?;
+            }
+        }
+        Some(out)
+    }
+
+    fn conditions(&self, log: &MeasuredLog) -> Vec<Indicator> {
+        let n = log.len();
+        // Mean wheel speed relative to the body, from the wheel-angle readings (central
+        // differences over two rows).
+        let wheel: Vec<Option<f64>> = (0..n)
+            .map(|k| {
+                let (mut s, mut m) = (0.0, 0);
+                for c in [Channel::PhiRRel, Channel::PhiLRel] {
+                    if k >= 1 && k + 1 < n {
+                        if let (Some(y1), Some(y0)) =
+                            (log.value(k + 1, c.index()), log.value(k - 1, c.index()))
+                        {
+                            s += (y1 - y0) / (2.0 * log.h);
+                            m += 1;
+                        }
+                    }
+                }
+                (m > 0).then(|| s / m as f64)
+            })
+            .collect();
+        let mut out = Vec::new();
+        if wheel.iter().any(|w| w.is_some()) {
+            out.extend(near_zero("wheel speed near zero (slowest quarter)", &wheel));
+            out.push(positive("wheel speed positive", &wheel));
+        }
+        let u: Vec<Option<f64>> = (0..n)
+            .map(|k| Some(0.5 * (log.input(k)[0] + log.input(k)[1]).abs()))
+            .collect();
+        out.extend(above_median("commanded voltage above its median", &u));
+        // A reversal of the command within the last three rows (where lost motion in the
+        // gears shows).
+        let reversal: Vec<Option<f64>> = (0..n)
+            .map(|k| {
+                let s = |j: usize| (log.input(j)[0] + log.input(j)[1]).signum();
+                Some(if k >= 3 && (k - 3..k).any(|j| s(j) != s(j + 1)) {
+                    1.0
+                } else {
+                    -1.0
+                })
+            })
+            .collect();
+        out.push(positive(
+            "commanded voltage reversed within three rows",
+            &reversal,
+        ));
+        let tilt: Vec<Option<f64>> = (0..n)
+            .map(|k| log.value(k, Channel::Alpha.index()))
+            .collect();
+        out.extend(above_median("tilt above its median", &tilt));
+        out
+    }
+}
