@@ -372,6 +372,9 @@ pub fn diagnose<P: Plant>(
     let mut flagged = owned
         .drop_out_of_range(plant.channels(), plant.inputs())
         .map_err(DiagnoseError::Log)?;
+    // A log without information is one error, not a list of "copies" first: constant
+    // columns all equal each other.
+    informative(&owned)?;
     for (copy, original) in owned.duplicated_channels() {
         flagged.push(format!(
             "column '{}' equals '{}' in every row: a copy, not a second measurement; set aside",
@@ -384,7 +387,6 @@ pub fn diagnose<P: Plant>(
         progress(&format!("diagnose: warning: {f}"));
     }
     let log = &owned;
-    informative(log)?;
     let effect_names: Vec<&str> = cat.effects.iter().map(|e| e.name.as_str()).collect();
     let excluded = indices(&opts.exclude, &effect_names, "effect")?;
     let cal_names: Vec<&str> = cat
