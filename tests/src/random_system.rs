@@ -73,6 +73,22 @@ pub struct RandomSystem<F, const DOF: usize, const DIM: usize, const NS: usize> 
     _family: PhantomData<F>,
 }
 
+/// A random stage state `x = (coords(g), rest)` for the transcriptions' derivative tests:
+/// `g = exp(ξ)` and `rest` with entries uniform in `[−0.5, 0.5)`, drawn in that order.
+/// Returns `x` and the number of group coordinates.
+pub fn random_stage_state<F, const DOF: usize, const DIM: usize, const NX: usize>(
+    rng: &mut Lcg,
+) -> (SVector<f64, NX>, usize)
+where
+    F: GroupFamily<DOF, DIM>,
+{
+    let pose = F::G::<f64>::exp(&SVector::<f64, DOF>::from_fn(|_, _| rng.uniform()));
+    let coords = pose.coordinates();
+    let nc = coords.len();
+    let x = SVector::<f64, NX>::from_fn(|i, _| if i < nc { coords[i] } else { rng.uniform() });
+    (x, nc)
+}
+
 /// A 64-bit linear congruential generator: reproducible draws from a seed, no dependency.
 pub struct Lcg(pub u64);
 

@@ -7,10 +7,10 @@
 use dmech::continuous::motion_residual;
 use dmech::partials::{grad_part, jacobian_part, seeded};
 use dmech::RungeKutta;
-use dmech_lie::LieGroup;
 use dmech_ocp::runge_kutta::RkStages;
 use dmech_tests::random_system::{
-    GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family, So3Family,
+    random_stage_state, GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family,
+    So3Family,
 };
 use nalgebra::{DMatrix, SMatrix, SVector};
 use num_dual::DualSVec64;
@@ -35,11 +35,8 @@ where
     };
     let sys = RandomSystem::<F, DOF, DIM, NS>::draw(seed, spec);
     let mut rng = Lcg(seed.wrapping_mul(0x9E37_79B9) ^ 0xA5A5);
-    let pose = F::G::<f64>::exp(&SVector::<f64, DOF>::from_fn(|_, _| rng.uniform()));
-    let coords = pose.coordinates();
-    let nc = coords.len();
+    let (x, nc) = random_stage_state::<F, DOF, DIM, NX>(&mut rng);
     assert_eq!(NX, nc + 3 * NS, "state layout (coords(g), s, v, u_prev)");
-    let x = SVector::<f64, NX>::from_fn(|i, _| if i < nc { coords[i] } else { rng.uniform() });
     let w = SVector::<f64, NS>::from_fn(|_, _| rng.uniform());
     let s: SVector<f64, NS> = x.fixed_rows::<NS>(nc).into_owned();
     let v: SVector<f64, NS> = x.fixed_rows::<NS>(nc + NS).into_owned();

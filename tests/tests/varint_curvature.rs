@@ -5,11 +5,12 @@
 //! systems with shape-dependent inertia and connection, for every forcing quadrature.
 
 use dmech::variational::ForcingQuadrature;
-use dmech_lie::{LieGroup, Real};
+use dmech_lie::Real;
 use dmech_ocp::derivatives::{block_hessian, StageScalar};
 use dmech_ocp::varint::VarIntStages;
 use dmech_tests::random_system::{
-    GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family, So3Family,
+    random_stage_state, GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family,
+    So3Family,
 };
 use nalgebra::SVector;
 
@@ -61,15 +62,12 @@ where
     };
     let sys = RandomSystem::<F, DOF, DIM, NS>::draw(seed, spec);
     let mut rng = Lcg(seed.wrapping_mul(0x5851_F42D) ^ 0x1234);
-    let pose = F::G::<f64>::exp(&SVector::<f64, DOF>::from_fn(|_, _| rng.uniform()));
-    let coords = pose.coordinates();
-    let nc = coords.len();
+    let (x, nc) = random_stage_state::<F, DOF, DIM, NX>(&mut rng);
     assert_eq!(
         (NX, NW),
         (nc + 3 * NS, 2 * NS),
         "layout (coords, s, v_prev, u_prev), (v, u)"
     );
-    let x = SVector::<f64, NX>::from_fn(|i, _| if i < nc { coords[i] } else { rng.uniform() });
     let w = SVector::<f64, NW>::from_fn(|_, _| rng.uniform());
     let lambda = SVector::<f64, NX>::from_fn(|_, _| rng.uniform());
     let nu = SVector::<f64, NS>::from_fn(|_, _| rng.uniform());
