@@ -142,12 +142,9 @@ impl TrackRun {
             feedback_voltage_max: 0.0,
             feedback_voltage_rms: 0.0,
             fell: self.fell_at.is_some(),
-            qp_solve_ms_median: (!self.qp_solve_s.is_empty())
-                .then(|| 1e3 * super::monte_carlo::quantile(&self.qp_solve_s, 0.5)),
-            qp_solve_ms_max: (!self.qp_solve_s.is_empty())
-                .then(|| 1e3 * self.qp_solve_s.iter().copied().fold(0.0, f64::max)),
-            qp_wall_ms_max: (!self.qp_wall_s.is_empty())
-                .then(|| 1e3 * self.qp_wall_s.iter().copied().fold(0.0, f64::max)),
+            qp_solve_ms_median: ms_quantile(&self.qp_solve_s, 0.5),
+            qp_solve_ms_max: ms_quantile(&self.qp_solve_s, 1.0),
+            qp_wall_ms_max: ms_quantile(&self.qp_wall_s, 1.0),
             qp_fallbacks: self.qp_fallbacks,
         };
         let (mut sp, mut sh, mut su) = (0.0, 0.0, 0.0);
@@ -330,4 +327,9 @@ pub fn track<'a>(
         }
     }
     Ok(run)
+}
+
+/// A quantile of times in seconds, in ms; `None` for no samples (LQ has no QP).
+fn ms_quantile(seconds: &[f64], q: f64) -> Option<f64> {
+    (!seconds.is_empty()).then(|| 1e3 * super::monte_carlo::quantile(seconds, q))
 }
