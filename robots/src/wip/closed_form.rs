@@ -94,38 +94,43 @@ pub fn shape_acceleration_with_response<T: Lift<T>, const K: usize>(
         + (p.I_m * (one - nm) * (one - nm) + p.I_g * (one + ng) * (one + ng)) * 2.0
         - je * 2.0;
 
-    // q = (x, y, θ, α, φR, φL) at θ = 0: M (symmetric), S (q̇ = S ν).
+    // q = (x, y, θ, α, φR, φL) at θ = 0, q̇ = S ν with the columns of S
+    //   S₀ = e_α,   S₁ = e_x + e_φR / r_R + e_φL / r_L,   S₂ = e_θ + (d/r_R) e_φR − (d/r_L) e_φL,
+    // and M's entries: M_xx = M_yy = m_t, M_yθ = m_b l sin α, M_xα = m_b l cos α, M_θθ = J_θ,
+    // M_αα, M_αφ (both wheels), M_φφ (both wheels); every other entry is zero. SᵀMS and Sᵀ(·)
+    // are written out on these nonzeros: as dense products of dual-number matrices they
+    // were most of `wip diagnose`'s time.
     let z = T::zero();
-    let mut m = SMatrix::<T, 6, 6>::from_element(z);
-    m[(0, 0)] = mt;
-    m[(1, 1)] = mt;
-    m[(1, 2)] = mbl * sa;
-    m[(0, 3)] = mbl * ca;
-    m[(2, 2)] = j_theta;
-    m[(3, 3)] = m_aa;
-    m[(3, 4)] = m_aphi;
-    m[(3, 5)] = m_aphi;
-    m[(4, 4)] = m_phiphi;
-    m[(5, 5)] = m_phiphi;
-    for a in 0..6 {
-        for b in 0..a {
-            m[(a, b)] = m[(b, a)];
-        }
-    }
-    let mut s = SMatrix::<T, 6, 3>::from_element(z);
-    s[(0, 1)] = one;
-    s[(2, 2)] = one;
-    s[(3, 0)] = one;
-    s[(4, 1)] = one / r_r;
-    s[(4, 2)] = p.d / r_r;
-    s[(5, 1)] = one / r_l;
-    s[(5, 2)] = -p.d / r_l;
+    let (inv_r, inv_l) = (one / r_r, one / r_l);
+    let (d_r, d_l) = (p.d * inv_r, p.d * inv_l);
+    let s_transpose = |v: [T; 6]| {
+        [
+            v[3],
+            v[0] + v[4] * inv_r + v[5] * inv_l,
+            v[2] + v[4] * d_r - v[5] * d_l,
+        ]
+    };
+    let sms01 = mbl * ca + m_aphi * (inv_r + inv_l);
+    let sms02 = m_aphi * (d_r - d_l);
+    let sms12 = m_phiphi * (d_r * inv_r - d_l * inv_l);
+    let sms = SMatrix::<T, 3, 3>::new(
+        m_aa,
+        sms01,
+        sms02,
+        sms01,
+        mt + m_phiphi * (inv_r * inv_r + inv_l * inv_l),
+        sms12,
+        sms02,
+        sms12,
+        j_theta + m_phiphi * (d_r * d_r + d_l * d_l),
+    );
 
-    // K (velocity-quadratic), P (gravity, back-EMF torque), 𝓕 (friction, f_shape).
-    let mut rhs = SVector::<T, 6>::from_element(z);
-    for a in 0..6 {
-        rhs[a] = m[(a, 1)] * (vt * vd);
-    }
+    // K (velocity-quadratic), P (gravity, back-EMF torque), 𝓕 (friction, f_shape). The
+    // M Ṡ ν term: Ṡ ν at θ = 0 is v_θ v_d along y, so it is M's y column times v_θ v_d.
+    let vtvd = vt * vd;
+    let mut rhs = [z; 6];
+    rhs[1] = mt * vtvd;
+    rhs[2] = mbl * sa * vtvd;
     rhs[0] -= mbl * sa * (va * va + vt * vt);
     rhs[1] += mbl * ca * va * vt * 2.0;
     rhs[2] += dj_theta * va * vt;
@@ -141,20 +146,18 @@ pub fn shape_acceleration_with_response<T: Lift<T>, const K: usize>(
     rhs[5] -= -fl + f_shape[2];
 
     // ν̇ = −(SᵀMS)⁻¹ Sᵀ (M Ṡ ν + K + P − 𝓕).
-    let st = s.transpose();
-    let sms = st * m * s;
     let lu = dmech::linalg::Lu::new(&sms)?;
     let shape = |nud: SVector<T, 3>| {
         [
             nud[0],
-            (nud[1] + p.d * nud[2]) / r_r,
-            (nud[1] - p.d * nud[2]) / r_l,
+            (nud[1] + p.d * nud[2]) * inv_r,
+            (nud[1] - p.d * nud[2]) * inv_l,
         ]
     };
-    let nud = -lu.solve(&(st * rhs));
+    let nud = -lu.solve(&SVector::from(s_transpose(rhs)));
     let response = dirs.map(|f| {
-        let f6 = SVector::<T, 6>::from_column_slice(&[z, z, z, f[0], f[1], f[2]]);
-        shape(lu.solve(&(st * f6)))
+        let sf = s_transpose([z, z, z, f[0], f[1], f[2]]);
+        shape(lu.solve(&SVector::from(sf)))
     });
     Some((shape(nud), response))
 }
