@@ -5,10 +5,11 @@
 mod common;
 use common::{fails_with_one_line, scratch, wip};
 use robots::wip::simulate::Trajectory;
-use robots::wip::track::closed_loop::{track, TrackConfig, SUBSTEPS};
+use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::lq::{LqController, SAMPLE};
 use robots::wip::track::mpc::MpcController;
 use robots::wip::track::observer::SensorModel;
+use robots::wip::track::plant::SUBSTEPS;
 use robots::wip::{ReducedState, Wip, WipParams};
 use std::path::PathBuf;
 

@@ -1,24 +1,19 @@
 //! The closed loop: the plan's feedforward plus LQ feedback on the guidance and observer
-//! errors, saturated at ±5 V, applied to the full nonlinear model integrated by RK4 with
-//! substeps between the 5-ms samples; its record and figures.
+//! errors, saturated at ±5 V, applied to the plant (`plant.rs`: the full nonlinear model,
+//! RK4 with substeps between the 5-ms samples); its record and figures.
 
 use super::guidance;
 use super::lq::{LqController, SAMPLE};
 use super::mpc::MpcController;
 use super::observer::{Estimate, Observer, OnBoard, PoseMeasurement, SensorModel};
+use super::plant::Plant;
 use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
-use crate::wip::state::{from_reduced, to_reduced};
-use crate::wip::{ReducedState, Wip, WipParams};
-use dmech::continuous::ContinuousState;
-use dmech::{ContinuousModel, RungeKutta};
+use crate::wip::{ReducedState, WipParams};
 use nalgebra::SVector;
 
 /// Motor voltage limit (V).
 pub const U_MAX: f64 = 5.0;
-/// RK4 substeps per sample: 0.5 ms, within RK4's stability bound for the motor circuit's
-/// electrical mode (time constant `L_m/R_m` ≈ 0.27 ms, `|hλ|` ≈ 1.9 < 2.78).
-pub const SUBSTEPS: usize = 10;
 /// A tilt beyond which the WIP counts as fallen (rad, 45°): no 5-V input recovers it.
 pub const FALL_TILT: f64 = std::f64::consts::FRAC_PI_4;
 
@@ -201,16 +196,10 @@ pub fn track<'a>(
     let controller = controller.into();
     let reference = Reference { plan };
     let n = (reference.end() / SAMPLE).round() as usize;
-    let plant = Wip::new(cfg.plant);
     let sens = &cfg.sensors;
     let mut rng = Rng::new(cfg.seed);
     let x0 = plan.x[0];
-    let (g0, s0, v0) = from_reduced(&cfg.plant, &x0, [0.0; 4]);
-    let mut state = ContinuousState {
-        g: g0,
-        s: s0,
-        v: v0,
-    };
+    let mut plant = Plant::new(cfg.plant, &x0);
     let start = Estimate {
         pose: [x0[0], x0[1], x0[2]],
         alpha: x0[3],
@@ -233,7 +222,7 @@ pub fn track<'a>(
     let every = (n / 20).max(1);
     for k in 0..=n {
         let t = k as f64 * SAMPLE;
-        let x = to_reduced(&cfg.plant, &state.g, &state.s, &state.v);
+        let x = plant.reduced();
         if x[3].abs() > FALL_TILT || !x.iter().all(|v| v.is_finite()) {
             run.fell_at = Some(t);
             break;
@@ -256,10 +245,11 @@ pub fn track<'a>(
                     a
                 }
             };
+            let wheels = plant.wheels_relative_to_body();
             let onb = OnBoard {
                 alpha: x[3] + sens.sigma_alpha * rng.normal(),
                 v_alpha: x[4] + sens.sigma_v_alpha * rng.normal(),
-                encoders: [q(state.s[1] - state.s[0]), q(state.s[2] - state.s[0])],
+                encoders: [q(wheels[0]), q(wheels[1])],
             };
             obs.on_board(&onb, u_prev);
             if k % sens.pose_every == 0 && rng.uniform() >= sens.loss {
@@ -311,17 +301,9 @@ pub fn track<'a>(
         if k == n {
             break;
         }
-        let uv = SVector::<f64, 2>::new(u[0], u[1]);
-        for _ in 0..SUBSTEPS {
-            state = ContinuousModel::step(
-                &plant,
-                RungeKutta::Rk4,
-                SAMPLE / SUBSTEPS as f64,
-                &state,
-                &uv,
-            )
+        plant
+            .advance(SAMPLE, u)
             .map_err(|e| format!("the plant's step at t = {t:.3} s failed: {e}"))?;
-        }
         if k % every == 0 {
             progress(k as f64 / n as f64);
         }
