@@ -64,6 +64,14 @@ pub(super) fn par_zip3<A: Send, B: Send, C: Send, F: Fn(usize, &mut A, &mut B, &
             f(ci * PAR_CHUNK + j, sa, sb, sc);
         }
     };
+    run_on_threads(threads, &work);
+}
+
+/// `work()` on `threads` scoped threads at once (inline for one). Not generic: the stage
+/// loops hand their work in as a trait object, so the thread machinery is compiled once
+/// rather than once per loop and problem type (it was a tenth of the code generated for
+/// the robots' crate).
+fn run_on_threads(threads: usize, work: &(dyn Fn() + Sync)) {
     if threads <= 1 {
         work();
         return;
