@@ -16,6 +16,7 @@
 //! `δθ_k = δp[support(k)]`. The dual infeasibility of `p` is
 //! `c + Σ_k S_kᵀ ∇_θ L_k + Aᵀy_g − z_lo + z_hi`.
 
+use super::kkt::corrected_derivatives;
 use super::*;
 use crate::global_riccati::{global_forward, global_sweep, GlobalSchur, LqCoupling};
 use crate::problem::Globals;
@@ -510,10 +511,7 @@ where
         let mut sweep = BackwardSweep::new(self.n, &q_n, &q_vec_n, delta);
         let (swept, _) = self
             .condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
-                let mut d = ders[k].clone();
-                let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
-                d.f = it.x[k + 1] + r;
-                d.e = d.e * alpha + trial_vals[k].e;
+                let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
                 self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
             })
             .ok()?;

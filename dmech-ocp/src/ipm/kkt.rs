@@ -552,10 +552,7 @@ where
         let mut sweep = BackwardSweep::new(n, &q_n, &q_vec_n, delta);
         let (swept, _) = self
             .condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
-                let mut d = ders[k].clone();
-                let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
-                d.f = it.x[k + 1] + r;
-                d.e = d.e * alpha + trial_vals[k].e;
+                let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
                 self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
             })
             .ok()?;
@@ -563,4 +560,27 @@ where
         let sol = sweep.forward(lq, &SVector::zeros());
         Some(self.recover(it, ders, elim, sol, mu, dc, None))
     }
+}
+
+/// Stage `k`'s derivatives for the second-order correction: the residuals of the dynamics
+/// and the stage equality replaced by `α r(x) + r(x_trial)` (the derivatives themselves
+/// stay those of the iteration).
+pub(super) fn corrected_derivatives<
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NC: usize,
+>(
+    k: usize,
+    it: &Iterate<NX, NW, NC>,
+    d: &StageDerivatives<NX, NW, NE, NC>,
+    trial_val: &StageValues<NX, NE, NC>,
+    trial: &Iterate<NX, NW, NC>,
+    alpha: f64,
+) -> StageDerivatives<NX, NW, NE, NC> {
+    let mut d = d.clone();
+    let r = (d.f - it.x[k + 1]) * alpha + (trial_val.f - trial.x[k + 1]);
+    d.f = it.x[k + 1] + r;
+    d.e = d.e * alpha + trial_val.e;
+    d
 }

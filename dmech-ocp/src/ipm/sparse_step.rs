@@ -3,6 +3,7 @@
 //! stages and couplings as the Riccati path, the inertia read from `D`, the same inertia
 //! correction. With or without globals.
 
+use super::kkt::corrected_derivatives;
 use super::*;
 use crate::global_riccati::LqCoupling;
 use crate::sparse_kkt::{SparseKkt, SparseKktError};
@@ -173,10 +174,7 @@ where
         {
             let (ders, qn) = (&ws.ders, &ws.qn);
             par_zip(&mut lq, &mut elim, self.opts.threads, |k, l, e| {
-                let mut d = ders[k].clone();
-                let r = (d.f - it.x[k + 1]) * alpha + (trial_vals[k].f - trial.x[k + 1]);
-                d.f = it.x[k + 1] + r;
-                d.e = d.e * alpha + trial_vals[k].e;
+                let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
                 if self.condense(k, it, &d, qn.get(k), mu, dc, l, e).is_err() {
                     failed.store(true, std::sync::atomic::Ordering::Relaxed);
                 }
