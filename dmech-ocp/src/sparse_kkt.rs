@@ -492,6 +492,26 @@ mod tests {
 
     /// The largest difference allowed between two backward-stable solutions of one system:
     /// `2 n κ₂ ε ‖z‖` (each solver's backward error `≲ n ε ‖K‖‖z‖`, amplified by `κ₂`).
+    /// The largest entry of `a − b` over every stage's `u`, `x_{k+1}`, `λ`, and the largest
+    /// entry of `a` there.
+    fn difference_and_size<const NX: usize, const NU: usize>(
+        a: &LqSolution<NX, NU>,
+        b: &LqSolution<NX, NU>,
+    ) -> (f64, f64) {
+        let (mut worst, mut size) = (0.0f64, 0.0f64);
+        for k in 0..a.u.len() {
+            worst = worst
+                .max((a.u[k] - b.u[k]).amax())
+                .max((a.x[k + 1] - b.x[k + 1]).amax())
+                .max((a.lambda[k] - b.lambda[k]).amax());
+            size = size
+                .max(a.u[k].amax())
+                .max(a.x[k + 1].amax())
+                .max(a.lambda[k].amax());
+        }
+        (worst, size)
+    }
+
     fn allowed(m: &DMatrix<f64>, z_norm: f64) -> f64 {
         let sv = m.clone().singular_values();
         let kappa = sv.max() / sv.min();
@@ -516,18 +536,7 @@ mod tests {
         let (sparse, _, _) = kkt
             .solve(&st, &none, &q_n, &q_vec_n, &x0, 0.0, &terms)
             .unwrap();
-        let mut worst = 0.0f64;
-        let mut z_norm = 0.0f64;
-        for k in 0..n {
-            worst = worst
-                .max((riccati.u[k] - sparse.u[k]).amax())
-                .max((riccati.x[k + 1] - sparse.x[k + 1]).amax())
-                .max((riccati.lambda[k] - sparse.lambda[k]).amax());
-            z_norm = z_norm
-                .max(riccati.u[k].amax())
-                .max(riccati.x[k + 1].amax())
-                .max(riccati.lambda[k].amax());
-        }
+        let (worst, z_norm) = difference_and_size(&riccati, &sparse);
         let a = assemble(&kkt.shape, &st, &none, &q_n, &q_vec_n, &x0, 0.0, &terms);
         let bound = allowed(&dense(&kkt, &a), z_norm);
         println!("fixed time: sparse vs Riccati {worst:.2e}, allowed {bound:.2e}");
@@ -593,18 +602,9 @@ mod tests {
         let (sparse, p, y) = kkt
             .solve(&st, &cps, &q_n, &q_vec_n, &x0, 0.0, &terms)
             .unwrap();
-        let mut worst = (p - &dp).amax().max((y[0] - sol[ng]).abs());
-        let mut z_norm = dp.amax().max(sol[ng].abs());
-        for k in 0..n {
-            worst = worst
-                .max((riccati.u[k] - sparse.u[k]).amax())
-                .max((riccati.x[k + 1] - sparse.x[k + 1]).amax())
-                .max((riccati.lambda[k] - sparse.lambda[k]).amax());
-            z_norm = z_norm
-                .max(riccati.u[k].amax())
-                .max(riccati.x[k + 1].amax())
-                .max(riccati.lambda[k].amax());
-        }
+        let (stages, stage_norm) = difference_and_size(&riccati, &sparse);
+        let worst = stages.max((p - &dp).amax()).max((y[0] - sol[ng]).abs());
+        let z_norm = stage_norm.max(dp.amax()).max(sol[ng].abs());
         let a = assemble(&kkt.shape, &st, &cps, &q_n, &q_vec_n, &x0, 0.0, &terms);
         let bound = allowed(&dense(&kkt, &a), z_norm);
         println!("globals: sparse vs Riccati {worst:.2e}, allowed {bound:.2e}");
