@@ -13,23 +13,9 @@
 
 use robots::diagnose::Plant;
 use robots::wip::diagnose::effects::{Effect, Layout};
-use robots::wip::diagnose::generate::{draw_effect, generate, Rng, RunSettings, SensorNoise};
+use robots::wip::diagnose::generate::{draw_effect, generate, Rng, RunSettings};
 use robots::wip::diagnose::{Channel, WipPlant};
 use robots::wip::WipParams;
-
-/// The sensor noise of a channel (quantisation `q/√12` for the encoders).
-fn noise(c: Channel, n: &SensorNoise) -> f64 {
-    match c {
-        Channel::X | Channel::Y => n.position,
-        Channel::Theta => n.heading,
-        Channel::Alpha => n.tilt,
-        Channel::VAlpha => n.rate,
-        Channel::PhiRRel | Channel::PhiLRel => {
-            std::f64::consts::TAU / n.encoder_counts_per_rev / 12f64.sqrt()
-        }
-        Channel::IR | Channel::IL => n.current,
-    }
-}
 
 #[test]
 fn prediction_from_the_true_state_follows_the_truth() {
@@ -75,7 +61,7 @@ fn prediction_from_the_true_state_follows_the_truth() {
         let mut line = format!("{name:<24}");
         for c in Channel::ALL {
             let (ss, n) = sums[c.index()];
-            let ratio = (ss / n as f64).sqrt() / noise(c, &settings.noise);
+            let ratio = (ss / n as f64).sqrt() / settings.noise.sigma(c);
             line += &format!(" {} {ratio:.3}", c.name());
             if ratio > 0.5 {
                 failures.push(format!(

@@ -152,7 +152,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
     }
 
     /// Weighted residual sum of squares and count of one window (f64 pass).
-    fn window_cost(
+    pub(crate) fn window_cost(
         &self,
         theta: &[f64],
         (start, len): (usize, usize),
@@ -651,7 +651,7 @@ pub struct Screened {
 
 /// Damped window block `A + λ diag(A) + ridge` (the ridge keeps directions that no reading
 /// sees, such as an unmeasured position, from making it singular).
-fn damped(a: &DMatrix<f64>, lambda: f64) -> DMatrix<f64> {
+pub(crate) fn damped(a: &DMatrix<f64>, lambda: f64) -> DMatrix<f64> {
     let mut d = a.clone();
     let top = a.diagonal().max().max(1e-300);
     for i in 0..a.nrows() {

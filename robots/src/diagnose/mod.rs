@@ -24,6 +24,7 @@ pub mod log;
 pub mod model;
 pub mod noise;
 pub mod report;
+pub mod restart;
 pub mod rng;
 pub mod selection;
 

@@ -55,6 +55,12 @@ impl Default for DiagnoseOptions {
     }
 }
 
+/// Rounds of `max_iterations` more that a leading fit still descending may take.
+const CONTINUATIONS: usize = 3;
+
+/// Rounds of outlying-window restarts a leading fit may take.
+const RESTARTS: usize = 2;
+
 /// Why a log cannot be diagnosed.
 #[derive(Debug, thiserror::Error)]
 pub enum DiagnoseError {
@@ -113,10 +119,17 @@ impl Scored {
     }
 }
 
-/// Whether a standard deviation is at most [`DETERMINED`] of a plausible range's width
-/// (false when it is NaN).
-fn determined(sd: f64, width: f64) -> bool {
-    sd <= DETERMINED * width
+/// Whether a parameter's standard deviation is at most [`DETERMINED`] of its plausible
+/// range `(lo, hi)` (false when it is NaN). A scale parameter, whose range spans a decade
+/// or more (a Stribeck speed from 5 mm/s to 20 rad/s), is judged on the log scale: its
+/// relative deviation `sd/|value|` against `ln(hi/lo)`; knowing such a speed within 40 %
+/// determines it, though 40 % of 6 rad/s is a tenth of the range's width.
+fn determined(value: f64, sd: f64, (lo, hi): (f64, f64)) -> bool {
+    if lo > 0.0 && hi >= 10.0 * lo {
+        sd <= DETERMINED * (hi / lo).ln() * value.abs()
+    } else {
+        sd <= DETERMINED * (hi - lo)
+    }
 }
 
 /// The effect parameters of a fit whose standard deviation exceeds [`DETERMINED`] of
@@ -125,10 +138,7 @@ fn undetermined(cat: &Catalogue, fit: &Fit) -> Vec<String> {
     fit.candidate
         .effect_params(cat)
         .into_iter()
-        .filter(|&p| {
-            let (lo, hi) = cat.params[p].plausible;
-            !determined(fit.std[p], hi - lo)
-        })
+        .filter(|&p| !determined(fit.theta[p], fit.std[p], cat.params[p].plausible))
         .map(|p| {
             let s = &cat.params[p];
             format!(
@@ -240,21 +250,61 @@ impl<P: Plant> Session<'_, P> {
         let cat = self.fitter.catalogue();
         let m = self.m_res;
         let bound = best.map(|b| b * (1.0 + cand.n_free(cat) as f64 * m.ln() / m) + 50.0);
-        let mut f = self.fitter.fit(&cand, theta0, z0, bound, &|_| {});
-        // A fit still descending when its iterations ran out, and leading, gets as many
-        // again: comparing it unconverged with candidates built on it would credit them
-        // with its unfinished descent.
-        if !f.converged && !f.abandoned && best.is_none_or(|b| f.rss < b) {
-            let more = self.fitter.fit(&cand, &f.theta, &f.z0, None, &|_| {});
-            if more.rss <= f.rss {
-                let iterations = f.iterations + more.iterations;
-                f = more;
-                f.iterations = iterations;
-            }
-        }
+        let f = self.fit_leading(&cand, theta0, z0, bound, best, RESTARTS);
         let s = self.score(f, true);
         self.say(&cand.name(cat), &s);
         s
+    }
+
+    /// `Fitter::fit`, continued while the fit is still descending when its iterations run
+    /// out and leads (`rss` below `best`, or no `best`), up to [`CONTINUATIONS`] rounds:
+    /// comparing a leading fit unconverged with candidates built on it would credit them
+    /// with its unfinished descent (a hybrid law's secant derivatives make its descent
+    /// linear, not quadratic). A leading fit's outlying windows are then restarted
+    /// ([`Fitter::restart_outliers`]) and the fit continued, up to `restarts` times (none
+    /// for the reference models refitted to new weights: their windows are outliers where
+    /// the data excite what they lack, not where a mode went wrong).
+    fn fit_leading(
+        &self,
+        cand: &Candidate,
+        theta0: &[f64],
+        z0: &[Vec<f64>],
+        bound: Option<f64>,
+        best: Option<f64>,
+        restarts: usize,
+    ) -> Fit {
+        let leads = |f: &Fit| !f.abandoned && best.is_none_or(|b| f.rss < b);
+        let continued = |f: Fit, z: &[Vec<f64>]| -> Fit {
+            let mut more = self.fitter.fit(cand, &f.theta, z, None, &|_| {});
+            if more.rss > f.rss {
+                return f;
+            }
+            more.iterations += f.iterations;
+            more
+        };
+        let mut f = self.fitter.fit(cand, theta0, z0, bound, &|_| {});
+        for round in 0..=restarts {
+            for _ in 0..CONTINUATIONS {
+                if f.converged || !leads(&f) {
+                    break;
+                }
+                let (before, z) = (f.rss, f.z0.clone());
+                f = continued(f, &z);
+                if f.rss >= before {
+                    break;
+                }
+            }
+            if round == restarts || !leads(&f) {
+                break;
+            }
+            let mut z = f.z0.clone();
+            let n = self.fitter.restart_outliers(&f.theta, &mut z);
+            if n == 0 {
+                break;
+            }
+            f = continued(f, &z);
+        }
+        f
     }
 
     /// The noise re-estimated from `chosen`'s residuals; if it moved by more than 10 % in
@@ -289,18 +339,17 @@ impl<P: Plant> Session<'_, P> {
             .iter()
             .map(|&s| if s.is_nan() { f64::INFINITY } else { s })
             .collect();
-        let f = self.fitter.fit(
+        let f = self.fit_leading(
             &chosen.fit.candidate,
             &chosen.fit.theta,
             &chosen.fit.z0,
             None,
-            &|_| {},
+            None,
+            RESTARTS,
         );
         *chosen = self.score(f, true);
         for b in base.iter_mut() {
-            let f = self
-                .fitter
-                .fit(&b.fit.candidate, &b.fit.theta, &b.fit.z0, None, &|_| {});
+            let f = self.fit_leading(&b.fit.candidate, &b.fit.theta, &b.fit.z0, None, None, 0);
             **b = self.score(f, true);
         }
         true
@@ -659,9 +708,8 @@ fn joint_refit<P: Plant>(
             .copied()
             .filter(|&e| {
                 cat.effects[e].params.iter().any(|&p| {
-                    let (lo, hi) = cat.params[p].plausible;
-                    !determined(joint.fit.std[p], hi - lo)
-                        || !cat.params[p].is_plausible(joint.fit.theta[p])
+                    let (value, s) = (joint.fit.theta[p], &cat.params[p]);
+                    !determined(value, joint.fit.std[p], s.plausible) || !s.is_plausible(value)
                 })
             })
             .collect();

@@ -4,7 +4,7 @@
 //! encoders quantised at 3600 counts/rev, currents 0.02 A, pose 1 mm / 0.005 rad at 50 Hz).
 
 use super::effects::{wip_catalogue, Effect, Layout, ModelExtension};
-use super::plant::WipPlant;
+use super::plant::{Channel, WipPlant};
 use super::prediction::Predictor;
 pub use crate::diagnose::rng::Rng;
 use crate::diagnose::MeasuredLog;
@@ -41,6 +41,22 @@ impl Default for SensorNoise {
             position: 0.001,
             heading: 0.005,
             pose_every: 4,
+        }
+    }
+}
+
+impl SensorNoise {
+    /// The standard deviation of a channel's reading (an encoder's quantisation `q/√12`).
+    pub fn sigma(&self, c: Channel) -> f64 {
+        match c {
+            Channel::X | Channel::Y => self.position,
+            Channel::Theta => self.heading,
+            Channel::Alpha => self.tilt,
+            Channel::VAlpha => self.rate,
+            Channel::PhiRRel | Channel::PhiLRel => {
+                std::f64::consts::TAU / self.encoder_counts_per_rev / 12f64.sqrt()
+            }
+            Channel::IR | Channel::IL => self.current,
         }
     }
 }
