@@ -3,8 +3,8 @@
 //! out of the catalogue. The verdict must be `unexplained` and the failing channels must
 //! include a wheel channel. That the conditions the residual follows name where the effect
 //! acts (the commanded voltage or the wheel speed near zero for a dead zone, the wheel
-//! speed for stick-slip friction) is the ignored test `hidden_effects_name_their_conditions`,
-//! which fails today.
+//! speed for stick-slip friction) is required of the stick-slip log; for the dead zone it
+//! is the ignored test `hidden_dead_zone_names_the_voltage`, which fails today.
 
 use robots::diagnose::{diagnose, DiagnoseOptions, Plant};
 use robots::wip::diagnose::effects::Effect;
@@ -25,7 +25,10 @@ fn a_hidden_dead_zone_is_unexplained_with_its_conditions() {
 }
 
 /// Stick-slip friction (static torque twice the Coulomb level, Stribeck speed 0.3 rad/s:
-/// inside the generator's ranges) with every friction-like effect left out.
+/// inside the generator's ranges) with every friction-like effect left out. The wheel
+/// angles' level must be found to follow the wheel speed near zero: inside a window the
+/// slow and fast rows hardly differ (paired `t` 1.3–1.7 on 11 windows), between windows
+/// the level follows the fraction of slow rows (docs/diagnose.md §4d).
 #[test]
 fn hidden_stick_slip_is_unexplained_with_its_conditions() {
     let p = WipParams::default();
@@ -34,32 +37,22 @@ fn hidden_stick_slip_is_unexplained_with_its_conditions() {
         20261127,
         &["stick_slip", "friction", "dead_zone", "gear_backlash"],
         &["wheel speed"],
-        false,
+        true,
     );
 }
 
-/// The same two logs, requiring the conditions to be named. FAILS today (docs/diagnose.md
-/// §4d): on both logs the residual's level follows the wheel speed near zero between
-/// windows (hidden stick-slip: encoder level 224 in the slowest quarter against 16
-/// elsewhere) but hardly inside them, and the paired test over windows sees only the
-/// latter (`t` 1.3–1.7 on 11 windows). Run with
+/// The dead-zone log, requiring the conditions to be named. FAILS today: the chosen
+/// `voltage_gain + tilt_filter` leaves E 7.5 with no condition above the critical value,
+/// paired or between windows. Run with
 /// `cargo test --release -p robots --test diagnose_hidden -- --ignored`.
 #[test]
 #[ignore]
-fn hidden_effects_name_their_conditions() {
-    let p = WipParams::default();
+fn hidden_dead_zone_names_the_voltage() {
     hidden_is_unexplained(
         (Effect::DeadZone, vec![0.35]),
         20261124,
         &["dead_zone", "friction", "stick_slip"],
         &["voltage", "near zero"],
-        true,
-    );
-    hidden_is_unexplained(
-        (Effect::StickSlip, vec![2.0 * p.d_c, 0.3]),
-        20261127,
-        &["stick_slip", "friction", "dead_zone", "gear_backlash"],
-        &["wheel speed"],
         true,
     );
 }

@@ -9,9 +9,14 @@
 //! state. (An AR(1) effective count over the whole log, `n (1 − ρ₁)/(1 + ρ₁)`, shrank a
 //! slow residual's count to a few samples and named no condition on the hidden-effect
 //! tests, though the groups interleave inside each window; an unpaired cluster-robust
-//! difference let the window-to-window variation of the level swamp a ratio of 14.) The
-//! critical value is that of [`super::adequacy`] shared over every comparison, moved to
-//! Student's `t` on `G − 1` degrees of freedom; `z` is reported on the normal scale.
+//! difference let the window-to-window variation of the level swamp a ratio of 14.) A
+//! condition that holds for whole windows (a wheel slow through most of a window, its
+//! residual large throughout) leaves little inside a window; for the level, a second test
+//! over the windows correlates each window's log level with the fraction of its rows
+//! inside the condition (`between_windows`). The critical value is that of
+//! [`super::adequacy`] shared over every comparison (three per channel and condition),
+//! moved to Student's `t` on the test's degrees of freedom; `z` is reported on the normal
+//! scale, the stronger of the two tests.
 
 use super::adequacy::critical_z;
 use super::log::MeasuredLog;
@@ -30,7 +35,8 @@ pub struct Condition {
     /// The measure inside and outside the condition.
     pub inside: f64,
     pub outside: f64,
-    /// The paired t statistic over windows, on the normal scale of the critical value.
+    /// The t statistic (paired over windows, or for the level between windows, whichever is
+    /// stronger) on the normal scale of the critical value.
     pub z: f64,
 }
 
@@ -109,6 +115,55 @@ fn t_statistic(d: &[f64]) -> Option<f64> {
     (var > 0.0).then(|| m / (var / g).sqrt())
 }
 
+/// Windows a between-window comparison needs.
+const MIN_WINDOWS: usize = 5;
+
+/// The level between windows: over the windows (independent, each with its own fitted
+/// state), the correlation of the log of the window's level `mean((r/σ)²)` with the
+/// fraction of its rows inside the condition, as Pearson's `t = r sqrt((G−2)/(1−r²))` on
+/// `G − 2` degrees of freedom, with `G`. This sees a condition that holds for whole
+/// windows (a wheel slow through most of a window, its residual large throughout) where
+/// the paired comparison inside windows sees little.
+fn between_windows(
+    x: &[Option<f64>],
+    flags: &[Option<bool>],
+    windows: &[(usize, usize)],
+) -> Option<(f64, usize)> {
+    let mut pts = Vec::new();
+    for &(start, len) in windows {
+        let (mut level, mut inside, mut n) = (0.0, 0.0, 0.0);
+        for (xv, fl) in x.iter().zip(flags).skip(start).take(len) {
+            if let (Some(v), Some(b)) = (xv, fl) {
+                level += v * v;
+                inside += f64::from(u8::from(*b));
+                n += 1.0;
+            }
+        }
+        if n >= 2.0 * MIN_IN_WINDOW && level > 0.0 {
+            pts.push((inside / n, (level / n).ln()));
+        }
+    }
+    let g = pts.len();
+    if g < MIN_WINDOWS {
+        return None;
+    }
+    let gf = g as f64;
+    let (mx, my) = pts
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (p, q)| (a + p / gf, b + q / gf));
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (p, q) in &pts {
+        sxy += (p - mx) * (q - my);
+        sxx += (p - mx) * (p - mx);
+        syy += (q - my) * (q - my);
+    }
+    if sxx <= 0.0 || syy <= 0.0 {
+        return None;
+    }
+    let r = (sxy / (sxx * syy).sqrt()).clamp(-1.0 + 1e-12, 1.0 - 1e-12);
+    Some((r * ((gf - 2.0) / (1.0 - r * r)).sqrt(), g))
+}
+
 /// `t_ν(p) / z(p)` for the normal quantile `z`: the Cornish–Fisher expansion of Student's
 /// quantile (Abramowitz & Stegun 26.7.5), `t = z + (z³ + z)/(4ν) + (5z⁵ + 16z³ + 3z)/(96ν²)`.
 /// Dividing `t` by it puts the statistic on the normal scale of the critical value.
@@ -131,7 +186,8 @@ pub fn conditions(
     channels: &[usize],
 ) -> Vec<Condition> {
     ind.push(trend(log));
-    let critical = critical_z(2 * ind.len() * channels.len().max(1));
+    // Per channel and condition: the mean and the level paired, the level between windows.
+    let critical = critical_z(3 * ind.len() * channels.len().max(1));
     let mut out = Vec::new();
     for &c in channels {
         let s = sigma[c];
@@ -182,10 +238,21 @@ pub fn conditions(
                         w[1].mean() - w[0].mean()
                     });
                 }
-                let Some(t) = t_statistic(&d) else {
+                let paired = t_statistic(&d).map(|t| t / t_critical_ratio(critical, d.len() - 1));
+                let between = if measure == "level" {
+                    between_windows(&x, flags, windows)
+                        .map(|(t, g)| t / t_critical_ratio(critical, g - 2))
+                } else {
+                    None
+                };
+                // The stronger of the two on the normal scale.
+                let Some(z) = [paired, between]
+                    .into_iter()
+                    .flatten()
+                    .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+                else {
                     continue;
                 };
-                let z = t / t_critical_ratio(critical, d.len() - 1);
                 if z.abs() > critical {
                     out.push(Condition {
                         channel: c,
