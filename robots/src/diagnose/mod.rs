@@ -10,27 +10,38 @@
 //! testing the residual against. The WIP's plant is `crate::wip::diagnose::plant`; a toy
 //! system in `tests/diagnose_toy.rs` shows the machinery on a second system.
 //!
-//! One concept per module: [`log`] (the measured log), [`model`] (parameters, effects,
-//! candidates), [`fit`] (the windows' Levenberg–Marquardt fit and its uncertainty),
-//! [`noise`] (noise levels and the error measure), [`adequacy`] (is anything left),
-//! [`conditions`] (where the model fails), [`identify`] (which parameter combinations a log
-//! determines), [`selection`] (the diagnosis), [`report`] (the output files).
+//! One concept per module: [`diagnosis`] (what `diagnose` takes and gives), [`error`]
+//! (why a log cannot be diagnosed), [`log`] (the measured log), [`model`] (parameters, effects,
+//! candidates), [`fit`] (the windows' Levenberg–Marquardt fit), [`normal_equations`] (its
+//! Gauss–Newton blocks, step and covariance),
+//! [`restart`] (restarts of a fit's outlying windows), [`noise`] (noise levels and the
+//! error measure), [`adequacy`] (is anything left), [`conditions`] (where the model
+//! fails), [`identify`] (which parameter combinations a log determines), [`session`] (a
+//! candidate fitted and scored, re-weighting, calibration), [`selection`] (the order of the
+//! diagnosis), [`verdict`] (its conclusion), [`report`] (the output files).
 
 pub mod adequacy;
 pub mod conditions;
+pub mod diagnosis;
+pub mod error;
 pub mod fit;
 pub mod identify;
 pub mod log;
 pub mod model;
 pub mod noise;
+pub mod normal_equations;
 pub mod report;
 pub mod restart;
 pub mod rng;
 pub mod selection;
+pub mod session;
+pub mod verdict;
 
+pub use diagnosis::{DiagnoseOptions, Diagnosis};
+pub use error::DiagnoseError;
 pub use log::{ChannelSpec, MeasuredLog};
 pub use model::{Candidate, Catalogue, EffectSpec, ParamSpec};
-pub use selection::{diagnose, DiagnoseError, DiagnoseOptions, Diagnosis};
+pub use selection::diagnose;
 
 use dmech::Lift;
 use dmech_lie::Real;

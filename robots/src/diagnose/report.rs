@@ -1,9 +1,10 @@
 //! `diagnose`'s output files for any plant: `diagnosis.json` (docs/formats.md), `report.md`
 //! and residual plots before and after the refit, one per channel.
 
+use super::diagnosis::Diagnosis;
 use super::log::MeasuredLog;
 use super::model::Catalogue;
-use super::selection::{Diagnosis, Scored};
+use super::session::Scored;
 use super::Plant;
 use crate::plot::{Plot, Series};
 use serde_json::{json, Map, Value};

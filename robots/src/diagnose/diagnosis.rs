@@ -1,0 +1,85 @@
+//! What `diagnose` takes ([`DiagnoseOptions`]) and gives ([`Diagnosis`]).
+
+use super::adequacy::ChannelTest;
+use super::conditions::Condition;
+use super::noise::Residuals;
+use super::session::{Calibration, Scored};
+
+/// Options of `diagnose`.
+#[derive(Clone, Debug)]
+pub struct DiagnoseOptions {
+    /// Window length (s) of the prediction-error fit.
+    pub window_s: f64,
+    pub threads: usize,
+    pub max_iterations: usize,
+    /// A model "explains" the log when its error is at most this (1 = the noise floor).
+    pub explained: f64,
+    /// The most effects named together: while the chosen ones leave the error above
+    /// `explained`, another is added if it pays for its parameters (1: single effects only).
+    pub max_effects: usize,
+    /// At most this many single effects are fitted to convergence after screening.
+    pub max_full_fits: usize,
+    /// Effects of the catalogue left out, by name (to test what the tool says about an
+    /// effect it does not know).
+    pub exclude: Vec<String>,
+    /// The system's own parameters to calibrate before effects are judged, by name (empty:
+    /// no calibration).
+    pub calibrate: Vec<String>,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            window_s: 0.5,
+            threads: std::thread::available_parallelism().map_or(2, |n| n.get()),
+            max_iterations: 15,
+            explained: 1.2,
+            max_effects: 2,
+            max_full_fits: usize::MAX,
+            exclude: Vec::new(),
+            calibrate: Vec::new(),
+        }
+    }
+}
+
+/// The outcome of `diagnose`.
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    /// `"none"`, `"calibration"` (the system's own parameters, calibrated, explain the
+    /// log), `"unexplained"`, or an effect name (the stronger one if two effects are
+    /// found; `effects` lists both).
+    pub cause: String,
+    /// Indices of the named effects in the plant's catalogue.
+    pub effects: Vec<usize>,
+    pub chosen: Scored,
+    pub nominal: Scored,
+    /// Every candidate tried, best (lowest score) first.
+    pub candidates: Vec<Scored>,
+    pub calibration: Option<Calibration>,
+    /// Noise level per channel used as first fit weights (from the nominal residuals).
+    pub sigma: Vec<f64>,
+    /// Noise level per channel from the chosen model's residuals: the error's yardstick
+    /// (NaN where the channel is absent).
+    pub sigma_final: Vec<f64>,
+    pub error_before: f64,
+    pub error_after: f64,
+    pub gain: f64,
+    /// Per channel `RMS(r_c)/σ_c` before and after (NaN where absent).
+    pub channel_before: Vec<f64>,
+    pub channel_after: Vec<f64>,
+    pub residuals_before: Residuals,
+    pub residuals_after: Residuals,
+    pub windows: Vec<(usize, usize)>,
+    /// "Is anything left" per channel, for the nominal model and the chosen one.
+    pub tests_before: Vec<ChannelTest>,
+    pub tests_after: Vec<ChannelTest>,
+    /// The operating conditions that the chosen model's residual follows, in the channels
+    /// that fail their tests.
+    pub conditions: Vec<Condition>,
+    /// Readings dropped as far outside their channel's range, and copied channels set
+    /// aside, in words.
+    pub flagged: Vec<String>,
+    /// A one-paragraph verdict for the report.
+    pub verdict: String,
+    pub elapsed_s: f64,
+}
