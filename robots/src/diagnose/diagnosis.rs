@@ -76,6 +76,10 @@ pub struct Diagnosis {
     /// The operating conditions that the chosen model's residual follows, in the channels
     /// that fail their tests.
     pub conditions: Vec<Condition>,
+    /// The operating conditions that the nominal model's residual follows, in the channels
+    /// that fail their tests before: the signature of what the model lacks, whichever
+    /// candidate was chosen (a wrong candidate can smear it in its own residual).
+    pub conditions_before: Vec<Condition>,
     /// Readings dropped as far outside their channel's range, and copied channels set
     /// aside, in words.
     pub flagged: Vec<String>,

@@ -1,8 +1,9 @@
 //! `diagnose`'s output files for any plant: `diagnosis.json` (docs/formats.md), `report.md`
 //! and residual plots before and after the refit, one per channel.
 
+use super::conditions::Condition;
 use super::diagnosis::Diagnosis;
-use super::log::MeasuredLog;
+use super::log::{ChannelSpec, MeasuredLog};
 use super::model::Catalogue;
 use super::session::Scored;
 use super::Plant;
@@ -130,14 +131,8 @@ pub fn diagnosis_json<P: Plant>(plant: &P, d: &Diagnosis) -> Value {
             "after": tests(&d.tests_after),
         },
         "flagged_readings": d.flagged,
-        "conditions": d.conditions.iter().map(|c| json!({
-            "channel": chans[c.channel].name,
-            "condition": c.condition,
-            "measure": c.measure,
-            "inside": c.inside,
-            "outside": c.outside,
-            "z": c.z,
-        })).collect::<Vec<_>>(),
+        "conditions": conditions_json(chans, &d.conditions),
+        "conditions_before": conditions_json(chans, &d.conditions_before),
     });
     if d.calibration.is_some() {
         out["calibration"] = calibration_json(cat, d);
@@ -237,20 +232,17 @@ The error of a model is `E = sqrt(mean_c (RMS_c/σ_c)²)` over the measured chan
         let _ = writeln!(s, "## Where the model fails\n");
         let _ = writeln!(
             s,
-            "The operating conditions that the remaining residual follows, in the channels that fail their tests: `(r/σ)²` (level) or `r/σ` (mean) inside and outside the condition, and `z`, a t statistic paired over windows (per window the difference of the log level or of the mean) on the normal scale (docs/diagnose.md). This is where an effect is missing.\n"
+            "The operating conditions that the remaining residual follows, in the channels that fail their tests: `(r/σ)²` (level) or `r/σ` (mean) inside and outside the condition, and `z`, a t statistic (paired over windows, or for the level between windows) on the normal scale (docs/diagnose.md §4d). This is where an effect is missing.\n"
         );
+        conditions_md(&mut s, chans, &d.conditions);
+    }
+    if d.cause == "unexplained" && !d.conditions_before.is_empty() {
+        let _ = writeln!(s, "## Where the nominal model fails\n");
         let _ = writeln!(
             s,
-            "| channel | condition | measure | inside | outside | z |\n|---|---|---|---|---|---|"
+            "The same for the nominal model's residual: the signature of what the model lacks, whichever candidate was chosen.\n"
         );
-        for c in d.conditions.iter().take(20) {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} | {:.2} | {:.2} | {:.1} |",
-                chans[c.channel].name, c.condition, c.measure, c.inside, c.outside, c.z
-            );
-        }
-        let _ = writeln!(s);
+        conditions_md(&mut s, chans, &d.conditions_before);
     }
     if !d.flagged.is_empty() {
         let _ = writeln!(s, "Readings outside their channel's range, not fitted:\n");
@@ -431,4 +423,36 @@ pub fn residual_plots<P: Plant>(
         out.push((format!("residual_{}.svg", c.name), plot.to_svg()));
     }
     out
+}
+
+fn conditions_json(chans: &[ChannelSpec], conds: &[Condition]) -> Vec<Value> {
+    conds
+        .iter()
+        .map(|c| {
+            json!({
+                "channel": chans[c.channel].name,
+                "condition": c.condition,
+                "measure": c.measure,
+                "inside": c.inside,
+                "outside": c.outside,
+                "z": c.z,
+            })
+        })
+        .collect()
+}
+
+/// A table of conditions (at most 20, strongest first).
+fn conditions_md(s: &mut String, chans: &[ChannelSpec], conds: &[Condition]) {
+    let _ = writeln!(
+        s,
+        "| channel | condition | measure | inside | outside | z |\n|---|---|---|---|---|---|"
+    );
+    for c in conds.iter().take(20) {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.2} | {:.2} | {:.1} |",
+            chans[c.channel].name, c.condition, c.measure, c.inside, c.outside, c.z
+        );
+    }
+    let _ = writeln!(s);
 }

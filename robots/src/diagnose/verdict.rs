@@ -3,6 +3,7 @@
 //! checks that the log carries information and every reported number is finite.
 
 use super::adequacy::{channel_tests, ChannelTest};
+use super::conditions::conditions;
 use super::diagnosis::{DiagnoseOptions, Diagnosis};
 use super::error::DiagnoseError;
 use super::log::MeasuredLog;
@@ -50,19 +51,23 @@ pub(super) fn conclude<P: Plant>(
     };
     let (left_before, left_after) = (left(&tests_before), left(&tests_after));
     let explained = error_after <= opts.explained && left_after.is_empty();
-    let failing: Vec<usize> = tests_after
-        .iter()
-        .filter(|t| !t.passes())
-        .map(|t| t.channel)
-        .collect();
-    let conditions = super::conditions::conditions(
-        log,
-        fitter.plant.conditions(log),
-        &res_after,
-        &fitter.windows,
-        &sigma_final,
-        &failing,
-    );
+    let followed = |res, tests: &[ChannelTest]| {
+        let failing: Vec<usize> = tests
+            .iter()
+            .filter(|t| !t.passes())
+            .map(|t| t.channel)
+            .collect();
+        conditions(
+            log,
+            fitter.plant.conditions(log),
+            res,
+            &fitter.windows,
+            &sigma_final,
+            &failing,
+        )
+    };
+    let conditions_before = followed(&res_before, &tests_before);
+    let conditions = followed(&res_after, &tests_after);
     let effects = chosen.fit.candidate.effects.clone();
     let list = |v: &[String]| {
         if v.is_empty() {
@@ -118,6 +123,7 @@ pub(super) fn conclude<P: Plant>(
         tests_before,
         tests_after,
         conditions,
+        conditions_before,
         flagged,
         verdict,
         elapsed_s: ss.t0.elapsed().as_secs_f64(),
