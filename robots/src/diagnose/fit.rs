@@ -8,7 +8,7 @@
 use super::log::MeasuredLog;
 use super::model::{from_internal, to_internal, Candidate, Catalogue, Direction};
 use super::noise::Residuals;
-pub(crate) use super::normal_equations::{damped, schur, WindowLin};
+use super::normal_equations::{damped, WindowLin};
 use super::normal_equations::{
     direction_scale, param_std, parameter_cov, predicted_reduction, step,
 };

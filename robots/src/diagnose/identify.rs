@@ -10,8 +10,9 @@
 //! rounded; exponents below a tenth of the largest are left out of the name (not of the
 //! direction), e.g. `m_b^1.00·l^0.98·I_byy^-0.21`.
 
-use super::fit::{schur, Fitter};
+use super::fit::Fitter;
 use super::model::Direction;
+use super::normal_equations::schur;
 use super::Plant;
 use nalgebra::{DMatrix, SymmetricEigen};
 

@@ -8,8 +8,9 @@
 //! parameters held, from the state the readings give at its start
 //! ([`super::Plant::initial_state`]), and the lower of the two minima is kept.
 
-use super::fit::{damped, Fitter};
+use super::fit::Fitter;
 use super::model::to_internal;
+use super::normal_equations::step;
 use super::Plant;
 use nalgebra::DVector;
 
@@ -59,25 +60,23 @@ impl<P: Plant> Fitter<'_, P> {
             return 0;
         }
         let fresh = self.initial_states();
-        let moved: Vec<Option<Vec<f64>>> = self.map_outliers(&outliers, |wi| {
+        // Every thread walks all windows but refits only the outliers (a few).
+        let refitted: Vec<Option<Vec<f64>>> = self.map_windows(|wi| {
+            if !outliers.contains(&wi) {
+                return None;
+            }
             let current = costs[wi]?.0;
             let (z_new, cost) = self.fit_window_state(theta, wi, fresh[wi].clone())?;
             (cost < current).then_some(z_new)
         });
         let mut n = 0;
-        for (&wi, m) in outliers.iter().zip(moved) {
-            if let Some(z_new) = m {
+        for (wi, r) in refitted.into_iter().enumerate() {
+            if let Some(z_new) = r {
                 z[wi] = z_new;
                 n += 1;
             }
         }
         n
-    }
-
-    /// `f` over the outlying windows, spread over the threads.
-    fn map_outliers<R: Send>(&self, outliers: &[usize], f: impl Fn(usize) -> R + Sync) -> Vec<R> {
-        let all = self.map_windows(|wi| outliers.contains(&wi).then(|| f(wi)));
-        all.into_iter().flatten().collect()
     }
 
     /// Levenberg–Marquardt on one window's initial state alone, parameters held at
@@ -96,12 +95,9 @@ impl<P: Plant> Fitter<'_, P> {
             let lin = self.window_lin(&x, &[], win, &z)?;
             let mut improved = false;
             while lambda <= 1e8 {
-                let Some(ch) = damped(&lin.a, lambda).cholesky() else {
-                    lambda *= 4.0;
-                    continue;
-                };
-                let dz: DVector<f64> = -ch.solve(&lin.gz);
-                let trial: Vec<f64> = z.iter().zip(dz.iter()).map(|(a, b)| a + b).collect();
+                // The fit's own step with no free coordinates: the damped window block.
+                let (dz, _) = step(std::slice::from_ref(&lin), 0, lambda, &DVector::zeros(0));
+                let trial: Vec<f64> = z.iter().zip(dz[0].iter()).map(|(a, b)| a + b).collect();
                 match self.window_cost(theta, win, &trial) {
                     Some((c, _)) if c < cost => {
                         let rel = (cost - c) / cost.max(1e-300);

@@ -51,6 +51,7 @@ pub(super) fn conclude<P: Plant>(
     };
     let (left_before, left_after) = (left(&tests_before), left(&tests_after));
     let explained = error_after <= opts.explained && left_after.is_empty();
+    let indicators = fitter.plant.conditions(log);
     let followed = |res, tests: &[ChannelTest]| {
         let failing: Vec<usize> = tests
             .iter()
@@ -59,7 +60,7 @@ pub(super) fn conclude<P: Plant>(
             .collect();
         conditions(
             log,
-            fitter.plant.conditions(log),
+            indicators.clone(),
             res,
             &fitter.windows,
             &sigma_final,
