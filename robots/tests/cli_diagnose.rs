@@ -185,6 +185,33 @@ fn generate_then_diagnose_end_to_end() {
         let svg = std::fs::read_to_string(dir.join(format!("d/residual_{ch}.svg"))).unwrap();
         assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{ch}");
     }
+    // residuals.csv holds the residuals behind the report: each channel's RMS after the
+    // refit over the noise is the `rms_over_noise` of diagnosis.json (to the file's six
+    // significant digits).
+    let table = std::fs::read_to_string(dir.join("d/residuals.csv")).unwrap();
+    let mut lines = table.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    for t in d["residual_tests"]["after"].as_array().unwrap() {
+        let ch = t["channel"].as_str().unwrap();
+        let col = header
+            .iter()
+            .position(|h| *h == format!("{ch}_after"))
+            .unwrap_or_else(|| panic!("column {ch}_after in {header:?}"));
+        let r: Vec<f64> = rows
+            .iter()
+            .filter(|row| !row[col].is_empty())
+            .map(|row| row[col].parse().unwrap())
+            .collect();
+        assert_eq!(r.len() as u64, t["n"].as_u64().unwrap(), "{ch}");
+        let rms = (r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64).sqrt();
+        let ratio = rms / d["noise"][ch].as_f64().unwrap();
+        let want = t["rms_over_noise"].as_f64().unwrap();
+        assert!(
+            (ratio / want - 1.0).abs() < 1e-5,
+            "{ch}: {ratio} against {want}"
+        );
+    }
 }
 
 /// A log whose readings never change carries no information: a clear error (exit 1), not

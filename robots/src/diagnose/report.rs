@@ -372,6 +372,40 @@ fn worst_second(r: &super::noise::Residuals, c: usize, h: f64, sigma: f64) -> St
     )
 }
 
+/// The residuals as a table (`residuals.csv`): per row of the log, `t` and for each channel
+/// with a finite result its residual before (nominal) and after (refitted), prediction −
+/// reading; empty where the channel was not read or the row is outside every window.
+pub fn residuals_csv<P: Plant>(plant: &P, d: &Diagnosis, log: &MeasuredLog) -> String {
+    let chans: Vec<usize> = (0..plant.channels().len())
+        .filter(|&i| d.channel_before[i].is_finite())
+        .collect();
+    let mut s = String::from("t");
+    for &i in &chans {
+        let n = &plant.channels()[i].name;
+        s += &format!(",{n}_before,{n}_after");
+    }
+    s.push('\n');
+    let cell = |v: f64| {
+        if v.is_nan() {
+            String::new()
+        } else {
+            format!("{v:.6e}")
+        }
+    };
+    for (k, t) in log.t.iter().enumerate() {
+        s += &format!("{t}");
+        for &i in &chans {
+            s += &format!(
+                ",{},{}",
+                cell(d.residuals_before.get(k, i)),
+                cell(d.residuals_after.get(k, i))
+            );
+        }
+        s.push('\n');
+    }
+    s
+}
+
 /// Residual plots, one per channel: before (nominal) and after (refitted).
 pub fn residual_plots<P: Plant>(
     plant: &P,

@@ -1,7 +1,7 @@
 //! `wip diagnose`: compare the model with a measured log, name the unmodelled effect, refit.
 
 use crate::common::{load_params, positive_count, positive_number, Failure};
-use robots::diagnose::report::{diagnosis_json, report_md, residual_plots};
+use robots::diagnose::report::{diagnosis_json, report_md, residual_plots, residuals_csv};
 use robots::diagnose::{diagnose, DiagnoseOptions, Plant};
 use robots::io::OutputSet;
 use robots::wip::diagnose::effects::CALIBRATED;
@@ -19,7 +19,7 @@ use std::path::PathBuf;
 /// uncertainty and reports the gain. With --calibrate, the robot's own parameters are
 /// calibrated first (the combinations the log determines). Writes
 /// DIR/diagnosis.json, DIR/params_refit.json (the refitted model as a parameter file that
-/// plan and simulate read), DIR/report.md and DIR/residual_<channel>.svg. Method:
+/// plan and simulate read), DIR/report.md, DIR/residual_<channel>.svg and DIR/residuals.csv. Method:
 /// docs/diagnose.md.
 ///
 /// Exit status: 0 diagnosed (whatever the verdict); 1 a malformed log (one line naming the
@@ -108,6 +108,7 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
     for (name, svg) in residual_plots(&plant, &d, &log) {
         files.write(&name, svg.as_bytes())?;
     }
+    files.write("residuals.csv", residuals_csv(&plant, &d, &log).as_bytes())?;
     // The refitted model as a parameter file that plan/simulate read.
     let (refit, left_out) = refit_params(&plant, &d);
     refit
@@ -156,7 +157,7 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
         );
     }
     say!(
-        "wrote {}/{{diagnosis.json, params_refit.json, report.md, residual_*.svg}}",
+        "wrote {}/{{diagnosis.json, params_refit.json, report.md, residual_*.svg, residuals.csv}}",
         a.out.display()
     );
     Ok(())
