@@ -382,3 +382,41 @@ fn an_unwritable_output_directory_is_found_before_the_solve() {
         .collect();
     assert!(stray.is_empty());
 }
+
+/// The exact curvature of an RK plan evaluates each stage in nested duals of kilobytes a
+/// number: on the solver's worker threads (2 MiB stacks by default) it aborted with a
+/// stack overflow (exit by SIGABRT). One iteration, on one thread and on two: the
+/// iteration limit's exit 1, no signal.
+#[test]
+fn exact_curvature_of_an_rk_plan_does_not_overflow_the_stack() {
+    let dir = scratch("rk-exact");
+    std::fs::write(dir.join("short.json"), SHORT).unwrap();
+    for threads in ["1", "2"] {
+        let out = run(
+            &[
+                "plan",
+                "short.json",
+                "--step",
+                "0.02",
+                "--integrator",
+                "rk1",
+                "--hessian",
+                "exact",
+                "--max-iter",
+                "1",
+                "--threads",
+                threads,
+                "--quiet",
+                "--out",
+                "o",
+            ],
+            &dir,
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{threads} threads: {err}");
+        assert!(
+            err.contains("not solved within"),
+            "{threads} threads: {err}"
+        );
+    }
+}

@@ -78,7 +78,21 @@ fn run_on_threads(threads: usize, work: &(dyn Fn() + Sync)) {
     }
     std::thread::scope(|sc| {
         for _ in 0..threads {
-            sc.spawn(work);
+            let spawned = std::thread::Builder::new()
+                .stack_size(STAGE_THREAD_STACK)
+                .spawn_scoped(sc, work);
+            if spawned.is_err() {
+                // The work is handed out from a shared counter: the threads that did
+                // start, and this one, finish it.
+                work();
+            }
         }
     });
 }
+
+/// Stack of a stage-loop thread. The generic second derivatives evaluate a stage in
+/// nested duals whose numbers are kilobytes each (an RK stage's exact curvature: a
+/// vector dual of a dual of a hyper-dual, 576 lanes); the default 2 MiB of a spawned
+/// thread overflowed on `wip plan --integrator rk1 --hessian exact`. The size is
+/// reserved address space, not memory: only the pages touched are committed.
+pub const STAGE_THREAD_STACK: usize = 64 << 20;

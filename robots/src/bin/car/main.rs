@@ -255,6 +255,11 @@ fn run_simulate(a: SimulateArgs) -> Result<(), String> {
 }
 
 fn main() -> ExitCode {
+    robots::cli::on_solver_stack(run_command)
+}
+
+/// The command line parsed and run.
+fn run_command() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {

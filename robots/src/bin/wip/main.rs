@@ -56,6 +56,11 @@ fn print_subcommand_usage(rendered: &str) {
 }
 
 fn main() -> ExitCode {
+    robots::cli::on_solver_stack(run_command)
+}
+
+/// The command line parsed and run.
+fn run_command() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
