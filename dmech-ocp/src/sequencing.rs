@@ -65,6 +65,43 @@ where
     done.expect("at least one problem")
 }
 
+/// The last problem solved directly from the start; only if that fails, the
+/// [`continuation`] over all of them from the same start, within what is left of the time
+/// limit. The failed attempt's iterations and times are added to the result. For problems
+/// whose continuation is a safeguard rather than a necessity (measured on the WIP's RK1 and
+/// RK2 plans: the direct solve takes fewer iterations, `docs/ocp.md`).
+pub fn direct_or_continuation<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NU: usize,
+    const NC: usize,
+>(
+    problems: &[P],
+    xs: Vec<SVector<f64, NX>>,
+    ws: Vec<SVector<f64, NW>>,
+    opts: IpOptions,
+) -> SolveResult<NX, NW, NC>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let last = &problems[problems.len() - 1..];
+    if problems.len() == 1 {
+        return continuation::<_, NX, NW, NE, NU, NC>(last, xs, ws, opts);
+    }
+    let direct = continuation::<_, NX, NW, NE, NU, NC>(last, xs.clone(), ws.clone(), opts.clone());
+    if direct.status == Status::Solved {
+        return direct;
+    }
+    let mut o = opts.clone();
+    o.time_limit = (opts.time_limit - direct.timings.total).max(0.0);
+    merge(
+        continuation::<_, NX, NW, NE, NU, NC>(problems, xs, ws, o),
+        &direct,
+    )
+}
+
 /// `r` with the iterations and times of `r0` (an earlier stage of the same solve) added.
 pub fn merge<const NX: usize, const NW: usize, const NC: usize>(
     mut r: SolveResult<NX, NW, NC>,

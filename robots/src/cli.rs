@@ -29,19 +29,15 @@ impl HessianArg {
 /// calling thread, and a tool's main thread has only the 8 MiB the system gives it. If no
 /// thread can be started, `f` runs here. A panic in `f` carries on here.
 pub fn on_solver_stack<R: Send, F: FnOnce() -> R + Send>(f: F) -> R {
-    let task = std::sync::Mutex::new(Some(f));
-    let take = || task.lock().ok().and_then(|mut t| t.take());
-    let on_thread = std::thread::scope(|sc| {
+    let mut task = Some(f);
+    let ran = std::thread::scope(|sc| {
         let spawned = std::thread::Builder::new()
             .stack_size(dmech_ocp::ipm::STAGE_THREAD_STACK)
-            .spawn_scoped(sc, || take().map(|f| f()));
+            .spawn_scoped(sc, || task.take().map(|f| f()));
         match spawned {
             Ok(h) => h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)),
             Err(_) => None,
         }
     });
-    match on_thread {
-        Some(r) => r,
-        None => (take().expect("the task runs once"))(),
-    }
+    ran.unwrap_or_else(|| (task.take().expect("the command runs once"))())
 }

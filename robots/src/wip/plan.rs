@@ -17,9 +17,11 @@ use super::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
-use dmech_ocp::ipm::{IpOptions, SolveResult, Solver, Status};
+use dmech_ocp::ipm::{IpOptions, SolveResult, Solver};
 use dmech_ocp::layout::Layout;
-use dmech_ocp::sequencing::{continuation, merge, mesh_sequence, SequenceSettings, SequencedPlan};
+use dmech_ocp::sequencing::{
+    continuation, direct_or_continuation, mesh_sequence, SequenceSettings, SequencedPlan,
+};
 use dmech_ocp::transcription::{
     Condition, PlannedTrajectory as GenericTrajectory, PlanningProblem, Quantity, RkTranscription,
     Stage, StartState, VarIntTranscription,
@@ -482,33 +484,19 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
                 .collect();
             // RK1 and RK2 solve the model's own friction directly: on the eight and the
             // zigzag, with either current model, it takes 31–65 iterations against 40–63
-            // through the continuation (7 of 8 plans faster, `docs/ocp.md`). The
-            // continuation stays the fallback, and RK4's way (from the direct start its
-            // zigzag did not finish in 300 s).
-            let direct = (!stiff_explicit && plans.len() > 1).then(|| {
-                let own = &plans[plans.len() - 1..];
-                continuation::<_, NX, 2, 0, 2, NC>(own, xs.clone(), ws.clone(), opts.clone())
-            });
-            let r = match direct {
-                Some(r) if r.status == Status::Solved => r,
-                tried => {
-                    let mut o = opts.clone();
-                    if let Some(t) = &tried {
-                        o.time_limit = (opts.time_limit - t.timings.total).max(0.0);
-                    }
-                    // The continuation restarts each phase at `10 μ_end` of the last: the
-                    // switch to the steep friction moves the optimum where the voltage-rate
-                    // limits are active, and slacks within `μ` of them let the
-                    // fraction-to-the-boundary rule cut the steps (docs/ocp.md).
-                    let r = continuation::<_, NX, 2, 0, 2, NC>(&plans, xs, ws, o);
-                    match &tried {
-                        Some(t) => merge(r, t),
-                        None => r,
-                    }
-                }
+            // through the continuation (7 of 8 plans faster, `docs/ocp.md`); the
+            // continuation stays their fallback. RK4 goes through it (from the direct start
+            // its zigzag did not finish in 300 s). The continuation restarts each phase at
+            // `10 μ_end` of the last: the switch to the steep friction moves the optimum
+            // where the voltage-rate limits are active, and slacks within `μ` of them let
+            // the fraction-to-the-boundary rule cut the steps (docs/ocp.md).
+            let r = if stiff_explicit {
+                continuation::<_, NX, 2, 0, 2, NC>(&plans, xs, ws, opts)
+            } else {
+                direct_or_continuation::<_, NX, 2, 0, 2, NC>(&plans, xs, ws, opts)
             };
-            let traj =
-                rk_plan::<M, NS>(model, problem, bounds, rk).trajectory::<2, NX, NC>(&r.iterate);
+            let own = plans.last().expect("the model's own plan is last");
+            let traj = own.trajectory::<2, NX, NC>(&r.iterate);
             outcome::<M, NS, NX, 2>(model, r, traj, false)
         }
     }
