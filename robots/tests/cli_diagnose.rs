@@ -227,3 +227,49 @@ fn a_constant_log_is_a_clear_error() {
     assert!(err.contains("constant"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// With every effect excluded and the calibration on, no candidate may be named (the
+/// calibration's own parameters are judged by the combinations the log determines): the
+/// diagnosis falls back to the calibrated model and says what is left. This aborted with a
+/// panic ("at least the base model") on the real Balboa log.
+#[test]
+fn every_effect_excluded_falls_back_to_the_base_model() {
+    let dir = scratch("exclude_all");
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/balboa");
+    let all = robots::wip::diagnose::effects::Effect::ALL
+        .iter()
+        .map(|e| e.name())
+        .collect::<Vec<_>>()
+        .join(",");
+    let out = wip()
+        .args([
+            "diagnose",
+            "--quiet",
+            "--calibrate",
+            "--exclude",
+            &all,
+            "--params",
+        ])
+        .arg(data.join("balboa_params.json"))
+        .arg(data.join("balboa_01.csv"))
+        .arg("--out")
+        .arg(dir.join("d"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let d: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("d/diagnosis.json")).unwrap())
+            .unwrap();
+    assert!(
+        d["effects"].as_array().unwrap().is_empty(),
+        "{}",
+        d["effects"]
+    );
+    assert!(
+        d["cause"] == "unexplained" || d["cause"] == "none",
+        "{}",
+        d["cause"]
+    );
+    assert!(d["error_after"].as_f64().unwrap() <= d["error_before"].as_f64().unwrap());
+}
