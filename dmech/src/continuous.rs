@@ -171,18 +171,13 @@ pub fn acceleration_jacobian<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
-    // `r` is affine in `a`: one pass seeded in `a` at `a = 0` gives `r₀` and `𝕄 = ∂r/∂a`.
+    // `r` is affine in `a`, `r = 𝕄 a + r₀`: `𝕄` as the momentum's Jacobian in `v`, `r₀` in
+    // plain numbers ([`mass_and_bias`]; a pass of `r` seeded in `a` costs more).
     let (sl, vl) = (s.map(Dv::from_re), v.map(Dv::from_re));
     let ul = u.map(Dv::<f64, NS>::from_re);
-    let r_a = motion_residual::<S, Dv<f64, NS>, DOF, DIM, NS, NU>(
-        sys,
-        &sl,
-        &vl,
-        &seeded(&SVector::zeros()),
-        &ul,
-    );
-    let lu = Lu::new(&jacobian_part(&r_a))?;
-    let a = lu.solve(&(-r_a.map(|z| z.re)));
+    let (m, r0) = mass_and_bias::<S, f64, DOF, DIM, NS, NU>(sys, s, v, u);
+    let lu = Lu::new(&m)?;
+    let a = lu.solve(&(-r0));
     let ad = a.map(Dv::<f64, NS>::from_re);
     let r_s = motion_residual::<S, Dv<f64, NS>, DOF, DIM, NS, NU>(sys, &seeded(s), &vl, &ad, &ul);
     let r_v = motion_residual::<S, Dv<f64, NS>, DOF, DIM, NS, NU>(sys, &sl, &seeded(v), &ad, &ul);
