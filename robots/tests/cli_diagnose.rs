@@ -228,10 +228,10 @@ fn a_constant_log_is_a_clear_error() {
     assert!(!err.contains("panicked"), "{err}");
 }
 
-/// With every effect excluded and the calibration on, no candidate may be named (the
-/// calibration's own parameters are judged by the combinations the log determines): the
-/// diagnosis falls back to the calibrated model and says what is left. This aborted with a
-/// panic ("at least the base model") on the real Balboa log.
+/// With every effect excluded and the calibration on, no candidate may be named (on
+/// `balboa_01` the calibration moves `m_b` and `I_byy` outside their physical ranges): the
+/// diagnosis falls back to the base model and says what is left. This aborted with a panic
+/// ("at least the base model") on the real Balboa log.
 #[test]
 fn every_effect_excluded_falls_back_to_the_base_model() {
     let dir = scratch("exclude_all");

@@ -182,8 +182,9 @@ pub fn diagnose<P: Plant>(
                 || !c.fit.candidate.calibration.is_empty()
         })
         .min_by(|a, b| a.score.total_cmp(&b.score))
-        // None may be nameable (every effect left open undetermined or implausible, and a
-        // calibration's own parameters judged by their combinations): the base model.
+        // None may be nameable: every effect left open undetermined or implausible, and a
+        // calibration whose own parameters leave their physical ranges. The base model the
+        // effects are judged on stands, and the verdict says what is left.
         .map_or_else(|| base.clone(), Scored::clone);
     let is_base = |c: &Scored| c.fit.candidate.effects.is_empty();
     let mut refs = References {
