@@ -37,16 +37,15 @@ where
     let mut start = Some((xs, ws));
     let mut done: Option<SolveResult<NX, NW, NC>> = None;
     for (j, p) in problems.iter().enumerate() {
-        let mut o = opts.clone();
+        // The time limit holds for the whole continuation.
+        let mut o = done
+            .as_ref()
+            .map_or_else(|| opts.clone(), |prev| time_left(&opts, prev));
         if j < last {
             o.tol = intermediate_tol;
         }
         if j > 0 {
             o.mu_init = intermediate_tol;
-        }
-        // The time limit holds for the whole continuation.
-        if let Some(prev) = &done {
-            o.time_limit = (opts.time_limit - prev.timings.total).max(0.0);
         }
         let s: Solver<_, NX, NW, NE, NU, NC> = Solver::new(p, o);
         let r = match &done {
@@ -87,19 +86,26 @@ where
     P: StageProblem<NX, NW, NE, NC>,
 {
     let last = &problems[problems.len() - 1..];
-    if problems.len() == 1 {
-        return continuation::<_, NX, NW, NE, NU, NC>(last, xs, ws, opts);
-    }
     let direct = continuation::<_, NX, NW, NE, NU, NC>(last, xs.clone(), ws.clone(), opts.clone());
-    if direct.status == Status::Solved {
+    // With one problem the continuation is the direct solve: nothing to fall back to.
+    if direct.status == Status::Solved || problems.len() == 1 {
         return direct;
     }
-    let mut o = opts.clone();
-    o.time_limit = (opts.time_limit - direct.timings.total).max(0.0);
+    let o = time_left(&opts, &direct);
     merge(
         continuation::<_, NX, NW, NE, NU, NC>(problems, xs, ws, o),
         &direct,
     )
+}
+
+/// `opts` with its time limit less what `spent`, an earlier part of the same solve, took.
+fn time_left<const NX: usize, const NW: usize, const NC: usize>(
+    opts: &IpOptions,
+    spent: &SolveResult<NX, NW, NC>,
+) -> IpOptions {
+    let mut o = opts.clone();
+    o.time_limit = (opts.time_limit - spent.timings.total).max(0.0);
+    o
 }
 
 /// `r` with the iterations and times of `r0` (an earlier stage of the same solve) added.
@@ -250,10 +256,9 @@ where
             plan.step(mesh),
             plan.dual_scale(coarse, mesh),
         );
-        let mut o = opts.clone();
+        let mut o = time_left(&opts, &r);
         o.tol = tol(j);
         o.mu_init = settings.restart_barrier;
-        o.time_limit = (opts.time_limit - r.timings.total).max(0.0);
         let s: Solver<_, NX, NW, NE, NU, NC> = Solver::new(&problem, o);
         r = merge(s.solve(s.warm_iterate(start)), &r);
     }
@@ -264,9 +269,7 @@ where
             plan.steps(&meshes[last]),
             plan.step(&meshes[last])
         ));
-        let mut o = opts.clone();
-        o.time_limit = (opts.time_limit - r.timings.total).max(0.0);
-        return merge(from_start(&meshes[last], o), &r);
+        return merge(from_start(&meshes[last], time_left(&opts, &r)), &r);
     }
     r
 }

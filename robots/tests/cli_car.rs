@@ -2,7 +2,7 @@
 //! every constraint holds on the written trajectory.csv (re-measured from the file).
 
 mod common;
-use common::{car, scratch};
+use common::{car, read_json, scratch};
 
 fn rows(csv: &str) -> Vec<Vec<f64>> {
     csv.lines()
@@ -32,9 +32,7 @@ fn car_plans_the_built_in_problems() {
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "car plan {problem}: {stderr}");
-        let summary: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())
-                .unwrap();
+        let summary = read_json(dir.join("summary.json"));
         assert_eq!(summary["status"], "solved");
         assert_eq!(summary["integrator"], integrator);
         assert!(

@@ -3,7 +3,7 @@
 //! with every output file written and `diagnosis.json` carrying the keys of docs/formats.md.
 
 mod common;
-use common::{scratch, wip};
+use common::{read_json, scratch, wip};
 
 /// A well-formed log of `n` rows (tilt, rate and one current channel), as text.
 fn good_rows(n: usize) -> String {
@@ -129,8 +129,7 @@ fn generate_then_diagnose_end_to_end() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let truth: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let truth = read_json(dir.join("truth.json"));
     let b_true = truth["effects"][0]["parameters"]["b_rad"].as_f64().unwrap();
     // One corrupt reading (a logging fault): flagged and not fitted, never a NaN result.
     let text = std::fs::read_to_string(dir.join("log.csv")).unwrap();
@@ -258,9 +257,7 @@ fn every_effect_excluded_falls_back_to_the_base_model() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    let d: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("d/diagnosis.json")).unwrap())
-            .unwrap();
+    let d = read_json(dir.join("d/diagnosis.json"));
     assert!(
         d["effects"].as_array().unwrap().is_empty(),
         "{}",

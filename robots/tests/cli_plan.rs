@@ -2,7 +2,7 @@
 //! infeasible one reported as such, malformed waypoint files rejected.
 
 mod common;
-use common::{scratch, wip};
+use common::{read_json, scratch, wip};
 
 use std::time::Instant;
 
@@ -89,8 +89,7 @@ fn plan_short_problem_within(current: &str, h: f64, integrator: &str, u_max: f64
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "wip plan failed: {stderr}");
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let summary = read_json(dir.join("summary.json"));
     println!("{summary}");
     assert_eq!(summary["status"], "solved");
     assert_eq!(summary["current"], current);
@@ -187,8 +186,7 @@ fn infeasible_waypoint_is_reported() {
     assert!(stderr.contains("infeasible"), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     assert!(secs < 60.0);
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let summary = read_json(dir.join("summary.json"));
     assert_eq!(summary["status"], "infeasible");
 }
 
@@ -271,8 +269,7 @@ fn plans_a_short_waypoint_problem_with_free_timing() {
         out.status.success(),
         "wip plan --free-timing failed: {stderr}"
     );
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let summary = read_json(dir.join("summary.json"));
     println!("{}", summary["free_timing"]);
     assert_eq!(summary["status"], "solved");
     let free = number(&summary, "objective");

@@ -3,7 +3,7 @@
 //! plan stays up, and bad inputs fail with one line.
 
 mod common;
-use common::{fails_with_one_line, scratch, wip};
+use common::{fails_with_one_line, read_json, scratch, wip};
 use robots::wip::simulate::Trajectory;
 use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::lq::{LqController, SAMPLE};
@@ -95,9 +95,7 @@ fn noisy_loop_tracks_a_short_plan() {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let j: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out_dir.join("tracking.json")).unwrap())
-                .unwrap();
+        let j = read_json(out_dir.join("tracking.json"));
         assert_eq!(j["fell"], false);
         assert_eq!(j["controller"], controller);
         for key in ["qp_solve_ms_median", "qp_solve_ms_max", "qp_wall_ms_max"] {

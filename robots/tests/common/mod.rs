@@ -13,6 +13,13 @@ pub fn car() -> Command {
     Command::new(env!("CARGO_BIN_EXE_car"))
 }
 
+/// A JSON file the tools wrote, parsed.
+pub fn read_json(path: impl AsRef<Path>) -> serde_json::Value {
+    let path = path.as_ref();
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
 /// A fresh directory for one test (`name` keeps the tests of one file apart).
 pub fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("wip-test-{}-{name}", std::process::id()));
