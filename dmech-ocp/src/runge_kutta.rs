@@ -3,7 +3,7 @@
 
 use crate::layout::{segment, Layout};
 use dmech::continuous::{acceleration, acceleration_jacobian, coordinate_rate};
-use dmech::partials::{grad_part, seeded};
+use dmech::partials::{grad_part, jacobian_part, seeded};
 use dmech::{PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
@@ -98,14 +98,17 @@ impl<'a, S> RkStages<'a, S> {
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
         self.dynamics_with::<T, DOF, DIM, NS, NU, NX, NW>(x, w, &|s, v, u| {
-            acceleration::<S, T, DOF, DIM, NS, NU>(self.sys, s, v, u)
+            self.sys
+                .closed_form_acceleration(s, v, u)
+                .or_else(|| acceleration::<S, T, DOF, DIM, NS, NU>(self.sys, s, v, u))
         })
     }
 
     /// `(f, F_x, F_w)`, exact, by the chain rule through the method's stages: each stage
     /// evaluation's rate Jacobian ([`RkStages::rate_jacobian`]) takes the acceleration's
-    /// derivatives by the implicit function theorem with only the blocks the equations of
-    /// motion read seeded ([`acceleration_jacobian`]), and the stages are composed in `f64`
+    /// derivatives from the system's closed form where it supplies one, else by the implicit
+    /// function theorem with only the blocks the equations of motion read seeded
+    /// ([`acceleration_jacobian`]), and the stages are composed in `f64`
     /// (`dK_i = F(Y_i) dY_i`, `dY_i = I + h Σ_j a_ij dK_j`). Checked against the generic
     /// path in a test. A singular mass matrix gives NaN, as in [`RkStages::dynamics`].
     #[allow(clippy::type_complexity)]
@@ -177,8 +180,10 @@ impl<'a, S> RkStages<'a, S> {
 
     /// The rate at `x` with input `u` and its Jacobians `(F_x, F_u)`: the group coordinates'
     /// rate by one vector-dual pass seeded in `x` (it reads `coords(g)`, `s` and `v`), the
-    /// acceleration's rows from [`acceleration_jacobian`]. `None` if the mass matrix is
-    /// singular.
+    /// acceleration's rows from the system's closed form
+    /// ([`PrincipalKinematicSystem::closed_form_acceleration`], one pass seeded in `x` and one
+    /// in `u`) or else from [`acceleration_jacobian`]. `None` if the generic mass matrix is
+    /// singular (a closed form reports it as NaN).
     #[allow(clippy::type_complexity)]
     fn rate_jacobian<
         const DOF: usize,
@@ -197,13 +202,38 @@ impl<'a, S> RkStages<'a, S> {
         let l = self.layout;
         let s: SVector<f64, NS> = segment(x, l.s_at());
         let v: SVector<f64, NS> = segment(x, l.v_at());
-        let acc = acceleration_jacobian::<S, DOF, DIM, NS, NU>(self.sys, &s, &v, u)?;
         let xd = seeded(x);
         let coords: Vec<DualSVec64<NX>> = (0..l.nc).map(|i| xd[i]).collect();
         let g = <S::Group<DualSVec64<NX>> as LieGroup<DOF, DIM>>::from_coordinates(&coords)
             .expect("layout checked");
         let sd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.s_at());
         let vd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.v_at());
+        let (a, a_x, a_u) =
+            match self
+                .sys
+                .closed_form_acceleration(&sd, &vd, &u.map(DualSVec64::from_re))
+            {
+                // The system's closed form: one pass seeded in the stage (it reads `s` and `v`),
+                // one in the input.
+                Some(ax) => {
+                    let au = self
+                        .sys
+                        .closed_form_acceleration(
+                            &s.map(DualSVec64::<NU>::from_re),
+                            &v.map(DualSVec64::<NU>::from_re),
+                            &seeded(u),
+                        )
+                        .expect("a system's closed form does not depend on the point");
+                    (ax.map(|d| d.re), jacobian_part(&ax), jacobian_part(&au))
+                }
+                None => {
+                    let acc = acceleration_jacobian::<S, DOF, DIM, NS, NU>(self.sys, &s, &v, u)?;
+                    let mut a_x = SMatrix::<f64, NS, NX>::zeros();
+                    a_x.fixed_columns_mut::<NS>(l.s_at()).copy_from(&acc.a_s);
+                    a_x.fixed_columns_mut::<NS>(l.v_at()).copy_from(&acc.a_v);
+                    (acc.a, a_x, acc.a_u)
+                }
+            };
         let gdot = coordinate_rate::<_, _, DOF, DIM>(&g, &(-(self.sys.connection(&sd) * vd)));
         let mut f = SVector::<f64, NX>::zeros();
         let mut fx = SMatrix::<f64, NX, NX>::zeros();
@@ -216,14 +246,9 @@ impl<'a, S> RkStages<'a, S> {
             let (rs, rv) = (l.s_at() + i, l.v_at() + i);
             f[rs] = v[i];
             fx[(rs, rv)] = 1.0;
-            f[rv] = acc.a[i];
-            for j in 0..NS {
-                fx[(rv, l.s_at() + j)] = acc.a_s[(i, j)];
-                fx[(rv, l.v_at() + j)] = acc.a_v[(i, j)];
-            }
-            for j in 0..NU {
-                fu[(rv, j)] = acc.a_u[(i, j)];
-            }
+            f[rv] = a[i];
+            fx.row_mut(rv).copy_from(&a_x.row(i));
+            fu.row_mut(rv).copy_from(&a_u.row(i));
         }
         Some((f, fx, fu))
     }

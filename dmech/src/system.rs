@@ -166,4 +166,20 @@ pub trait PrincipalKinematicSystem<
         v: &SVector<T, NS>,
         u: &SVector<T, NU>,
     ) -> SVector<T, NS>;
+
+    /// The shape acceleration `v̇ = a(s, v_s, u)` in closed form, where the system has one.
+    /// `None`, the default, says it has none: [`crate::continuous::acceleration`] derives it
+    /// from `ℓ`, `A` and the forcing, and its Jacobian by the implicit function theorem
+    /// needs third derivatives of `ℓ` (nested duals). Where a system supplies it, the
+    /// Runge–Kutta transcriptions of `dmech-ocp` evaluate and differentiate it instead (one
+    /// vector-dual pass), so a system that does must check it against the generic path in
+    /// a test. A singular mass matrix is reported as non-finite entries.
+    fn closed_form_acceleration<T: Lift<Self::Param>>(
+        &self,
+        _s: &SVector<T, NS>,
+        _v: &SVector<T, NS>,
+        _u: &SVector<T, NU>,
+    ) -> Option<SVector<T, NS>> {
+        None
+    }
 }

@@ -349,3 +349,93 @@ fn algebraic_current_model_equals_full_model_at_steady_current() {
     println!("worst relative difference: {worst:.3e}");
     assert!(worst < 1e-10, "worst relative difference {worst:e}");
 }
+
+/// The closed form each WIP model supplies to the transcriptions
+/// (`PrincipalKinematicSystem::closed_form_acceleration`: the full model with its motor
+/// circuits, the algebraic-current model at its steady currents) equals the generic path,
+/// values and Jacobians in `s`, `v` and `u` (three vector-dual passes), at 300 random
+/// states, inputs and parameters with wheel-radius offsets and a nonzero `J_e`. Tolerance
+/// as above: ε·κ with κ ≈ 1e4 (the derivatives go through the same factorisation).
+#[test]
+fn closed_form_acceleration_of_both_models_equals_generic_path() {
+    use dmech::partials::{jacobian_part, seeded};
+    use num_dual::DualSVec64;
+    use robots::wip::algebraic_current::WipAlgebraicCurrent;
+
+    /// Worst relative difference of value and Jacobians in (s, v, u).
+    fn compare<S, const NS: usize>(
+        sys: &S,
+        s: &SVector<f64, NS>,
+        v: &SVector<f64, NS>,
+        u: &SVector<f64, 2>,
+    ) -> f64
+    where
+        S: PrincipalKinematicSystem<3, 2, NS, 2, Param = f64>,
+    {
+        let c = |x: &SVector<f64, NS>| x.map(DualSVec64::<NS>::from_re);
+        let cu = |x: &SVector<f64, 2>| x.map(DualSVec64::<NS>::from_re);
+        let c2 = |x: &SVector<f64, NS>| x.map(DualSVec64::<2>::from_re);
+        let generic = [
+            acceleration::<S, _, 3, 2, NS, 2>(sys, &seeded(s), &c(v), &cu(u)).unwrap(),
+            acceleration::<S, _, 3, 2, NS, 2>(sys, &c(s), &seeded(v), &cu(u)).unwrap(),
+        ];
+        let closed = [
+            sys.closed_form_acceleration(&seeded(s), &c(v), &cu(u))
+                .unwrap(),
+            sys.closed_form_acceleration(&c(s), &seeded(v), &cu(u))
+                .unwrap(),
+        ];
+        let gu = acceleration::<S, _, 3, 2, NS, 2>(sys, &c2(s), &c2(v), &seeded(u)).unwrap();
+        let fu = sys
+            .closed_form_acceleration(&c2(s), &c2(v), &seeded(u))
+            .unwrap();
+        let rel = |a: f64, b: f64| (a - b).abs() / (1.0 + b.abs());
+        let mut worst = 0.0f64;
+        for (g, f) in generic.iter().zip(&closed) {
+            let (jg, jf) = (jacobian_part(g), jacobian_part(f));
+            for i in 0..NS {
+                worst = worst.max(rel(f[i].re, g[i].re));
+                for j in 0..NS {
+                    worst = worst.max(rel(jf[(i, j)], jg[(i, j)]));
+                }
+            }
+        }
+        let (jg, jf) = (jacobian_part(&gu), jacobian_part(&fu));
+        for i in 0..NS {
+            for j in 0..2 {
+                worst = worst.max(rel(jf[(i, j)], jg[(i, j)]));
+            }
+        }
+        worst
+    }
+
+    let mut rng = Lcg(47);
+    let mut worst: f64 = 0.0;
+    for _ in 0..300 {
+        let mut p = WipParams::default();
+        p.m_b *= rng.uniform(0.8, 1.3);
+        p.l *= rng.uniform(0.8, 1.3);
+        p.d_v *= rng.uniform(0.5, 4.0);
+        let mut full = Wip::new(p);
+        full.wheel_radius_offsets = [rng.uniform(-2e-3, 2e-3), rng.uniform(-2e-3, 2e-3)];
+        full.quasi_static_inertia = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
+        let s = SVector::<f64, 5>::new(
+            rng.uniform(-1.0, 1.0),
+            rng.uniform(-9.0, 9.0),
+            rng.uniform(-9.0, 9.0),
+            rng.uniform(-1.0, 1.0),
+            rng.uniform(-1.0, 1.0),
+        );
+        let v = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
+        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        worst = worst.max(compare(&full, &s, &v, &u));
+        let alg = WipAlgebraicCurrent::new(full);
+        let (s3, v3) = (
+            s.fixed_rows::<3>(0).into_owned(),
+            v.fixed_rows::<3>(0).into_owned(),
+        );
+        worst = worst.max(compare(&alg, &s3, &v3, &u));
+    }
+    println!("worst relative difference: {worst:.3e}");
+    assert!(worst < 1e-10, "worst relative difference {worst:e}");
+}

@@ -11,6 +11,7 @@
 //! `F_a = (fR + fL − k n (iR + iL), −fR + k n iR, −fL + k n iL)`, `i = (u − k n w)/R_m`.
 //! The integrators and the transcriptions of `dmech` apply unchanged.
 
+use super::closed_form;
 use super::Wip;
 use dmech::{Lift, Param, PrincipalKinematicSystem};
 use dmech_lie::{Real, Se2};
@@ -79,5 +80,25 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 3, 2> for WipAlgebraicCurrent<P> {
         let [ir, il] = self.currents(v, u);
         let (tr, tl) = (kn * ir, kn * il);
         SVector::<T, 3>::new(f[0] - tr - tl, f[1] + tr, f[2] + tl)
+    }
+
+    /// [`closed_form::shape_acceleration`] at the steady-state currents. Checked against the
+    /// generic path in `tests/wip_continuous.rs`.
+    fn closed_form_acceleration<T: Lift<P>>(
+        &self,
+        s: &SVector<T, 3>,
+        v: &SVector<T, 3>,
+        u: &SVector<T, 2>,
+    ) -> Option<SVector<T, 3>> {
+        let sys = self.wip.lifted::<T>();
+        let a = closed_form::shape_acceleration(
+            &sys,
+            s[0],
+            [v[0], v[1], v[2]],
+            self.currents(v, u),
+            [T::zero(); 3],
+        )
+        .unwrap_or([T::from(f64::NAN); 3]);
+        Some(SVector::from(a))
     }
 }

@@ -4,9 +4,9 @@
 //! path (`dmech::continuous`), and `shape_acceleration` is the fast evaluation
 //! `wip diagnose` differentiates. The derivation is in `docs/wip.md`.
 
-use super::model::{friction, Wip};
+use super::model::{tanh_saturating, Wip};
 use super::params::WipParams;
-use dmech::{Lift, Param};
+use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 
 /// `Ẋ = f(X, u)`, `X = (x, y, θ, α, v_α, v_d, v_θ, iR, iL)`, `u = (uR, uL)`: the pose
@@ -47,7 +47,7 @@ pub fn state_derivative(
 /// directions); the generic path differentiates `ℓ` by nested duals and costs ~40 times
 /// more there. The test `closed_form_with_extensions_equals_generic_path` checks it against
 /// `dmech::continuous::acceleration_with_force`.
-pub fn shape_acceleration<T: Lift<T>>(
+pub fn shape_acceleration<T: Real>(
     sys: &Wip<T>,
     alpha: T,
     w: [T; 3],
@@ -61,7 +61,7 @@ pub fn shape_acceleration<T: Lift<T>>(
 /// accelerations to each unit generalised force `dirs[j]` on `(α, φR, φL)` (the
 /// accelerations are affine in the force): `wip diagnose`'s stick-slip law needs the
 /// torque that holds a wheel at rest relative to the body.
-pub fn shape_acceleration_with_response<T: Lift<T>, const K: usize>(
+pub fn shape_acceleration_with_response<T: Real, const K: usize>(
     sys: &Wip<T>,
     alpha: T,
     w: [T; 3],
@@ -139,7 +139,8 @@ pub fn shape_acceleration_with_response<T: Lift<T>, const K: usize>(
     rhs[3] += ken * (i[0] + i[1]) - p.m_b * p.g * p.l * sa;
     rhs[4] -= ken * i[0];
     rhs[5] -= ken * i[1];
-    let fric = |wrel: T| friction(Param(p.d_v), Param(p.d_c), Param(p.d_0), wrel);
+    // `model::friction`'s law, with the parameters in the state's scalar.
+    let fric = |wrel: T| p.d_v * wrel + p.d_c * tanh_saturating(p.d_0 * wrel);
     let (fr, fl) = (fric(vr - va), fric(vl - va));
     rhs[3] -= fr + fl + f_shape[0];
     rhs[4] -= -fr + f_shape[1];

@@ -1,6 +1,7 @@
 //! The WIP as a [`PrincipalKinematicSystem`] on SE(2) × R⁵: reduced Lagrangian, connection,
 //! forcing. This is all the integrators and the continuous model need.
 
+use super::closed_form;
 use super::params::WipParams;
 use dmech::{Lift, Param, PrincipalKinematicSystem};
 use dmech_lie::{Real, Se2};
@@ -27,6 +28,17 @@ impl<P: Real> Wip<P> {
             params,
             wheel_radius_offsets: [P::zero(); 2],
             quasi_static_inertia: P::zero(),
+        }
+    }
+}
+
+impl<P: Real> Wip<P> {
+    /// The same robot with its parameters lifted into the scalar `T`.
+    pub fn lifted<T: Lift<P>>(&self) -> Wip<T> {
+        Wip {
+            params: self.params.map(T::lift),
+            wheel_radius_offsets: self.wheel_radius_offsets.map(T::lift),
+            quasi_static_inertia: T::lift(self.quasi_static_inertia),
         }
     }
 }
@@ -130,5 +142,31 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
         let fr = friction(p.d_v, p.d_c, p.d_0, v[1] - v[0]);
         let fl = friction(p.d_v, p.d_c, p.d_0, v[2] - v[0]);
         SVector::<T, 5>::new(fr + fl, -fr, -fl, u[0] - p.R_m * v[3], u[1] - p.R_m * v[4])
+    }
+
+    /// The mechanical accelerations of [`closed_form::shape_acceleration`] at the currents
+    /// `(v₃, v₄)`, and the motor circuits `L_m i̇ = u − R_m i − k_e n_wm (φ̇ − α̇)`. Checked
+    /// against the generic path in `tests/wip_continuous.rs`.
+    fn closed_form_acceleration<T: Lift<P>>(
+        &self,
+        s: &SVector<T, 5>,
+        v: &SVector<T, 5>,
+        u: &SVector<T, 2>,
+    ) -> Option<SVector<T, 5>> {
+        let sys = self.lifted::<T>();
+        let p = &sys.params;
+        let no_force = [T::zero(); 3];
+        let a =
+            closed_form::shape_acceleration(&sys, s[0], [v[0], v[1], v[2]], [v[3], v[4]], no_force)
+                .unwrap_or([T::from(f64::NAN); 3]);
+        let ken = p.k_e * p.n_wm;
+        let di = |u: T, i: T, w: T| (u - p.R_m * i - ken * w) / p.L_m;
+        Some(SVector::<T, 5>::new(
+            a[0],
+            a[1],
+            a[2],
+            di(u[0], v[3], v[1] - v[0]),
+            di(u[1], v[4], v[2] - v[0]),
+        ))
     }
 }
