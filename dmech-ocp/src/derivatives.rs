@@ -93,10 +93,18 @@ pub(crate) fn hess2<const N: usize>(d: &Dual2SVec64<N>) -> SMatrix<f64, N, N> {
     d.v2.0.unwrap_or_else(SMatrix::zeros)
 }
 
-/// `ℓ + ζᵀ c` in any scalar.
-fn phi<P, T, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+/// `s ℓ + ζᵀ c` of stage `k` in any scalar (`s` the cost's scale; not multiplied when 1).
+pub fn cost_and_inequalities<
+    P,
+    T,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NC: usize,
+>(
     p: &P,
     k: usize,
+    cost_scale: f64,
     zeta: &SVector<f64, NC>,
     x: &SVector<T, NX>,
     w: &SVector<T, NW>,
@@ -107,6 +115,9 @@ where
 {
     let c = p.constraints(k, x, w);
     let mut v = p.cost(k, x, w);
+    if cost_scale != 1.0 {
+        v *= cost_scale;
+    }
     for i in 0..NC {
         if zeta[i] != 0.0 {
             v += c[i] * zeta[i];
@@ -172,10 +183,11 @@ pub fn seed_hyper<const NA: usize, const NB: usize>(
     (ah, bh)
 }
 
-/// The cost and inequality part `ℓ + ζᵀc` of stage `k` as a [`StageScalar`].
+/// The cost and inequality part `s ℓ + ζᵀc` of stage `k` as a [`StageScalar`].
 struct CostPart<'a, P, const NC: usize> {
     p: &'a P,
     k: usize,
+    cost_scale: f64,
     zeta: &'a SVector<f64, NC>,
 }
 
@@ -186,7 +198,7 @@ where
 {
     fn eval<T: dmech_lie::Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         let c = &self.0;
-        phi::<P, T, NX, NW, NE, NC>(c.p, c.k, c.zeta, x, w)
+        cost_and_inequalities::<P, T, NX, NW, NE, NC>(c.p, c.k, c.cost_scale, c.zeta, x, w)
     }
 }
 
@@ -311,11 +323,7 @@ pub fn stage_derivatives_into<
     d.nu = None;
     // Second order of `ℓ + ζᵀc` (only its `ww` block when the problem declares itself affine
     // in the state), plus the constraints' curvature when the exact Hessian is asked for.
-    let cost = (
-        CostPart { p, k, zeta },
-        std::marker::PhantomData::<[(); NE]>,
-    );
-    (d.hxx, d.hxw, d.hww) = block_hessian(&cost, x, w, !p.affine_in_state());
+    (d.hxx, d.hxw, d.hww) = p.cost_curvature(k, x, w, 1.0, zeta);
     if let Some(lam) = lambda {
         let nu = d
             .equality_multiplier(lam, zeta)
@@ -325,6 +333,43 @@ pub fn stage_derivatives_into<
         d.hxw += cxw;
         d.hww += cww;
     }
+}
+
+/// `(∇²_xx, ∇²_xw, ∇²_ww)` of `s ℓ_k + ζᵀc_k` at `(x, w)` by second-order passes over the
+/// whole stage (only the `ww` block when the problem declares itself affine in the state):
+/// the default of [`StageProblem::cost_curvature`].
+#[allow(clippy::type_complexity)]
+pub fn generic_cost_curvature<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NC: usize,
+>(
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    cost_scale: f64,
+    zeta: &SVector<f64, NC>,
+) -> (
+    SMatrix<f64, NX, NX>,
+    SMatrix<f64, NX, NW>,
+    SMatrix<f64, NW, NW>,
+)
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let cost = (
+        CostPart {
+            p,
+            k,
+            cost_scale,
+            zeta,
+        },
+        std::marker::PhantomData::<[(); NE]>,
+    );
+    block_hessian(&cost, x, w, !p.affine_in_state())
 }
 
 /// The `xx` and `xw` blocks of the Hessian of `ℓ_k + ζᵀc_k` at `(x, w)`: what
@@ -340,7 +385,12 @@ where
     P: StageProblem<NX, NW, NE, NC>,
 {
     let cost = (
-        CostPart { p, k, zeta },
+        CostPart {
+            p,
+            k,
+            cost_scale: 1.0,
+            zeta,
+        },
         std::marker::PhantomData::<[(); NE]>,
     );
     let (hxx, hxw, _) = block_hessian(&cost, x, w, true);

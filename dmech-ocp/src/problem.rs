@@ -147,6 +147,33 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     fn affine_in_state(&self) -> bool {
         false
     }
+    /// The curvature of the cost and the inequalities, `(∇²_xx, ∇²_xw, ∇²_ww)` of
+    /// `s ℓ_k + ζᵀc_k` at `(x, w)` (`s = cost_scale`: a wrapper that scales the cost passes
+    /// its scale down, so that the problem's own override serves it). The default differentiates [`StageProblem::cost`] and
+    /// [`StageProblem::constraints`] twice by dual numbers over the whole stage
+    /// ([`crate::derivatives::generic_cost_curvature`]; only the `ww` block when
+    /// [`StageProblem::affine_in_state`]); a problem that knows which part of the state they
+    /// are curved in overrides it (e.g. [`crate::transcription::RkTranscription`]).
+    #[allow(clippy::type_complexity)]
+    fn cost_curvature(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        cost_scale: f64,
+        zeta: &SVector<f64, NC>,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+    )
+    where
+        Self: Sized,
+    {
+        crate::derivatives::generic_cost_curvature::<Self, NX, NW, NE, NC>(
+            self, k, x, w, cost_scale, zeta,
+        )
+    }
     /// The curvature of the constraints, `(∇²_xx, ∇²_xw, ∇²_ww)` of `λᵀf + νᵀe` at
     /// `(x, w)` (the exact Hessian's part beyond the cost and the inequalities). The default
     /// differentiates [`StageProblem::dynamics`] and [`StageProblem::equality`] twice by

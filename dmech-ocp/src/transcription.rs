@@ -88,7 +88,10 @@
 //! assert!((plan.stages[n].pose[0] - 1.0).abs() < 1e-8);
 //! ```
 
-use crate::derivatives::generic_constraint_curvature;
+use crate::derivatives::{
+    block_hessian, cost_and_inequalities, generic_constraint_curvature, generic_cost_curvature,
+    StageScalar,
+};
 use crate::ipm::Iterate;
 use crate::layout::{segment, Layout};
 use crate::problem::{StageProblem, StateEquality};
@@ -606,5 +609,71 @@ where
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
         state_equalities(self.stages.layout, &self.problem.conditions())
+    }
+    /// A problem affine in the configuration and the previous input
+    /// ([`PlanningProblem::affine_in_configuration`]) is curved in `(v_k, u_k)` only, and
+    /// `v_k` is part of this state: second-order passes over `(v_k, u_k)` (`NS + NU` lanes)
+    /// instead of the whole stage, the other blocks zero.
+    fn cost_curvature(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        u: &SVector<f64, NU>,
+        cost_scale: f64,
+        zeta: &SVector<f64, NC>,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NU>,
+        SMatrix<f64, NU, NU>,
+    ) {
+        if !self.problem.affine_in_configuration() {
+            return generic_cost_curvature::<Self, NX, NU, 0, NC>(self, k, x, u, cost_scale, zeta);
+        }
+        let v_at = self.stages.layout.v_at();
+        let part = VelocityPart {
+            problem: self,
+            k,
+            x,
+            v_at,
+            cost_scale,
+            zeta,
+        };
+        let v: SVector<f64, NS> = segment(x, v_at);
+        let (hvv, hvu, huu) = block_hessian(&part, &v, u, true);
+        let mut hxx = SMatrix::<f64, NX, NX>::zeros();
+        hxx.fixed_view_mut::<NS, NS>(v_at, v_at).copy_from(&hvv);
+        let mut hxu = SMatrix::<f64, NX, NU>::zeros();
+        hxu.fixed_view_mut::<NS, NU>(v_at, 0).copy_from(&hvu);
+        (hxx, hxu, huu)
+    }
+}
+
+/// `s ℓ_k + ζᵀc_k` of an RK stage as a function of its velocity `v_k` and input, the rest of
+/// the state held: what [`RkTranscription`]'s cost curvature differentiates.
+struct VelocityPart<'a, P, const NX: usize, const NC: usize> {
+    problem: &'a P,
+    k: usize,
+    x: &'a SVector<f64, NX>,
+    v_at: usize,
+    cost_scale: f64,
+    zeta: &'a SVector<f64, NC>,
+}
+
+impl<P, const NX: usize, const NS: usize, const NU: usize, const NC: usize> StageScalar<NS, NU>
+    for VelocityPart<'_, P, NX, NC>
+where
+    P: StageProblem<NX, NU, 0, NC>,
+{
+    fn eval<T: Real>(&self, v: &SVector<T, NS>, u: &SVector<T, NU>) -> T {
+        let mut x = self.x.map(T::from);
+        x.fixed_rows_mut::<NS>(self.v_at).copy_from(v);
+        cost_and_inequalities::<P, T, NX, NU, 0, NC>(
+            self.problem,
+            self.k,
+            self.cost_scale,
+            self.zeta,
+            &x,
+            u,
+        )
     }
 }

@@ -1,8 +1,11 @@
 //! The VI transcription's structured equality Jacobian (each block seeded alone, only the
 //! terms that read it) against the generic path (all of `x` and `w` seeded through
 //! `VarIntStages::equality`), for the three force quadratures and the midpoint scheme; and the RK transcriptions'
-//! dynamics Jacobian (implicit-function accelerations) against theirs, for RK1/2/4 and
-//! both current models; at the eight's start and at perturbed points.
+//! dynamics Jacobian (the chain rule through the method's stages, each acceleration's
+//! Jacobian from the WIP's closed form) against vector duals through the whole step, and
+//! their cost curvature (over the velocity and the input) against the whole stage's, for
+//! RK1/2/4 and both current models; at the eight's start and at perturbed points. (The
+//! closed form against the accelerations derived from `ℓ`: `tests/wip_continuous.rs`.)
 
 use dmech::partials::{grad_part, seeded};
 use dmech::{Discretisation, ForcingQuadrature, RungeKutta};
@@ -62,9 +65,9 @@ fn structured_equality_jacobian_equals_generic() {
     }
 }
 
-/// `(f, F_x, F_w)` of an RK transcription by its route (accelerations differentiated by
-/// the implicit function theorem) against the generic path (duals nested three deep
-/// through `RkStages::dynamics`); the worst error relative to the Jacobian's largest entry.
+/// `(f, F_x, F_w)` of an RK transcription by its route (the stages composed in `f64`, each
+/// acceleration's Jacobian from the closed form) against vector duals through
+/// `RkStages::dynamics`; the worst error relative to the Jacobian's largest entry.
 fn rk_jacobian_error<M, const NS: usize, const NX: usize>(model: &M, method: RungeKutta) -> f64
 where
     M: PlanModel<NS>,
@@ -173,4 +176,46 @@ fn block_constraint_curvature_equals_generic() {
             }
         }
     }
+}
+
+/// The RK transcription's cost curvature (second-order passes over `(v_k, u_k)` only, the
+/// problem being affine in the configuration and the previous input) against the generic
+/// one over the whole stage, for both current models, with a cost scale and random
+/// inequality multipliers, at the eight's start and at perturbed points.
+#[test]
+fn rk_cost_curvature_equals_generic() {
+    use dmech_ocp::derivatives::generic_cost_curvature;
+    use dmech_ocp::problem::StageProblem;
+    use robots::wip::plan::{rk_plan, PlanBounds};
+
+    fn worst<M, const NS: usize, const NX: usize>(model: &M) -> f64
+    where
+        M: PlanModel<NS>,
+    {
+        let p = eight(0.005);
+        let plan = rk_plan::<M, NS>(model, &p, PlanBounds::default(), RungeKutta::Rk1);
+        let (xs, ws) = rk_start::<M, NS, NX>(model, &p);
+        let mut rand = lcg(4242);
+        let mut worst = 0.0f64;
+        for k in [0, 350, 2100] {
+            for perturb in [0.0, 0.3] {
+                let x: SVector<f64, NX> = xs[k].map(|v| v + perturb * rand());
+                let u: SVector<f64, 2> = ws[k].map(|v| v + perturb * rand());
+                let zeta = SVector::<f64, 8>::from_fn(|_, _| rand());
+                let scale = 2.0 + rand();
+                let (a, b, c) = plan.cost_curvature(k, &x, &u, scale, &zeta);
+                let (ra, rb, rc) =
+                    generic_cost_curvature::<_, NX, 2, 0, 8>(&plan, k, &x, &u, scale, &zeta);
+                let size = ra.amax().max(rb.amax()).max(rc.amax()).max(1.0);
+                let err = (a - ra).amax().max((b - rb).amax()).max((c - rc).amax());
+                worst = worst.max(err / size);
+            }
+        }
+        worst
+    }
+    let wip = Wip::default();
+    let e_dyn = worst::<Wip, 5, 15>(&wip);
+    let e_alg = worst::<WipAlgebraicCurrent, 3, 11>(&WipAlgebraicCurrent::new(wip));
+    eprintln!("dynamic current {e_dyn:.3e}, algebraic current {e_alg:.3e}");
+    assert!(e_dyn <= ROUND_OFF && e_alg <= ROUND_OFF);
 }

@@ -99,6 +99,22 @@ where
     ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
         self.p.equality_jacobian(k, x, w)
     }
+    /// The problem's own curvature with the cost's scale passed down (its override, if it
+    /// has one, serves the scaled problem).
+    fn cost_curvature(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        cost_scale: f64,
+        zeta: &SVector<f64, NC>,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+    ) {
+        self.p.cost_curvature(k, x, w, cost_scale * self.c, zeta)
+    }
     fn constraint_curvature(
         &self,
         k: usize,
