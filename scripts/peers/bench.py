@@ -50,8 +50,8 @@ def runs_for(args):
         "ipopt rk1": ("peer", peer + ["--solver", "ipopt"]),
         "fatrop rk1": ("peer", peer + ["--solver", "fatrop"]),
     }
-    chosen = args.runs or ["wip varint", "wip rk1", "wip varint 1 thread", "ipopt rk1",
-                           "fatrop rk1"]
+    chosen = args.runs or ["wip varint", "wip rk1", "wip varint 1 thread", "wip rk1 1 thread",
+                           "ipopt rk1", "fatrop rk1"]
     unknown = [r for r in chosen if r not in runs]
     if unknown:
         raise SystemExit(f"unknown runs {unknown}; choose from {list(runs)}")
@@ -235,7 +235,7 @@ def main():
     ap.add_argument("--core", type=int, default=0, help="the CPU of the one-thread runs")
     ap.add_argument("--runs", nargs="+",
                     help="which runs (default: wip varint, wip rk1, wip varint 1 thread, "
-                         "ipopt rk1, fatrop rk1; also: wip rk1 1 thread)")
+                         "wip rk1 1 thread, ipopt rk1, fatrop rk1)")
     ap.add_argument("--fresh-peers", action="store_true",
                     help="a new peer process (construction included) for every run")
     ap.add_argument("--out", default="bench_peers.json", help="JSON of all runs")
