@@ -159,7 +159,9 @@ where
 /// (value and `θ`-Jacobian of the momentum), by one hyper-dual evaluation of `ℓ`: the first
 /// direction carries `θ`, the second the variation `ν`, so `∂²ℓ` comes out in one flat
 /// `N × NS` block instead of nested duals (several times cheaper for the same numbers).
-/// `ν` enters linearly, so the mixed part of `ξ + D ν` is `∂D/∂θ` exactly.
+/// `ν` enters linearly, so the mixed part of `ξ + D ν` is `∂D/∂θ` exactly. A system with
+/// closed-form partials ([`PrincipalKinematicSystem::closed_form_lagrangian_gradient`])
+/// gives the momentum from them in first-order duals instead.
 pub fn pulled_back_gradient_dual<
     S,
     const DOF: usize,
@@ -178,6 +180,19 @@ pub fn pulled_back_gradient_dual<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
+    // A system's closed-form partials: `∂ℓ/∂v + c ∂ℓ/∂s + Dᵀ ∂ℓ/∂ξ` in first-order duals.
+    if let Some((ls, lv, lxi)) = sys.closed_form_lagrangian_gradient(s, v, xi) {
+        return SVector::from_fn(|j, _| {
+            let mut p = lv[j];
+            if c != 0.0 {
+                p += ls[j] * c;
+            }
+            for i in 0..DOF {
+                p += d[(i, j)] * lxi[i];
+            }
+            p
+        });
+    }
     let lift = |x: &Dv<f64, N>, nu: Option<SMatrix<f64, 1, NS>>, mixed| {
         let mut h = Hd::<N, NS>::from_re(x.re);
         h.eps1 = x.eps;

@@ -167,6 +167,24 @@ pub trait PrincipalKinematicSystem<
         u: &SVector<T, NU>,
     ) -> SVector<T, NS>;
 
+    /// The partial derivatives `(∂ℓ/∂s, ∂ℓ/∂v_s, ∂ℓ/∂ξ)` of the reduced Lagrangian in closed
+    /// form, where the system has them. `None`, the default, says it has none: they are
+    /// taken from [`PrincipalKinematicSystem::reduced_lagrangian`] by dual numbers. Where a
+    /// system supplies them, the variational transcription's Jacobian pass differentiates
+    /// them by first-order duals (`dmech::partials::pulled_back_gradient_dual`) instead of
+    /// evaluating `ℓ` in hyper-duals; the values the solver's line search measures still
+    /// come from `ℓ`. A system that supplies them must check them against the generic
+    /// partials in a test.
+    #[allow(clippy::type_complexity)]
+    fn closed_form_lagrangian_gradient<T: Lift<Self::Param>>(
+        &self,
+        _s: &SVector<T, NS>,
+        _v: &SVector<T, NS>,
+        _xi: &SVector<T, DOF>,
+    ) -> Option<(SVector<T, NS>, SVector<T, NS>, SVector<T, DOF>)> {
+        None
+    }
+
     /// The shape acceleration `v̇ = a(s, v_s, u)` in closed form, where the system has one.
     /// `None`, the default, says it has none: [`crate::continuous::acceleration`] derives it
     /// from `ℓ`, `A` and the forcing, and its Jacobian by the implicit function theorem

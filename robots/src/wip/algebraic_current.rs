@@ -82,6 +82,26 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 3, 2> for WipAlgebraicCurrent<P> {
         SVector::<T, 3>::new(f[0] - tr - tl, f[1] + tr, f[2] + tl)
     }
 
+    /// The full model's closed-form partials at zero charges and currents, restricted to
+    /// the mechanical coordinates (`ℓ_a` is `ℓ` there).
+    fn closed_form_lagrangian_gradient<T: Lift<P>>(
+        &self,
+        s: &SVector<T, 3>,
+        v: &SVector<T, 3>,
+        xi: &SVector<T, 3>,
+    ) -> Option<(SVector<T, 3>, SVector<T, 3>, SVector<T, 3>)> {
+        let (ls, lv, lxi) = self.wip.closed_form_lagrangian_gradient(
+            &with_zero_charges(s),
+            &with_zero_charges(v),
+            xi,
+        )?;
+        Some((
+            ls.fixed_rows::<3>(0).into_owned(),
+            lv.fixed_rows::<3>(0).into_owned(),
+            lxi,
+        ))
+    }
+
     /// [`closed_form::shape_acceleration`] at the steady-state currents. Checked against the
     /// generic path in `tests/wip_continuous.rs`.
     fn closed_form_acceleration<T: Lift<P>>(

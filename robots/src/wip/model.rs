@@ -144,6 +144,76 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
         SVector::<T, 5>::new(fr + fl, -fr, -fl, u[0] - p.R_m * v[3], u[1] - p.R_m * v[4])
     }
 
+    /// The partials of [`Wip::reduced_lagrangian`] term by term (the same symbols; with
+    /// `c = k_e n_wm` and the gear stage's motor and gear rates `m = v_α + n_wm (φ̇ − v_α)`,
+    /// `g = v_α − n_wg (φ̇ − v_α)`). Checked against the dual-number partials in
+    /// `tests/wip_continuous.rs`.
+    fn closed_form_lagrangian_gradient<T: Lift<P>>(
+        &self,
+        s: &SVector<T, 5>,
+        v: &SVector<T, 5>,
+        xi: &SVector<T, 3>,
+    ) -> Option<(SVector<T, 5>, SVector<T, 5>, SVector<T, 3>)> {
+        let p = self.params.map(Param);
+        let (al, qr, ql) = (s[0], s[3], s[4]);
+        let (va, vr, vl, ir, il) = (v[0], v[1], v[2], v[3], v[4]);
+        let (x1, x2, w) = (xi[0], xi[1], xi[2]);
+        let (sa, ca) = al.sin_cos();
+
+        // Body: vb = (x1 + l v_α cos α, x2 + l w sin α, −l v_α sin α), ωb = (−w sin α, v_α, w cos α).
+        let vb0 = x1 + p.l * (va * ca);
+        let vb1 = x2 + p.l * (w * sa);
+        let vb2 = -(p.l * (va * sa));
+        let (wb0, wb2) = (-(w * sa), w * ca);
+        let (mvb0, mvb1, mvb2) = (p.m_b * vb0, p.m_b * vb1, p.m_b * vb2);
+        let (iwb0, iwb2) = (p.I_bxx * wb0, p.I_bzz * wb2);
+        let body_al = p.l * (-(mvb0 * (va * sa)) + mvb1 * (w * ca) - mvb2 * (va * ca))
+            - iwb0 * (w * ca)
+            - iwb2 * (w * sa);
+        let body_va = p.l * (mvb0 * ca - mvb2 * sa) + p.I_byy * va;
+        let body_w = p.l * (mvb1 * sa) - iwb0 * sa + iwb2 * ca;
+
+        // Wheels at (0, ∓d).
+        let (wr, wl) = (x1 + p.d * w, x1 - p.d * w);
+        let wheel_x1 = p.m_w * (wr + wl);
+        let wheel_x2 = (p.m_w * x2) * 2.0;
+        let wheel_w = p.m_w * (p.d * (wr - wl)) + (p.I_wzz * w) * 2.0;
+
+        // Rotor and gear stage of each wheel: (∂/∂φ̇, ∂/∂v_α).
+        let stage = |vphi: T| {
+            let rel = vphi - va;
+            let m = va + p.n_wm * rel;
+            let g = va - p.n_wg * rel;
+            let (im, ig) = (p.I_m * m, p.I_g * g);
+            (
+                p.n_wm * im - p.n_wg * ig,
+                im - p.n_wm * im + ig + p.n_wg * ig,
+            )
+        };
+        let (gear_r, gear_ar) = stage(vr);
+        let (gear_l, gear_al) = stage(vl);
+        let kn = p.k_e * p.n_wm;
+        let je = Param(self.quasi_static_inertia);
+        let (wr_rel, wl_rel) = (vr - va, vl - va);
+
+        let ls = SVector::<T, 5>::new(
+            body_al + (p.m_b * p.g * p.l) * sa,
+            T::zero(),
+            T::zero(),
+            -(kn * wr_rel),
+            -(kn * wl_rel),
+        );
+        let lv = SVector::<T, 5>::new(
+            body_va + gear_ar + gear_al + kn * (qr + ql) + je * (wr_rel + wl_rel),
+            p.I_wyy * vr + gear_r - kn * qr - je * wr_rel,
+            p.I_wyy * vl + gear_l - kn * ql - je * wl_rel,
+            p.L_m * ir,
+            p.L_m * il,
+        );
+        let lxi = SVector::<T, 3>::new(mvb0 + wheel_x1, mvb1 + wheel_x2, body_w + wheel_w);
+        Some((ls, lv, lxi))
+    }
+
     /// The mechanical accelerations of [`closed_form::shape_acceleration`] at the currents
     /// `(v₃, v₄)`, and the motor circuits `L_m i̇ = u − R_m i − k_e n_wm (φ̇ − α̇)`. Checked
     /// against the generic path in `tests/wip_continuous.rs`.
