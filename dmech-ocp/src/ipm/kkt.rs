@@ -215,7 +215,6 @@ where
                 bc[i] += mu / it.t_hi[k][i] - s * r;
             }
         }
-        let cx_s = SMatrix::<f64, NX, NC>::from_fn(|i, j| d.cx[(j, i)] * sigma[j]);
         let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
         let (mut hxx0, mut hxw0, mut hww0) = (d.hxx, d.hxw, d.hww);
         if let Some(q) = qn {
@@ -223,8 +222,9 @@ where
             hxw0 += q.bxw;
             hww0 += q.bww;
         }
-        let hxx = hxx0 + cx_s * d.cx;
-        let hxw = hxw0 + cx_s * d.cw;
+        let (cxx, cxw) = state_rows_weighted(&d.cx, &d.cw, &sigma);
+        let hxx = hxx0 + cxx;
+        let hxw = hxw0 + cxw;
         let hww = hww0 + cw_s * d.cw;
         let gx = d.gx + d.cx.transpose() * bc;
         let gw = d.gw + d.cw.transpose() * bc;
@@ -583,4 +583,39 @@ pub(super) fn corrected_derivatives<
     d.f = it.x[k + 1] + r;
     d.e = d.e * alpha + trial_val.e;
     d
+}
+
+/// `(C_xᵀ Σ C_x, C_xᵀ Σ C_w)` over the nonzeros of `C_x`'s rows: an inequality reads one
+/// or two state entries (a bound on the tilt, a rate limit on `u_{k−1}`), so the dense
+/// `NX·NC·NX` products were mostly multiplications by zero. The terms `(c_ia σ_i) c_ib` are
+/// the dense products' and are summed over `i` in the same order, the zero ones left out,
+/// so the sums are the same numbers.
+#[allow(clippy::type_complexity)]
+fn state_rows_weighted<const NX: usize, const NW: usize, const NC: usize>(
+    cx: &SMatrix<f64, NC, NX>,
+    cw: &SMatrix<f64, NC, NW>,
+    sigma: &SVector<f64, NC>,
+) -> (SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
+    let mut cxx = SMatrix::<f64, NX, NX>::zeros();
+    let mut cxw = SMatrix::<f64, NX, NW>::zeros();
+    let mut nz = [0usize; NX];
+    for i in 0..NC {
+        let mut m = 0;
+        for a in 0..NX {
+            if cx[(i, a)] != 0.0 {
+                nz[m] = a;
+                m += 1;
+            }
+        }
+        for &a in &nz[..m] {
+            let ca = cx[(i, a)] * sigma[i];
+            for &b in &nz[..m] {
+                cxx[(a, b)] += ca * cx[(i, b)];
+            }
+            for b in 0..NW {
+                cxw[(a, b)] += ca * cw[(i, b)];
+            }
+        }
+    }
+    (cxx, cxw)
 }
