@@ -15,6 +15,14 @@ use dmech::partials::{grad_part as grad, seeded as seed, split_passes};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
 
+/// The blocks `(∇²_xx, ∇²_xw, ∇²_ww)` of a stage's Hessian (of a scalar function of
+/// `(x, w)`).
+pub type HessianBlocks<const NX: usize, const NW: usize> = (
+    SMatrix<f64, NX, NX>,
+    SMatrix<f64, NX, NW>,
+    SMatrix<f64, NW, NW>,
+);
+
 /// Values and first derivatives at one stage, and the Hessian of `ℓ + ζᵀc`.
 #[derive(Clone, Debug)]
 pub struct StageDerivatives<const NX: usize, const NW: usize, const NE: usize, const NC: usize> {
@@ -134,17 +142,12 @@ pub trait StageScalar<const NX: usize, const NW: usize> {
 
 /// `(∇²_xx, ∇²_xw, ∇²_ww)` of `f` at `(x, w)`: `xx` and `ww` by `Dual2` passes, `xw` by a
 /// hyper-dual pass. `with_state = false` skips the two state blocks (left zero).
-#[allow(clippy::type_complexity)]
 pub fn block_hessian<F, const NX: usize, const NW: usize>(
     f: &F,
     x: &SVector<f64, NX>,
     w: &SVector<f64, NW>,
     with_state: bool,
-) -> (
-    SMatrix<f64, NX, NX>,
-    SMatrix<f64, NX, NW>,
-    SMatrix<f64, NW, NW>,
-)
+) -> HessianBlocks<NX, NW>
 where
     F: StageScalar<NX, NW>,
 {
@@ -239,7 +242,6 @@ where
 /// The curvature `∇²(λᵀf + νᵀe)` of stage `k` through the problem's generic dynamics and
 /// equality: the default of [`StageProblem::constraint_curvature`]. For a variational
 /// integrator's momentum equation these are third derivatives of `ℓ` in nested duals.
-#[allow(clippy::type_complexity)]
 pub fn generic_constraint_curvature<
     P,
     const NX: usize,
@@ -253,11 +255,7 @@ pub fn generic_constraint_curvature<
     w: &SVector<f64, NW>,
     lambda: &SVector<f64, NX>,
     nu: &SVector<f64, NE>,
-) -> (
-    SMatrix<f64, NX, NX>,
-    SMatrix<f64, NX, NW>,
-    SMatrix<f64, NW, NW>,
-)
+) -> HessianBlocks<NX, NW>
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
@@ -338,7 +336,6 @@ pub fn stage_derivatives_into<
 /// `(∇²_xx, ∇²_xw, ∇²_ww)` of `s ℓ_k + ζᵀc_k` at `(x, w)` by second-order passes over the
 /// whole stage (only the `ww` block when the problem declares itself affine in the state):
 /// the default of [`StageProblem::cost_curvature`].
-#[allow(clippy::type_complexity)]
 pub fn generic_cost_curvature<
     P,
     const NX: usize,
@@ -352,11 +349,7 @@ pub fn generic_cost_curvature<
     w: &SVector<f64, NW>,
     cost_scale: f64,
     zeta: &SVector<f64, NC>,
-) -> (
-    SMatrix<f64, NX, NX>,
-    SMatrix<f64, NX, NW>,
-    SMatrix<f64, NW, NW>,
-)
+) -> HessianBlocks<NX, NW>
 where
     P: StageProblem<NX, NW, NE, NC>,
 {

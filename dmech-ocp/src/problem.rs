@@ -24,6 +24,7 @@
 //! `p[support(k)]`: the stage functions keep their signature, and their derivatives in
 //! those entries are the derivatives in `p` (`docs/ocp.md`, "Free waypoint timing").
 
+use crate::derivatives::HessianBlocks;
 use dmech::partials::{lift_vec, seeded, split_passes};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
@@ -149,12 +150,12 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     }
     /// The curvature of the cost and the inequalities, `(∇²_xx, ∇²_xw, ∇²_ww)` of
     /// `s ℓ_k + ζᵀc_k` at `(x, w)` (`s = cost_scale`: a wrapper that scales the cost passes
-    /// its scale down, so that the problem's own override serves it). The default differentiates [`StageProblem::cost`] and
-    /// [`StageProblem::constraints`] twice by dual numbers over the whole stage
-    /// ([`crate::derivatives::generic_cost_curvature`]; only the `ww` block when
-    /// [`StageProblem::affine_in_state`]); a problem that knows which part of the state they
-    /// are curved in overrides it (e.g. [`crate::transcription::RkTranscription`]).
-    #[allow(clippy::type_complexity)]
+    /// its scale down, so that the problem's own override serves it). The default
+    /// differentiates [`StageProblem::cost`] and [`StageProblem::constraints`] twice by dual
+    /// numbers over the whole stage ([`crate::derivatives::generic_cost_curvature`]; only
+    /// the `ww` block when [`StageProblem::affine_in_state`]); a problem that knows which
+    /// part of the state they are curved in overrides it (e.g.
+    /// [`crate::transcription::RkTranscription`]).
     fn cost_curvature(
         &self,
         k: usize,
@@ -162,11 +163,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
         w: &SVector<f64, NW>,
         cost_scale: f64,
         zeta: &SVector<f64, NC>,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-    )
+    ) -> HessianBlocks<NX, NW>
     where
         Self: Sized,
     {
@@ -179,7 +176,6 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     /// differentiates [`StageProblem::dynamics`] and [`StageProblem::equality`] twice by
     /// dual numbers ([`crate::derivatives::generic_constraint_curvature`]); a problem with a
     /// cheaper exact route overrides it (e.g. [`crate::varint::VarIntStages`]).
-    #[allow(clippy::type_complexity)]
     fn constraint_curvature(
         &self,
         k: usize,
@@ -187,11 +183,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
         w: &SVector<f64, NW>,
         lambda: &SVector<f64, NX>,
         nu: &SVector<f64, NE>,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-    )
+    ) -> HessianBlocks<NX, NW>
     where
         Self: Sized,
     {

@@ -223,7 +223,7 @@ impl<'a, S> RkStages<'a, S> {
                             &v.map(DualSVec64::<NU>::from_re),
                             &seeded(u),
                         )
-                        .expect("a system's closed form does not depend on the point");
+                        .expect("a system with a closed form has it at every point");
                     (ax.map(|d| d.re), jacobian_part(&ax), jacobian_part(&au))
                 }
                 None => {

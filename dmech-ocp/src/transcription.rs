@@ -90,7 +90,7 @@
 
 use crate::derivatives::{
     block_hessian, cost_and_inequalities, generic_constraint_curvature, generic_cost_curvature,
-    StageScalar,
+    HessianBlocks, StageScalar,
 };
 use crate::ipm::Iterate;
 use crate::layout::{segment, Layout};
@@ -442,11 +442,7 @@ where
         w: &SVector<f64, NW>,
         lambda: &SVector<f64, NX>,
         nu: &SVector<f64, NS>,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-    ) {
+    ) -> HessianBlocks<NX, NW> {
         self.stages
             .constraint_curvature::<DOF, DIM, NS, NU, NX, NW>(x, w, lambda, nu)
             .unwrap_or_else(|| {
@@ -621,11 +617,7 @@ where
         u: &SVector<f64, NU>,
         cost_scale: f64,
         zeta: &SVector<f64, NC>,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NU>,
-        SMatrix<f64, NU, NU>,
-    ) {
+    ) -> HessianBlocks<NX, NU> {
         if !self.problem.affine_in_configuration() {
             return generic_cost_curvature::<Self, NX, NU, 0, NC>(self, k, x, u, cost_scale, zeta);
         }

@@ -16,7 +16,7 @@
 //! - `λᵀf` is cheap (the group's `exp` and the connection) and goes through
 //!   [`block_hessian`] on the dynamics alone.
 
-use crate::derivatives::{block_hessian, hess2, seed2, seed_hyper, StageScalar};
+use crate::derivatives::{block_hessian, hess2, seed2, seed_hyper, HessianBlocks, StageScalar};
 use crate::layout::segment;
 use crate::varint::{Terms, VarIntStages};
 use dmech::partials::pulled_back_directional;
@@ -122,7 +122,6 @@ impl<S> VarIntStages<'_, S> {
     /// `(∇²_xx, ∇²_xw, ∇²_ww)` of `νᵀe(x, w)` for the first-order scheme, by one
     /// second-order pass per pair of the blocks `(s, p, q)` that some term reads together
     /// (module documentation). Checked against the generic path in a test.
-    #[allow(clippy::type_complexity)]
     pub fn equality_curvature<
         const DOF: usize,
         const DIM: usize,
@@ -135,11 +134,7 @@ impl<S> VarIntStages<'_, S> {
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
         nu: &SVector<f64, NS>,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-    )
+    ) -> HessianBlocks<NX, NW>
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {

@@ -11,6 +11,11 @@
 //! - [`continuous`]: the continuous-time equations of motion and RK1/RK2/RK4 on them;
 //! - [`energy`]: the energy function `E = v·∂ℓ/∂v + ξ·∂ℓ/∂ξ − ℓ`.
 //!
+//! A system that has them may also hand over closed forms (the partials of `ℓ`, the shape
+//! acceleration): optional trait methods, `None` by default, that the planner's
+//! transcriptions differentiate instead of nesting duals inside `ℓ`; the system's tests
+//! must hold them equal to the derived ones.
+//!
 //! The derivations are in `docs/integrator.md`; how to add a robot: `docs/add-a-robot.md`.
 //!
 //! # Example: a differential-drive robot

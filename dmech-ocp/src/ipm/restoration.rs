@@ -30,6 +30,7 @@
 //! infeasibility, and the problem is reported [`Status::Infeasible`].
 
 use super::*;
+use crate::derivatives::HessianBlocks;
 use dmech_lie::Real;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -164,11 +165,7 @@ where
         w: &SVector<f64, NW>,
         lambda: &SVector<f64, NX>,
         nu: &SVector<f64, NE>,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-    ) {
+    ) -> HessianBlocks<NX, NW> {
         self.p.constraint_curvature(k, x, w, lambda, nu)
     }
     /// The globals stay, with their equalities and bounds hard (they can always be met)

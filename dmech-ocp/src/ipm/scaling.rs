@@ -16,6 +16,7 @@
 //! the problem's own units.
 
 use super::Iterate;
+use crate::derivatives::HessianBlocks;
 use crate::problem::{StageProblem, StateEquality};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
@@ -108,11 +109,7 @@ where
         w: &SVector<f64, NW>,
         cost_scale: f64,
         zeta: &SVector<f64, NC>,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-    ) {
+    ) -> HessianBlocks<NX, NW> {
         self.p.cost_curvature(k, x, w, cost_scale * self.c, zeta)
     }
     fn constraint_curvature(
@@ -122,11 +119,7 @@ where
         w: &SVector<f64, NW>,
         lambda: &SVector<f64, NX>,
         nu: &SVector<f64, NE>,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-    ) {
+    ) -> HessianBlocks<NX, NW> {
         self.p.constraint_curvature(k, x, w, lambda, nu)
     }
 }

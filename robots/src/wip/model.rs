@@ -66,6 +66,32 @@ pub fn tanh_saturating<T: Real>(x: T) -> T {
     }
 }
 
+/// The body's motion at `g = e` with body velocity `ξ`: its centre of mass at height `l`
+/// moves at `vb`, it turns at `ωb` (body frame), and `(sin α, cos α)`. What `ℓ` and its
+/// partials share.
+struct BodyMotion<T> {
+    vb: [T; 3],
+    wb: [T; 3],
+    sa: T,
+    ca: T,
+}
+
+fn body_motion<P: Real, T: Lift<P>>(
+    l: Param<P>,
+    al: T,
+    va: T,
+    xi: &SVector<T, 3>,
+) -> BodyMotion<T> {
+    let (x1, x2, w) = (xi[0], xi[1], xi[2]);
+    let (sa, ca) = al.sin_cos();
+    BodyMotion {
+        vb: [x1 + l * (va * ca), x2 + l * (w * sa), -(l * (va * sa))],
+        wb: [-(w * sa), va, w * ca],
+        sa,
+        ca,
+    }
+}
+
 impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
     type Param = P;
     type Group<T: Real> = Se2<T>;
@@ -81,13 +107,10 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
         let (al, qr, ql) = (s[0], s[3], s[4]);
         let (va, vr, vl, ir, il) = (v[0], v[1], v[2], v[3], v[4]);
         let (x1, x2, w) = (xi[0], xi[1], xi[2]);
-        let (sa, ca) = al.sin_cos();
 
         // Body: centre of mass at height l, at g = e (θ = 0) with body velocity ξ.
-        let vb0 = x1 + p.l * (va * ca);
-        let vb1 = x2 + p.l * (w * sa);
-        let vb2 = -(p.l * (va * sa));
-        let (wb0, wb1, wb2) = (-(w * sa), va, w * ca);
+        let BodyMotion { vb, wb, ca, .. } = body_motion(p.l, al, va, xi);
+        let ([vb0, vb1, vb2], [wb0, wb1, wb2]) = (vb, wb);
         let t_body = (0.5 * p.m_b) * (vb0 * vb0 + vb1 * vb1 + vb2 * vb2)
             + (0.5 * p.I_bxx) * (wb0 * wb0)
             + (0.5 * p.I_byy) * (wb1 * wb1)
@@ -158,13 +181,10 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
         let (al, qr, ql) = (s[0], s[3], s[4]);
         let (va, vr, vl, ir, il) = (v[0], v[1], v[2], v[3], v[4]);
         let (x1, x2, w) = (xi[0], xi[1], xi[2]);
-        let (sa, ca) = al.sin_cos();
 
         // Body: vb = (x1 + l v_α cos α, x2 + l w sin α, −l v_α sin α), ωb = (−w sin α, v_α, w cos α).
-        let vb0 = x1 + p.l * (va * ca);
-        let vb1 = x2 + p.l * (w * sa);
-        let vb2 = -(p.l * (va * sa));
-        let (wb0, wb2) = (-(w * sa), w * ca);
+        let BodyMotion { vb, wb, sa, ca } = body_motion(p.l, al, va, xi);
+        let ([vb0, vb1, vb2], [wb0, _, wb2]) = (vb, wb);
         let (mvb0, mvb1, mvb2) = (p.m_b * vb0, p.m_b * vb1, p.m_b * vb2);
         let (iwb0, iwb2) = (p.I_bxx * wb0, p.I_bzz * wb2);
         let body_al = p.l * (-(mvb0 * (va * sa)) + mvb1 * (w * ca) - mvb2 * (va * ca))
