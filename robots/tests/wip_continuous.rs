@@ -350,6 +350,21 @@ fn algebraic_current_model_equals_full_model_at_steady_current() {
     assert!(worst < 1e-10, "worst relative difference {worst:e}");
 }
 
+/// A WIP with its mass, centre-of-mass height, viscous friction and rotor inertia drawn
+/// around the defaults, random wheel-radius offsets and the quasi-static inertia `J_e` on:
+/// every term the closed forms carry.
+fn perturbed_wip(rng: &mut Lcg) -> Wip {
+    let mut p = WipParams::default();
+    p.m_b *= rng.uniform(0.8, 1.3);
+    p.l *= rng.uniform(0.8, 1.3);
+    p.d_v *= rng.uniform(0.5, 4.0);
+    p.I_m *= rng.uniform(0.5, 2.0);
+    let mut w = Wip::new(p);
+    w.wheel_radius_offsets = [rng.uniform(-2e-3, 2e-3), rng.uniform(-2e-3, 2e-3)];
+    w.quasi_static_inertia = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
+    w
+}
+
 /// The closed form each WIP model supplies to the transcriptions
 /// (`PrincipalKinematicSystem::closed_form_acceleration`: the full model with its motor
 /// circuits, the algebraic-current model at its steady currents) equals the generic path,
@@ -412,13 +427,7 @@ fn closed_form_acceleration_of_both_models_equals_generic_path() {
     let mut rng = Lcg(47);
     let mut worst: f64 = 0.0;
     for _ in 0..300 {
-        let mut p = WipParams::default();
-        p.m_b *= rng.uniform(0.8, 1.3);
-        p.l *= rng.uniform(0.8, 1.3);
-        p.d_v *= rng.uniform(0.5, 4.0);
-        let mut full = Wip::new(p);
-        full.wheel_radius_offsets = [rng.uniform(-2e-3, 2e-3), rng.uniform(-2e-3, 2e-3)];
-        full.quasi_static_inertia = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
+        let full = perturbed_wip(&mut rng);
         let s = SVector::<f64, 5>::new(
             rng.uniform(-1.0, 1.0),
             rng.uniform(-9.0, 9.0),
@@ -494,12 +503,7 @@ fn closed_form_lagrangian_gradient_of_both_models_equals_dual_partials() {
     let mut rng = Lcg(53);
     let mut worst: f64 = 0.0;
     for _ in 0..300 {
-        let mut p = WipParams::default();
-        p.m_b *= rng.uniform(0.8, 1.3);
-        p.l *= rng.uniform(0.8, 1.3);
-        p.I_m *= rng.uniform(0.5, 2.0);
-        let mut full = Wip::new(p);
-        full.quasi_static_inertia = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
+        let full = perturbed_wip(&mut rng);
         let z13 = SVector::<f64, 13>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
         worst = worst.max(compare::<_, 5, 13>(&full, &z13));
         let z9 = SVector::<f64, 9>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
