@@ -194,6 +194,33 @@ struct CostPart<'a, P, const NC: usize> {
     zeta: &'a SVector<f64, NC>,
 }
 
+/// The Hessian blocks of `s ℓ_k + ζᵀc_k` at `(x, w)` over the whole stage (`with_state =
+/// false`: the `ww` block only).
+#[allow(clippy::too_many_arguments)]
+fn cost_part_hessian<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    cost_scale: f64,
+    zeta: &SVector<f64, NC>,
+    with_state: bool,
+) -> HessianBlocks<NX, NW>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let part = (
+        CostPart {
+            p,
+            k,
+            cost_scale,
+            zeta,
+        },
+        std::marker::PhantomData::<[(); NE]>,
+    );
+    block_hessian(&part, x, w, with_state)
+}
+
 impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize> StageScalar<NX, NW>
     for (CostPart<'_, P, NC>, std::marker::PhantomData<[(); NE]>)
 where
@@ -353,16 +380,7 @@ pub fn generic_cost_curvature<
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
-    let cost = (
-        CostPart {
-            p,
-            k,
-            cost_scale,
-            zeta,
-        },
-        std::marker::PhantomData::<[(); NE]>,
-    );
-    block_hessian(&cost, x, w, !p.affine_in_state())
+    cost_part_hessian(p, k, x, w, cost_scale, zeta, !p.affine_in_state())
 }
 
 /// The `xx` and `xw` blocks of the Hessian of `ℓ_k + ζᵀc_k` at `(x, w)`: what
@@ -377,16 +395,7 @@ pub fn state_curvature<P, const NX: usize, const NW: usize, const NE: usize, con
 where
     P: StageProblem<NX, NW, NE, NC>,
 {
-    let cost = (
-        CostPart {
-            p,
-            k,
-            cost_scale: 1.0,
-            zeta,
-        },
-        std::marker::PhantomData::<[(); NE]>,
-    );
-    let (hxx, hxw, _) = block_hessian(&cost, x, w, true);
+    let (hxx, hxw, _) = cost_part_hessian(p, k, x, w, 1.0, zeta, true);
     (hxx, hxw)
 }
 

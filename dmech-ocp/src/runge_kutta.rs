@@ -208,32 +208,26 @@ impl<'a, S> RkStages<'a, S> {
             .expect("layout checked");
         let sd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.s_at());
         let vd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.v_at());
-        let (a, a_x, a_u) =
-            match self
-                .sys
-                .closed_form_acceleration(&sd, &vd, &u.map(DualSVec64::from_re))
-            {
-                // The system's closed form: one pass seeded in the stage (it reads `s` and `v`),
-                // one in the input.
-                Some(ax) => {
-                    let au = self
-                        .sys
-                        .closed_form_acceleration(
-                            &s.map(DualSVec64::<NU>::from_re),
-                            &v.map(DualSVec64::<NU>::from_re),
-                            &seeded(u),
-                        )
-                        .expect("a system with a closed form has it at every point");
-                    (ax.map(|d| d.re), jacobian_part(&ax), jacobian_part(&au))
-                }
-                None => {
-                    let acc = acceleration_jacobian::<S, DOF, DIM, NS, NU>(self.sys, &s, &v, u)?;
-                    let mut a_x = SMatrix::<f64, NS, NX>::zeros();
-                    a_x.fixed_columns_mut::<NS>(l.s_at()).copy_from(&acc.a_s);
-                    a_x.fixed_columns_mut::<NS>(l.v_at()).copy_from(&acc.a_v);
-                    (acc.a, a_x, acc.a_u)
-                }
-            };
+        // The system's closed form: one pass seeded in the stage (it reads `s` and `v`), one
+        // in the input.
+        let closed = self
+            .sys
+            .closed_form_acceleration(&sd, &vd, &u.map(DualSVec64::from_re))
+            .zip(self.sys.closed_form_acceleration(
+                &s.map(DualSVec64::<NU>::from_re),
+                &v.map(DualSVec64::<NU>::from_re),
+                &seeded(u),
+            ));
+        let (a, a_x, a_u) = match closed {
+            Some((ax, au)) => (ax.map(|d| d.re), jacobian_part(&ax), jacobian_part(&au)),
+            None => {
+                let acc = acceleration_jacobian::<S, DOF, DIM, NS, NU>(self.sys, &s, &v, u)?;
+                let mut a_x = SMatrix::<f64, NS, NX>::zeros();
+                a_x.fixed_columns_mut::<NS>(l.s_at()).copy_from(&acc.a_s);
+                a_x.fixed_columns_mut::<NS>(l.v_at()).copy_from(&acc.a_v);
+                (acc.a, a_x, acc.a_u)
+            }
+        };
         let gdot = coordinate_rate::<_, _, DOF, DIM>(&g, &(-(self.sys.connection(&sd) * vd)));
         let mut f = SVector::<f64, NX>::zeros();
         let mut fx = SMatrix::<f64, NX, NX>::zeros();

@@ -191,7 +191,8 @@ pub trait PrincipalKinematicSystem<
     /// needs third derivatives of `ℓ` (nested duals). Where a system supplies it, the
     /// Runge–Kutta transcriptions of `dmech-ocp` evaluate and differentiate it instead (one
     /// vector-dual pass), so a system that does must check it against the generic path in
-    /// a test. A singular mass matrix is reported as non-finite entries.
+    /// a test. A singular mass matrix is reported as non-finite entries. Where one of a
+    /// Jacobian's passes returns `None`, the transcription takes the generic path there.
     fn closed_form_acceleration<T: Lift<Self::Param>>(
         &self,
         _s: &SVector<T, NS>,

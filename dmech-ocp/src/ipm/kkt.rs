@@ -590,7 +590,6 @@ pub(super) fn corrected_derivatives<
 /// `NX·NC·NX` products were mostly multiplications by zero. The terms `(c_ia σ_i) c_ib` are
 /// the dense products' and are summed over `i` in the same order, the zero ones left out,
 /// so the sums are the same numbers.
-#[allow(clippy::type_complexity)]
 fn state_rows_weighted<const NX: usize, const NW: usize, const NC: usize>(
     cx: &SMatrix<f64, NC, NX>,
     cw: &SMatrix<f64, NC, NW>,

@@ -1,10 +1,12 @@
 //! A hand-derived closed form of the WIP's continuous model (the paper's Appendix
 //! "Nonlinear state space model"): `M(q) q̈ + K(q, q̇) + P(q, q̇) = 𝓕 + A_cᵀλ`, projected
 //! with `q̇ = S(q) ν` (at `θ = 0`: the equations are SE(2)-invariant). It checks the generic
-//! path (`dmech::continuous`), and `shape_acceleration` is the fast evaluation
-//! `wip diagnose` differentiates. The derivation is in `docs/wip.md`.
+//! path (`dmech::continuous`), and `shape_acceleration` is the fast evaluation that
+//! `wip diagnose` and the planner's Runge–Kutta transcriptions differentiate
+//! (`PrincipalKinematicSystem::closed_form_acceleration`). The derivation is in
+//! `docs/wip.md`.
 
-use super::model::{tanh_saturating, Wip};
+use super::model::{friction, Wip};
 use super::params::WipParams;
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
@@ -22,8 +24,7 @@ pub fn state_derivative(
     let (phrd, phld) = ((vd + p.d * vt) / p.r, (vd - p.d * vt) / p.r);
     let a = shape_acceleration(&Wip::new(*p), al, [va, phrd, phld], [ir, il], [0.0; 3])
         .expect("SᵀMS is positive definite");
-    let ken = p.k_e * p.n_wm;
-    let di = |u: f64, i: f64, phid: f64| (u - p.R_m * i - ken * (phid - va)) / p.L_m;
+    let di = |u: f64, i: f64, phid: f64| current_rate(p, u, i, phid - va);
     SVector::<f64, 9>::from_column_slice(&[
         vd * th.cos(),
         vd * th.sin(),
@@ -35,6 +36,12 @@ pub fn state_derivative(
         di(u[0], ir, phrd),
         di(u[1], il, phld),
     ])
+}
+
+/// `i̇` of a motor circuit, `L_m i̇ = u − R_m i − k_e n_wm w`, at voltage `u`, current `i` and
+/// the wheel's rate relative to the body `w = φ̇ − α̇`.
+pub fn current_rate<T: Real>(p: &WipParams<T>, u: T, i: T, w: T) -> T {
+    (u - p.R_m * i - (p.k_e * p.n_wm) * w) / p.L_m
 }
 
 /// The shape accelerations `(α̈, φ̈R, φ̈L)` of the mechanical part of the closed form, for
@@ -139,8 +146,7 @@ pub fn shape_acceleration_with_response<T: Real, const K: usize>(
     rhs[3] += ken * (i[0] + i[1]) - p.m_b * p.g * p.l * sa;
     rhs[4] -= ken * i[0];
     rhs[5] -= ken * i[1];
-    // `model::friction`'s law, with the parameters in the state's scalar.
-    let fric = |wrel: T| p.d_v * wrel + p.d_c * tanh_saturating(p.d_0 * wrel);
+    let fric = |wrel: T| friction(p.d_v, p.d_c, p.d_0, wrel);
     let (fr, fl) = (fric(vr - va), fric(vl - va));
     rhs[3] -= fr + fl + f_shape[0];
     rhs[4] -= -fr + f_shape[1];

@@ -30,9 +30,7 @@ impl<P: Real> Wip<P> {
             quasi_static_inertia: P::zero(),
         }
     }
-}
 
-impl<P: Real> Wip<P> {
     /// The same robot with its parameters lifted into the scalar `T`.
     pub fn lifted<T: Lift<P>>(&self) -> Wip<T> {
         Wip {
@@ -49,8 +47,14 @@ impl Default for Wip<f64> {
     }
 }
 
-/// Gear/bearing friction torque at relative wheel speed `w = φ̇ − α̇`.
-pub fn friction<P: Real, T: Lift<P>>(d_v: Param<P>, d_c: Param<P>, d_0: Param<P>, w: T) -> T {
+/// Gear/bearing friction torque at relative wheel speed `w = φ̇ − α̇`. The parameters are
+/// anything that multiplies `T`: `Param`s of the model's scalar (a scalar product in dual
+/// arithmetic), or values of `T` itself (the closed form, whose parameters are `T`).
+pub fn friction<M, T>(d_v: M, d_c: M, d_0: M, w: T) -> T
+where
+    M: std::ops::Mul<T, Output = T> + Copy,
+    T: Real,
+{
     d_v * w + d_c * tanh_saturating(d_0 * w)
 }
 
@@ -249,14 +253,12 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
         let a =
             closed_form::shape_acceleration(&sys, s[0], [v[0], v[1], v[2]], [v[3], v[4]], no_force)
                 .unwrap_or([T::from(f64::NAN); 3]);
-        let ken = p.k_e * p.n_wm;
-        let di = |u: T, i: T, w: T| (u - p.R_m * i - ken * w) / p.L_m;
         Some(SVector::<T, 5>::new(
             a[0],
             a[1],
             a[2],
-            di(u[0], v[3], v[1] - v[0]),
-            di(u[1], v[4], v[2] - v[0]),
+            closed_form::current_rate(p, u[0], v[3], v[1] - v[0]),
+            closed_form::current_rate(p, u[1], v[4], v[2] - v[0]),
         ))
     }
 }
