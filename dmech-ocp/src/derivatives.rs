@@ -306,13 +306,16 @@ where
     P: StageProblem<NX, NW, NE, NC>,
 {
     let mut d = StageDerivatives::zeros();
-    stage_derivatives_into(&mut d, p, k, x, w, zeta, lambda);
+    stage_derivatives_into(&mut d, p, k, x, w, zeta, lambda, None);
     d
 }
 
 /// [`stage_derivatives`] written into `d` field by field (every field is overwritten,
 /// `nu` set to `None`). The solver keeps one `d` per stage across iterations: building
 /// the 8 kB struct and moving it into place cost several copies per stage.
+/// `constant_curvature` is the cost's curvature computed once, for a problem that declares
+/// it constant ([`StageProblem::constant_cost_curvature`]); `None` computes it here.
+#[allow(clippy::too_many_arguments)] // the stage, its point and multipliers, and two options
 pub fn stage_derivatives_into<
     P,
     const NX: usize,
@@ -327,6 +330,7 @@ pub fn stage_derivatives_into<
     w: &SVector<f64, NW>,
     zeta: &SVector<f64, NC>,
     lambda: Option<&SVector<f64, NX>>,
+    constant_curvature: Option<&HessianBlocks<NX, NW>>,
 ) where
     P: StageProblem<NX, NW, NE, NC>,
 {
@@ -347,8 +351,12 @@ pub fn stage_derivatives_into<
     d.gw = grad(&l_w);
     d.nu = None;
     // Second order of `ℓ + ζᵀc` (only its `ww` block when the problem declares itself affine
-    // in the state), plus the constraints' curvature when the exact Hessian is asked for.
-    (d.hxx, d.hxw, d.hww) = p.cost_curvature(k, x, w, 1.0, zeta);
+    // in the state; the solver's copy when it declares it constant), plus the constraints'
+    // curvature when the exact Hessian is asked for.
+    (d.hxx, d.hxw, d.hww) = match constant_curvature {
+        Some(&blocks) => blocks,
+        None => p.cost_curvature(k, x, w, 1.0, zeta),
+    };
     if let Some(lam) = lambda {
         let nu = d
             .equality_multiplier(lam, zeta)

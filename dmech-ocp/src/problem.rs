@@ -148,6 +148,14 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     fn affine_in_state(&self) -> bool {
         false
     }
+    /// `true` if the cost is quadratic and the inequalities affine in `(x, w)`: the
+    /// curvature of `s ℓ_k + ζᵀc_k` ([`StageProblem::cost_curvature`]) is then the same at
+    /// every point and for every `ζ`, and the solver computes it once per stage instead of
+    /// once per iteration. A declaration, checked by the solver at its start (it stops with
+    /// an error if the curvature at a second point and multiplier differs). Default `false`.
+    fn constant_cost_curvature(&self) -> bool {
+        false
+    }
     /// The curvature of the cost and the inequalities, `(∇²_xx, ∇²_xw, ∇²_ww)` of
     /// `s ℓ_k + ζᵀc_k` at `(x, w)` (`s = cost_scale`: a wrapper that scales the cost passes
     /// its scale down, so that the problem's own override serves it). The default

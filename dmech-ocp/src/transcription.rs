@@ -196,6 +196,13 @@ pub trait PlanningProblem<const NP: usize, const NS: usize, const NU: usize, con
     fn affine_in_configuration(&self) -> bool {
         false
     }
+    /// `true` if the cost is quadratic and the constraints affine in the stage's quantities
+    /// (pose, shape, velocity, input, previous input). A transcription's stage vectors hold
+    /// those quantities linearly, so the solver may compute the cost's curvature once per
+    /// stage ([`StageProblem::constant_cost_curvature`]). Default `false`.
+    fn quadratic_cost_affine_constraints(&self) -> bool {
+        false
+    }
     /// The running cost of stage `k` when its step is `ratio` times the nominal one (free
     /// timing, [`crate::free_timing`]). Default: `ratio · cost`, a cost per stage being the
     /// rectangle rule of a running cost over the step (the same at `ratio = 1`).
@@ -242,6 +249,9 @@ where
     }
     fn affine_in_configuration(&self) -> bool {
         (**self).affine_in_configuration()
+    }
+    fn quadratic_cost_affine_constraints(&self) -> bool {
+        (**self).quadratic_cost_affine_constraints()
     }
     fn cost_at_step<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>, ratio: T) -> T {
         (**self).cost_at_step(k, stage, ratio)
@@ -471,6 +481,9 @@ where
         // The state holds pose, shape, v_{k−1} and u_{k−1}; the view exposes no v_{k−1}.
         self.problem.affine_in_configuration()
     }
+    fn constant_cost_curvature(&self) -> bool {
+        self.problem.quadratic_cost_affine_constraints()
+    }
 }
 
 /// A robot's problem on an explicit Runge–Kutta step of the continuous model:
@@ -637,6 +650,9 @@ where
         let mut hxu = SMatrix::<f64, NX, NU>::zeros();
         hxu.fixed_view_mut::<NS, NU>(v_at, 0).copy_from(&hvu);
         (hxx, hxu, huu)
+    }
+    fn constant_cost_curvature(&self) -> bool {
+        self.problem.quadratic_cost_affine_constraints()
     }
 }
 

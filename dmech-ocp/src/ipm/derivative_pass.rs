@@ -19,6 +19,9 @@ pub(super) struct Workspace<
     pub(super) elim: Vec<Elimination<NX, NW, NU>>,
     pub(super) aux: Vec<StageAux<NX, NE, NC>>,
     pub(super) qn: Vec<QuasiNewton<NX, NW, NE>>,
+    /// Each stage's cost curvature, computed once, when the problem declares it constant
+    /// (empty otherwise; [`StageProblem::constant_cost_curvature`]).
+    pub(super) cost_curvature: Vec<HessianBlocks<NX, NW>>,
     pub(super) terminal: TerminalDerivatives<NX>,
     /// Each stage's coupling to the globals (empty without them; `globals.rs`).
     pub(super) couplings: Vec<globals::StageCoupling<NX, NW, NU>>,
@@ -34,6 +37,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
             elim: vec![Elimination::zeros(); n],
             aux: vec![StageAux::zeros(); n],
             qn: vec![QuasiNewton::new(); if quasi_newton { n } else { 0 }],
+            cost_curvature: Vec::new(),
             terminal: TerminalDerivatives {
                 cost: 0.0,
                 gx: SVector::zeros(),
@@ -74,6 +78,7 @@ where
     ) {
         let o = &self.opts;
         let t0 = Instant::now();
+        let ws_curvature = &ws.cost_curvature;
         let derivatives = |k: usize, d: &mut StageDerivatives<NX, NW, NE, NC>| {
             let zeta = it.z_hi[k] - it.z_lo[k];
             let lam = &it.lambda[k];
@@ -85,6 +90,7 @@ where
                 &it.w[k],
                 &zeta,
                 o.exact_hessian.then_some(lam),
+                ws_curvature.get(k),
             );
             d.nu = d.equality_multiplier(lam, &zeta);
         };

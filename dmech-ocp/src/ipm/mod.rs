@@ -16,8 +16,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::derivatives::{
-    stage_derivatives_into, stage_values, terminal_derivatives, StageDerivatives, StageValues,
-    TerminalDerivatives,
+    stage_derivatives_into, stage_values, terminal_derivatives, HessianBlocks, StageDerivatives,
+    StageValues, TerminalDerivatives,
 };
 use crate::problem::{StageProblem, StateEquality};
 use crate::riccati::{solve_lq, BackwardSweep, LqSolution, LqStage, RiccatiError};
@@ -317,6 +317,10 @@ where
         self.print_header();
         if let Some(msg) = self.check_affine_declaration(&it) {
             return (self.finish(Status::Failed(msg), it, 0, tm, t_start), false);
+        }
+        match self.constant_cost_curvature(&it) {
+            Ok(blocks) => ws.cost_curvature = blocks,
+            Err(msg) => return (self.finish(Status::Failed(msg), it, 0, tm, t_start), false),
         }
         let status = loop {
             if !m.objective.is_finite()

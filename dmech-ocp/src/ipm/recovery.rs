@@ -1,5 +1,6 @@
 //! Ending a solve: the returned point, its recomputed violation, and the recovery of
-//! multipliers; the affine-declaration check.
+//! multipliers; the checks of the problem's declarations (affine in the state, constant
+//! cost curvature).
 
 use super::*;
 
@@ -34,6 +35,47 @@ where
             }
         }
         None
+    }
+
+    /// If the problem declares its cost curvature constant, each stage's at the start (the
+    /// solver's copy for every iteration); empty if it does not. Checked at the first, middle
+    /// and last stage against the curvature at a second point with other inequality
+    /// multipliers: for a quadratic cost and affine inequalities the second-order parts of
+    /// the dual arithmetic never read the point, so the two agree to round-off (`64 ε` of
+    /// the largest entry is allowed).
+    pub(super) fn constant_cost_curvature(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+    ) -> Result<Vec<HessianBlocks<NX, NW>>, String> {
+        if !self.p.constant_cost_curvature() || self.n == 0 {
+            return Ok(Vec::new());
+        }
+        let zero = (SMatrix::zeros(), SMatrix::zeros(), SMatrix::zeros());
+        let mut blocks: Vec<HessianBlocks<NX, NW>> = vec![zero; self.n];
+        par_fill(&mut blocks, self.opts.threads, |k| {
+            let zeta = it.z_hi[k] - it.z_lo[k];
+            self.p.cost_curvature(k, &it.x[k], &it.w[k], 1.0, &zeta)
+        });
+        let shift = |i: usize| 0.25 + 0.125 * (i % 3) as f64;
+        for k in [0, self.n / 2, self.n - 1] {
+            let x = SVector::<f64, NX>::from_fn(|i, _| it.x[k][i] + shift(i));
+            let w = SVector::<f64, NW>::from_fn(|i, _| it.w[k][i] - shift(i + 1));
+            let zeta = SVector::<f64, NC>::from_fn(|i, _| 1.0 + shift(i));
+            let (hxx, hxw, hww) = self.p.cost_curvature(k, &x, &w, 1.0, &zeta);
+            let (rxx, rxw, rww) = &blocks[k];
+            let scale = rxx.amax().max(rxw.amax()).max(rww.amax());
+            let diff = (hxx - rxx)
+                .amax()
+                .max((hxw - rxw).amax())
+                .max((hww - rww).amax());
+            if diff > 64.0 * f64::EPSILON * scale {
+                return Err(format!(
+                    "the problem declares its cost curvature constant, but at stage {k} it \
+                     changes by {diff:.3e} (largest entry {scale:.3e}) between two points"
+                ));
+            }
+        }
+        Ok(blocks)
     }
 
     pub(super) fn finish(

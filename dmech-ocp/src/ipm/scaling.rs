@@ -78,6 +78,9 @@ where
     fn affine_in_state(&self) -> bool {
         self.p.affine_in_state()
     }
+    fn constant_cost_curvature(&self) -> bool {
+        self.p.constant_cost_curvature()
+    }
     fn globals(&self) -> Option<crate::problem::Globals> {
         self.p.globals().map(|mut g| {
             g.cost.iter_mut().for_each(|v| *v *= self.c);

@@ -154,6 +154,10 @@ impl PlanningProblem<3, NS, NU, NC> for CarPlan<'_> {
         // The cost reads the input; the constraints read φ and u_{k−1} linearly.
         true
     }
+    fn quadratic_cost_affine_constraints(&self) -> bool {
+        // `½|u|²` (scaled) and the constraints above, all linear.
+        true
+    }
 }
 
 /// Cumulative chord length of the poses' positions, as fractions of the total.

@@ -248,6 +248,12 @@ impl<M: PlanModel<NS>, const NS: usize> PlanningProblem<3, NS, 2, NC> for WipPla
         // linearly.
         true
     }
+    fn quadratic_cost_affine_constraints(&self) -> bool {
+        // The cost `½ u·i` with currents linear in (v, u) (the charges' rates, or the
+        // steady currents `(u − k_e n ω)/R`); voltages, rates, currents, tilt and heading
+        // rate are linear.
+        true
+    }
     /// The rate limit divides by the stage's actual step; the cost is the default's
     /// `ratio · cost` (the energy of the stage at its step, in units of the nominal one).
     fn constraints_at_step<T: Real>(
