@@ -23,6 +23,8 @@ pub(super) struct Workspace<
     /// (empty otherwise; [`StageProblem::constant_cost_curvature`]).
     pub(super) cost_curvature: Vec<HessianBlocks<NX, NW>>,
     pub(super) terminal: TerminalDerivatives<NX>,
+    /// The Riccati sweep of the Newton step, its buffers kept from one iteration to the next.
+    pub(super) sweep: BackwardSweep<NX, NU>,
     /// Each stage's coupling to the globals (empty without them; `globals.rs`).
     pub(super) couplings: Vec<globals::StageCoupling<NX, NW, NU>>,
 }
@@ -44,6 +46,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
                 hxx: SMatrix::zeros(),
             },
             couplings: Vec::new(),
+            sweep: BackwardSweep::new(n, &SMatrix::zeros(), &SVector::zeros(), 0.0),
         }
     }
 

@@ -79,11 +79,16 @@ where
         let t1 = Instant::now();
         let n = self.n;
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
-        let mut sweep = BackwardSweep::new(n, &q_n, &q_vec_n, 0.0);
         let Workspace {
-            ders, lq, elim, qn, ..
+            ders,
+            lq,
+            elim,
+            qn,
+            sweep,
+            ..
         } = ws;
-        let (first, t_sweep) = self.condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
+        sweep.restart(n, &q_n, &q_vec_n, 0.0);
+        let (first, t_sweep) = self.condense_and_sweep(lq, elim, sweep, |k, l, e| {
             self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e)
         })?;
         tm.riccati += t_sweep;
@@ -95,7 +100,10 @@ where
                 Some(r) => r,
                 None => {
                     let t_r = Instant::now();
-                    let r = solve_lq(lq, &q_n, &q_vec_n, &SVector::zeros(), delta);
+                    sweep.restart(n, &q_n, &q_vec_n, delta);
+                    let r = sweep
+                        .sweep_all(lq)
+                        .map(|()| sweep.forward(lq, &SVector::zeros()));
                     tm.riccati += t_r.elapsed().as_secs_f64();
                     r
                 }

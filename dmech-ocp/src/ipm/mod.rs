@@ -20,7 +20,7 @@ use crate::derivatives::{
     StageValues, TerminalDerivatives,
 };
 use crate::problem::{StageProblem, StateEquality};
-use crate::riccati::{solve_lq, BackwardSweep, LqSolution, LqStage, RiccatiError};
+use crate::riccati::{BackwardSweep, LqSolution, LqStage, RiccatiError};
 use dmech::linalg::Lu;
 use nalgebra::{SMatrix, SVector};
 use std::io::Write as _;
