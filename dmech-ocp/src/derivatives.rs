@@ -11,7 +11,7 @@
 
 use crate::problem::StageProblem;
 use dmech::linalg::Lu;
-use dmech::partials::{grad_part as grad, seeded as seed, split_passes};
+use dmech::partials::{grad_part as grad, jacobian_part, seeded as seed, split_passes};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
 
@@ -22,6 +22,32 @@ pub type HessianBlocks<const NX: usize, const NW: usize> = (
     SMatrix<f64, NX, NW>,
     SMatrix<f64, NW, NW>,
 );
+
+/// What a solver computes once per stage for a problem whose derivatives are partly
+/// constant: the cost's curvature ([`StageProblem::constant_cost_curvature`]) and, when the
+/// cost and inequalities are also affine in the state ([`StageProblem::affine_in_state`]),
+/// their state gradients `(∇_x ℓ_k, C_x)`, constant then too.
+#[derive(Clone, Debug)]
+pub struct StageConstants<const NX: usize, const NW: usize, const NC: usize> {
+    pub curvature: HessianBlocks<NX, NW>,
+    pub state_gradients: Option<(SVector<f64, NX>, SMatrix<f64, NC, NX>)>,
+}
+
+/// `(ℓ_k, ∇_x ℓ_k, c_k, C_x)` by one vector-dual pass seeded in `x`.
+#[allow(clippy::type_complexity)]
+pub fn state_pass<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+) -> (DualSVec64<NX>, SVector<DualSVec64<NX>, NC>)
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let xd = seed(x);
+    let wc = w.map(DualSVec64::<NX>::from_re);
+    (p.cost(k, &xd, &wc), p.constraints(k, &xd, &wc))
+}
 
 /// Values and first derivatives at one stage, and the Hessian of `ℓ + ζᵀc`.
 #[derive(Clone, Debug)]
@@ -313,8 +339,8 @@ where
 /// [`stage_derivatives`] written into `d` field by field (every field is overwritten,
 /// `nu` set to `None`). The solver keeps one `d` per stage across iterations: building
 /// the 8 kB struct and moving it into place cost several copies per stage.
-/// `constant_curvature` is the cost's curvature computed once, for a problem that declares
-/// it constant ([`StageProblem::constant_cost_curvature`]); `None` computes it here.
+/// `constants` are what the solver computed once for a problem that declares its cost
+/// curvature constant ([`StageConstants`]); `None` computes everything here.
 #[allow(clippy::too_many_arguments)] // the stage, its point and multipliers, and two options
 pub fn stage_derivatives_into<
     P,
@@ -330,31 +356,40 @@ pub fn stage_derivatives_into<
     w: &SVector<f64, NW>,
     zeta: &SVector<f64, NC>,
     lambda: Option<&SVector<f64, NX>>,
-    constant_curvature: Option<&HessianBlocks<NX, NW>>,
+    constants: Option<&StageConstants<NX, NW, NC>>,
 ) where
     P: StageProblem<NX, NW, NE, NC>,
 {
     (d.f, d.fx, d.fw) = p.dynamics_jacobian(k, x, w);
     (d.e, d.ex, d.ew) = p.equality_jacobian(k, x, w);
-    // Cost and inequalities: a pass seeded in x, then one in w.
-    let xd = seed(x);
-    let wc = w.map(DualSVec64::<NX>::from_re);
-    let l_d = p.cost(k, &xd, &wc);
-    let c_d = p.constraints(k, &xd, &wc);
+    // Cost and inequalities: a pass seeded in w, and one in x unless its gradients are
+    // the solver's constants (the values are the same real arithmetic in either pass).
     let xc = x.map(DualSVec64::<NW>::from_re);
     let wd = seed(w);
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
-    (d.c, d.cx, d.cw) = split_passes(&c_d, &c_w);
-    d.cost = l_d.re;
-    d.gx = grad(&l_d);
+    match constants.and_then(|c| c.state_gradients.as_ref()) {
+        Some((gx, cx)) => {
+            d.c = c_w.map(|v| v.re);
+            d.cx = *cx;
+            d.cw = jacobian_part(&c_w);
+            d.cost = l_w.re;
+            d.gx = *gx;
+        }
+        None => {
+            let (l_d, c_d) = state_pass(p, k, x, w);
+            (d.c, d.cx, d.cw) = split_passes(&c_d, &c_w);
+            d.cost = l_d.re;
+            d.gx = grad(&l_d);
+        }
+    }
     d.gw = grad(&l_w);
     d.nu = None;
     // Second order of `ℓ + ζᵀc` (only its `ww` block when the problem declares itself affine
     // in the state; the solver's copy when it declares it constant), plus the constraints'
     // curvature when the exact Hessian is asked for.
-    (d.hxx, d.hxw, d.hww) = match constant_curvature {
-        Some(&blocks) => blocks,
+    (d.hxx, d.hxw, d.hww) = match constants {
+        Some(c) => c.curvature,
         None => p.cost_curvature(k, x, w, 1.0, zeta),
     };
     if let Some(lam) = lambda {

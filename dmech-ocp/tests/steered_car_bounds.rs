@@ -77,11 +77,13 @@ impl PrincipalKinematicSystem<3, 2, 2, 2> for Car {
 }
 
 /// From rest at the origin to rest at (1, 1, 0) in `n` steps; cost Σ |u_k|² (plus
-/// `quartic · u₂⁴` per stage), declaring its cost curvature constant if `declares_constant`.
+/// `quartic · u₂⁴` and `steer_price · φ` per stage), declaring its cost curvature constant
+/// if `declares_constant`.
 struct ParkDiagonal {
     n: usize,
     drive_torque: f64,
     quartic: f64,
+    steer_price: f64,
     declares_constant: bool,
 }
 const STEER_TORQUE: f64 = 0.05;
@@ -97,7 +99,10 @@ impl PlanningProblem<3, 2, 2, 3> for ParkDiagonal {
     }
     fn cost<T: Real>(&self, _k: usize, stage: &Stage<T, 3, 2, 2>) -> T {
         let u2 = stage.input[1] * stage.input[1];
-        stage.input[0] * stage.input[0] + u2 + u2 * u2 * self.quartic
+        stage.input[0] * stage.input[0]
+            + u2
+            + u2 * u2 * self.quartic
+            + stage.shape[0] * self.steer_price
     }
     fn constraints<T: Real>(&self, _k: usize, stage: &Stage<T, 3, 2, 2>) -> SVector<T, 3> {
         SVector::<T, 3>::new(stage.input[0], stage.input[1], stage.shape[0])
@@ -155,6 +160,7 @@ fn solve(drive_torque: f64, opts: IpOptions) -> (Status, usize, f64, f64) {
         n: 250,
         drive_torque,
         quartic: 0.0,
+        steer_price: 0.0,
         declares_constant: false,
     };
     solve_problem(problem, opts)
@@ -217,13 +223,16 @@ fn steered_car_with_the_exact_hessian() {
 }
 
 /// Declaring the (quadratic, affine) problem's cost curvature constant changes nothing but
-/// where the curvature is computed: the same iterations and the same objective, to the bit.
+/// where the curvature and the state gradients (`∇_x ℓ`, here from a small price on the
+/// steering angle, and `C_x`) are computed: the same iterations and the same objective, to
+/// the bit.
 #[test]
 fn constant_curvature_declaration_leaves_the_solve_unchanged() {
     let park = |declares_constant| ParkDiagonal {
         n: 250,
         drive_torque: 0.035,
         quartic: 0.0,
+        steer_price: 1e-3,
         declares_constant,
     };
     let computed = solve_problem(park(false), IpOptions::default());
@@ -239,6 +248,7 @@ fn false_constant_curvature_declaration_is_reported() {
         n: 250,
         drive_torque: 0.035,
         quartic: 1.0,
+        steer_price: 0.0,
         declares_constant: true,
     };
     match solve_problem(problem, IpOptions::default()).0 {

@@ -19,9 +19,9 @@ pub(super) struct Workspace<
     pub(super) elim: Vec<Elimination<NX, NW, NU>>,
     pub(super) aux: Vec<StageAux<NX, NE, NC>>,
     pub(super) qn: Vec<QuasiNewton<NX, NW, NE>>,
-    /// Each stage's cost curvature, computed once, when the problem declares it constant
-    /// (empty otherwise; [`StageProblem::constant_cost_curvature`]).
-    pub(super) cost_curvature: Vec<HessianBlocks<NX, NW>>,
+    /// What is computed once per stage when the problem declares its cost curvature
+    /// constant (empty otherwise; [`StageConstants`]).
+    pub(super) constants: Vec<StageConstants<NX, NW, NC>>,
     pub(super) terminal: TerminalDerivatives<NX>,
     /// The Riccati sweep of the Newton step, its buffers kept from one iteration to the next.
     pub(super) sweep: BackwardSweep<NX, NU>,
@@ -39,7 +39,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
             elim: vec![Elimination::zeros(); n],
             aux: vec![StageAux::zeros(); n],
             qn: vec![QuasiNewton::new(); if quasi_newton { n } else { 0 }],
-            cost_curvature: Vec::new(),
+            constants: Vec::new(),
             terminal: TerminalDerivatives {
                 cost: 0.0,
                 gx: SVector::zeros(),
@@ -81,7 +81,7 @@ where
     ) {
         let o = &self.opts;
         let t0 = Instant::now();
-        let ws_curvature = &ws.cost_curvature;
+        let ws_constants = &ws.constants;
         let derivatives = |k: usize, d: &mut StageDerivatives<NX, NW, NE, NC>| {
             let zeta = it.z_hi[k] - it.z_lo[k];
             let lam = &it.lambda[k];
@@ -93,7 +93,7 @@ where
                 &it.w[k],
                 &zeta,
                 o.exact_hessian.then_some(lam),
-                ws_curvature.get(k),
+                ws_constants.get(k),
             );
             d.nu = d.equality_multiplier(lam, &zeta);
         };

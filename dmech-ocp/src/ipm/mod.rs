@@ -16,7 +16,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::derivatives::{
-    stage_derivatives_into, stage_values, terminal_derivatives, HessianBlocks, StageDerivatives,
+    stage_derivatives_into, stage_values, terminal_derivatives, StageConstants, StageDerivatives,
     StageValues, TerminalDerivatives,
 };
 use crate::problem::{StageProblem, StateEquality};
@@ -318,8 +318,8 @@ where
         if let Some(msg) = self.check_affine_declaration(&it) {
             return (self.finish(Status::Failed(msg), it, 0, tm, t_start), false);
         }
-        match self.constant_cost_curvature(&it) {
-            Ok(blocks) => ws.cost_curvature = blocks,
+        match self.stage_constants(&it) {
+            Ok(constants) => ws.constants = constants,
             Err(msg) => return (self.finish(Status::Failed(msg), it, 0, tm, t_start), false),
         }
         let status = loop {

@@ -37,24 +37,42 @@ where
         None
     }
 
-    /// If the problem declares its cost curvature constant, each stage's at the start (the
-    /// solver's copy for every iteration); empty if it does not. Checked at the first, middle
-    /// and last stage against the curvature at a second point with other inequality
-    /// multipliers: for a quadratic cost and affine inequalities the second-order parts of
-    /// the dual arithmetic never read the point, so the two agree to round-off (`64 ε` of
-    /// the largest entry is allowed).
-    pub(super) fn constant_cost_curvature(
+    /// If the problem declares its cost curvature constant, each stage's constants at the
+    /// start (the solver's copy for every iteration, [`StageConstants`]); empty if it does
+    /// not. With the state gradients when the problem also declares itself affine in the
+    /// state (checked by [`Solver::check_affine_declaration`]): `∇_x ℓ_k` and `C_x` are then
+    /// constant. The curvature is checked at the first, middle and last stage against the
+    /// curvature at a second point with other inequality multipliers: for a quadratic cost
+    /// and affine inequalities the second-order parts of the dual arithmetic never read the
+    /// point, so the two agree to round-off (`64 ε` of the largest entry is allowed).
+    pub(super) fn stage_constants(
         &self,
         it: &Iterate<NX, NW, NC>,
-    ) -> Result<Vec<HessianBlocks<NX, NW>>, String> {
+    ) -> Result<Vec<StageConstants<NX, NW, NC>>, String> {
         if !self.p.constant_cost_curvature() || self.n == 0 {
             return Ok(Vec::new());
         }
-        let zero = (SMatrix::zeros(), SMatrix::zeros(), SMatrix::zeros());
-        let mut blocks: Vec<HessianBlocks<NX, NW>> = vec![zero; self.n];
-        par_fill(&mut blocks, self.opts.threads, |k| {
+        let affine = self.p.affine_in_state();
+        let mut constants = vec![
+            StageConstants {
+                curvature: (SMatrix::zeros(), SMatrix::zeros(), SMatrix::zeros()),
+                state_gradients: None,
+            };
+            self.n
+        ];
+        par_fill(&mut constants, self.opts.threads, |k| {
             let zeta = it.z_hi[k] - it.z_lo[k];
-            self.p.cost_curvature(k, &it.x[k], &it.w[k], 1.0, &zeta)
+            let state_gradients = affine.then(|| {
+                let (l, c) = crate::derivatives::state_pass(self.p, k, &it.x[k], &it.w[k]);
+                (
+                    dmech::partials::grad_part(&l),
+                    dmech::partials::jacobian_part(&c),
+                )
+            });
+            StageConstants {
+                curvature: self.p.cost_curvature(k, &it.x[k], &it.w[k], 1.0, &zeta),
+                state_gradients,
+            }
         });
         let shift = |i: usize| 0.25 + 0.125 * (i % 3) as f64;
         for k in [0, self.n / 2, self.n - 1] {
@@ -62,7 +80,7 @@ where
             let w = SVector::<f64, NW>::from_fn(|i, _| it.w[k][i] - shift(i + 1));
             let zeta = SVector::<f64, NC>::from_fn(|i, _| 1.0 + shift(i));
             let (hxx, hxw, hww) = self.p.cost_curvature(k, &x, &w, 1.0, &zeta);
-            let (rxx, rxw, rww) = &blocks[k];
+            let (rxx, rxw, rww) = &constants[k].curvature;
             let scale = rxx.amax().max(rxw.amax()).max(rww.amax());
             let diff = (hxx - rxx)
                 .amax()
@@ -75,7 +93,7 @@ where
                 ));
             }
         }
-        Ok(blocks)
+        Ok(constants)
     }
 
     pub(super) fn finish(
