@@ -33,9 +33,8 @@ pub struct StageConstants<const NX: usize, const NW: usize, const NC: usize> {
     pub state_gradients: Option<(SVector<f64, NX>, SMatrix<f64, NC, NX>)>,
 }
 
-/// `(ℓ_k, ∇_x ℓ_k, c_k, C_x)` by one vector-dual pass seeded in `x`.
-#[allow(clippy::type_complexity)]
-pub fn state_pass<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+/// `ℓ_k` and `c_k` in vector duals seeded in `x`: their values and state gradients.
+pub(crate) fn state_pass<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
     p: &P,
     k: usize,
     x: &SVector<f64, NX>,

@@ -23,7 +23,8 @@ pub(super) struct Workspace<
     /// constant (empty otherwise; [`StageConstants`]).
     pub(super) constants: Vec<StageConstants<NX, NW, NC>>,
     pub(super) terminal: TerminalDerivatives<NX>,
-    /// The Riccati sweep of the Newton step, its buffers kept from one iteration to the next.
+    /// The Riccati sweep of the Newton step, its buffers kept from one iteration to the next
+    /// (empty until the first restart: the sparse KKT path never sweeps).
     pub(super) sweep: BackwardSweep<NX, NU>,
     /// Each stage's coupling to the globals (empty without them; `globals.rs`).
     pub(super) couplings: Vec<globals::StageCoupling<NX, NW, NU>>,
@@ -46,7 +47,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
                 hxx: SMatrix::zeros(),
             },
             couplings: Vec::new(),
-            sweep: BackwardSweep::new(n, &SMatrix::zeros(), &SVector::zeros(), 0.0),
+            sweep: BackwardSweep::new(0, &SMatrix::zeros(), &SVector::zeros(), 0.0),
         }
     }
 

@@ -20,7 +20,7 @@ use super::kkt::corrected_derivatives;
 use super::*;
 use crate::global_riccati::{global_forward, global_sweep, GlobalSchur, LqCoupling};
 use crate::problem::Globals;
-use crate::riccati::{sweep_lq, LqSolution};
+use crate::riccati::LqSolution;
 use crate::sparse_kkt::GlobalTerms;
 use nalgebra::{DMatrix, DVector};
 
@@ -352,33 +352,37 @@ where
     ) -> Result<(Step<NX, NW, NC>, f64), String> {
         let t1 = Instant::now();
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
-        let mut sweep = BackwardSweep::new(self.n, &q_n, &q_vec_n, 0.0);
         let Workspace {
             ders,
             lq,
             elim,
             qn,
             couplings,
+            sweep,
             ..
         } = ws;
-        let (first, t_sweep) = self.condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
+        sweep.restart(self.n, &q_n, &q_vec_n, 0.0);
+        let (first, t_sweep) = self.condense_and_sweep(lq, elim, sweep, |k, l, e| {
             self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e)
         })?;
         self.couplings(it, ders, qn, elim, mu, couplings)?;
         tm.riccati += t_sweep;
-        let mut attempt = Some(first.map(|()| sweep));
+        let mut attempt = Some(first);
         let mut delta = 0.0;
         let solved = loop {
             tm.factorizations += 1;
             let t_r = Instant::now();
             let swept = match attempt.take() {
                 Some(s) => s,
-                None => sweep_lq(lq, &q_n, &q_vec_n, delta),
+                None => {
+                    sweep.restart(self.n, &q_n, &q_vec_n, delta);
+                    sweep.sweep_all(lq)
+                }
             };
-            let solved = swept.ok().and_then(|sw| {
-                let schur = self.schur(&sw, lq, couplings)?;
+            let solved = swept.ok().and_then(|()| {
+                let schur = self.schur(sweep, lq, couplings)?;
                 let (dp, y) = self.reduced_global_step(&schur, &it.globals, mu, delta)?;
-                Some((sw, schur, dp, y))
+                Some((schur, dp, y))
             });
             tm.riccati += t_r.elapsed().as_secs_f64();
             match solved {
@@ -390,7 +394,7 @@ where
             }
         };
         inertia.succeeded(delta);
-        let step = self.global_recover(it, ders, lq, elim, couplings, solved, mu, dc);
+        let step = self.global_recover(it, ders, lq, elim, couplings, sweep, solved, mu, dc);
         tm.kkt += t1.elapsed().as_secs_f64();
         Ok((step, delta))
     }
@@ -417,20 +421,16 @@ where
         lq: &[LqStage<NX, NU>],
         elim: &[Elimination<NX, NW, NU>],
         couplings: &[StageCoupling<NX, NW, NU>],
-        solved: (
-            BackwardSweep<NX, NU>,
-            GlobalSchur<NX, NU>,
-            DVector<f64>,
-            Vec<f64>,
-        ),
+        sweep: &BackwardSweep<NX, NU>,
+        solved: (GlobalSchur<NX, NU>, DVector<f64>, Vec<f64>),
         mu: f64,
         dc: f64,
     ) -> Step<NX, NW, NC> {
-        let (sweep, schur, dp, y) = solved;
+        let (schur, dp, y) = solved;
         let gs = self.globals.as_ref().expect("a problem with globals");
         let support = |k: usize| gs.g.support_of(k);
         let cps: Vec<LqCoupling<NX, NU, NW>> = couplings.iter().map(|c| c.0.clone()).collect();
-        let sol = global_forward(&sweep, &schur, lq, &cps, &support, &SVector::zeros(), &dp);
+        let sol = global_forward(sweep, &schur, lq, &cps, &support, &SVector::zeros(), &dp);
         self.recover_with_globals(it, ders, elim, couplings, sol, &dp, y, mu, dc)
     }
 
@@ -521,6 +521,16 @@ where
         self.couplings(it, ders, qn, elim, mu, couplings).ok()?;
         let schur = self.schur(&sweep, lq, couplings)?;
         let (dp, y) = self.reduced_global_step(&schur, &it.globals, mu, delta)?;
-        Some(self.global_recover(it, ders, lq, elim, couplings, (sweep, schur, dp, y), mu, dc))
+        Some(self.global_recover(
+            it,
+            ders,
+            lq,
+            elim,
+            couplings,
+            &sweep,
+            (schur, dp, y),
+            mu,
+            dc,
+        ))
     }
 }

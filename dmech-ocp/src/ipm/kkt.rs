@@ -92,31 +92,30 @@ where
             self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e)
         })?;
         tm.riccati += t_sweep;
-        let mut attempt = Some(first.map(|()| sweep.forward(lq, &SVector::zeros())));
+        let mut attempt = Some(first);
         let mut delta = 0.0;
-        let sol = loop {
+        loop {
             tm.factorizations += 1;
-            let r = match attempt.take() {
+            let swept = match attempt.take() {
                 Some(r) => r,
                 None => {
                     let t_r = Instant::now();
                     sweep.restart(n, &q_n, &q_vec_n, delta);
-                    let r = sweep
-                        .sweep_all(lq)
-                        .map(|()| sweep.forward(lq, &SVector::zeros()));
+                    let r = sweep.sweep_all(lq);
                     tm.riccati += t_r.elapsed().as_secs_f64();
                     r
                 }
             };
-            match r {
-                Ok(s) => break s,
+            match swept {
+                Ok(()) => break,
                 Err(_) => match inertia.next(delta) {
                     Some(next) => delta = next,
                     None => return Err("inertia correction failed".into()),
                 },
             }
-        };
+        }
         inertia.succeeded(delta);
+        let sol = sweep.forward(lq, &SVector::zeros());
         let step = self.recover(it, ders, elim, sol, mu, dc, None);
         tm.kkt += t1.elapsed().as_secs_f64();
         Ok((step, delta))

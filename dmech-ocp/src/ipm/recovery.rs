@@ -40,11 +40,12 @@ where
     /// If the problem declares its cost curvature constant, each stage's constants at the
     /// start (the solver's copy for every iteration, [`StageConstants`]); empty if it does
     /// not. With the state gradients when the problem also declares itself affine in the
-    /// state (checked by [`Solver::check_affine_declaration`]): `∇_x ℓ_k` and `C_x` are then
-    /// constant. The curvature is checked at the first, middle and last stage against the
-    /// curvature at a second point with other inequality multipliers: for a quadratic cost
-    /// and affine inequalities the second-order parts of the dual arithmetic never read the
-    /// point, so the two agree to round-off (`64 ε` of the largest entry is allowed).
+    /// state: `∇_x ℓ_k` and `C_x` are then constant. What is kept is checked at the first,
+    /// middle and last stage against its value at a second point with other inequality
+    /// multipliers: for a quadratic cost and affine inequalities the second-order parts of
+    /// the dual arithmetic never read the point, nor do the state gradients of a function
+    /// affine in the state, so the two agree to round-off (`64 ε` of the largest entry is
+    /// allowed).
     pub(super) fn stage_constants(
         &self,
         it: &Iterate<NX, NW, NC>,
@@ -60,36 +61,46 @@ where
             };
             self.n
         ];
-        par_fill(&mut constants, self.opts.threads, |k| {
-            let zeta = it.z_hi[k] - it.z_lo[k];
+        let at = |k: usize, x: &SVector<f64, NX>, w: &SVector<f64, NW>, zeta: &SVector<f64, NC>| {
             let state_gradients = affine.then(|| {
-                let (l, c) = crate::derivatives::state_pass(self.p, k, &it.x[k], &it.w[k]);
+                let (l, c) = crate::derivatives::state_pass(self.p, k, x, w);
                 (
                     dmech::partials::grad_part(&l),
                     dmech::partials::jacobian_part(&c),
                 )
             });
             StageConstants {
-                curvature: self.p.cost_curvature(k, &it.x[k], &it.w[k], 1.0, &zeta),
+                curvature: self.p.cost_curvature(k, x, w, 1.0, zeta),
                 state_gradients,
             }
+        };
+        par_fill(&mut constants, self.opts.threads, |k| {
+            at(k, &it.x[k], &it.w[k], &(it.z_hi[k] - it.z_lo[k]))
         });
         let shift = |i: usize| 0.25 + 0.125 * (i % 3) as f64;
         for k in [0, self.n / 2, self.n - 1] {
             let x = SVector::<f64, NX>::from_fn(|i, _| it.x[k][i] + shift(i));
             let w = SVector::<f64, NW>::from_fn(|i, _| it.w[k][i] - shift(i + 1));
             let zeta = SVector::<f64, NC>::from_fn(|i, _| 1.0 + shift(i));
-            let (hxx, hxw, hww) = self.p.cost_curvature(k, &x, &w, 1.0, &zeta);
-            let (rxx, rxw, rww) = &constants[k].curvature;
-            let scale = rxx.amax().max(rxw.amax()).max(rww.amax());
-            let diff = (hxx - rxx)
+            let (kept, there) = (&constants[k], at(k, &x, &w, &zeta));
+            let (rxx, rxw, rww) = &kept.curvature;
+            let (hxx, hxw, hww) = &there.curvature;
+            let mut scale = rxx.amax().max(rxw.amax()).max(rww.amax());
+            let mut diff = (hxx - rxx)
                 .amax()
                 .max((hxw - rxw).amax())
                 .max((hww - rww).amax());
+            if let (Some((gx, cx)), Some((hx, dx))) =
+                (&kept.state_gradients, &there.state_gradients)
+            {
+                scale = scale.max(gx.amax()).max(cx.amax());
+                diff = diff.max((hx - gx).amax()).max((dx - cx).amax());
+            }
             if diff > 64.0 * f64::EPSILON * scale {
                 return Err(format!(
-                    "the problem declares its cost curvature constant, but at stage {k} it \
-                     changes by {diff:.3e} (largest entry {scale:.3e}) between two points"
+                    "the problem declares its cost curvature constant, but at stage {k} its \
+                     derivatives change by {diff:.3e} (largest entry {scale:.3e}) between two \
+                     points"
                 ));
             }
         }
