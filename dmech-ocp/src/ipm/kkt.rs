@@ -480,25 +480,27 @@ where
             let queue = std::sync::Mutex::new(chunks);
             let take = || queue.lock().unwrap_or_else(|p| p.into_inner()).next();
             // Condensed chunks travel to the sweeping thread by channel; `None` marks a
-            // chunk whose condensing failed.
+            // chunk whose condensing failed. One sender per helper: the channel closes
+            // when every helper is done (or has panicked), and the senders no helper took
+            // are dropped once the queue is empty.
             let (tx, rx) = std::sync::mpsc::channel::<(usize, Option<&[LqStage<NX, NU>]>)>();
-            std::thread::scope(|sc| {
-                for _ in 1..self.opts.threads {
-                    let tx = tx.clone();
-                    let (take, condense_chunk) = (&take, &condense_chunk);
-                    sc.spawn(move || {
-                        while let Some((ci, (pl, pe))) = take() {
-                            let ok = condense_chunk(ci, pl, pe);
-                            let pl: &[LqStage<NX, NU>] = pl;
-                            if tx.send((ci, ok.then_some(pl))).is_err() {
-                                break;
-                            }
-                        }
-                    });
+            let helpers = self.opts.threads - 1;
+            let senders = std::sync::Mutex::new(vec![tx; helpers]);
+            let condense_chunks = || {
+                let Some(tx) = senders.lock().unwrap_or_else(|p| p.into_inner()).pop() else {
+                    return;
+                };
+                while let Some((ci, (pl, pe))) = take() {
+                    let ok = condense_chunk(ci, pl, pe);
+                    let pl: &[LqStage<NX, NU>] = pl;
+                    if tx.send((ci, ok.then_some(pl))).is_err() {
+                        break;
+                    }
                 }
-                drop(tx);
-                // This thread: sweep the next chunk when it is ready, otherwise condense
-                // one (the queue hands them out last first, so usually the next one).
+            };
+            // This thread: sweep the next chunk when it is ready, otherwise condense one
+            // (the queue hands them out last first, so usually the next one).
+            let mut sweep_chunks = || {
                 let mut ready: Vec<Option<Option<&[LqStage<NX, NU>]>>> = vec![None; n_chunks];
                 let mut next = n_chunks;
                 // A chunk that failed to condense stops the sweep (its error is reported).
@@ -519,13 +521,22 @@ where
                         let pl: &[LqStage<NX, NU>] = pl;
                         ready[ci] = Some(ok.then_some(pl));
                     } else {
+                        senders.lock().unwrap_or_else(|p| p.into_inner()).clear();
                         match rx.recv() {
                             Ok((ci, chunk)) => ready[ci] = Some(chunk),
                             Err(_) => break,
                         }
                     }
                 }
-            });
+            };
+            if !worker_pool::run_split(helpers, &condense_chunks, &mut sweep_chunks) {
+                std::thread::scope(|sc| {
+                    for _ in 0..helpers {
+                        sc.spawn(condense_chunks);
+                    }
+                    sweep_chunks();
+                });
+            }
         }
         match failed.into_inner().unwrap_or_else(|p| p.into_inner()) {
             Some((_, msg)) => Err(msg),

@@ -42,6 +42,7 @@ mod restoration;
 mod scaling;
 mod sparse_step;
 mod start;
+mod worker_pool;
 
 use derivative_pass::Workspace;
 use filter::Filter;

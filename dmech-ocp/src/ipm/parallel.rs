@@ -1,4 +1,6 @@
-//! Stage loops on scoped threads: work handed out in chunks from a shared counter.
+//! Stage loops on several threads: work handed out in chunks from a shared counter.
+
+use super::worker_pool;
 
 /// Split `0..n` over `threads` workers and fill `out[k] = f(k)`.
 pub(super) fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads: usize, f: F) {
@@ -67,13 +69,17 @@ pub(super) fn par_zip3<A: Send, B: Send, C: Send, F: Fn(usize, &mut A, &mut B, &
     run_on_threads(threads, &work);
 }
 
-/// `work()` on `threads` scoped threads at once (inline for one). Not generic: the stage
+/// `work()` on `threads` threads at once (inline for one): this one and the kept workers
+/// of [`worker_pool`], or scoped threads while the pool is busy. Not generic: the stage
 /// loops hand their work in as a trait object, so the thread machinery is compiled once
 /// rather than once per loop and problem type (it was a tenth of the code generated for
 /// the robots' crate).
 fn run_on_threads(threads: usize, work: &(dyn Fn() + Sync)) {
     if threads <= 1 {
         work();
+        return;
+    }
+    if worker_pool::run(threads - 1, work) {
         return;
     }
     std::thread::scope(|sc| {
