@@ -20,8 +20,8 @@ pub(super) struct Workspace<
     pub(super) aux: Vec<StageAux<NX, NE, NC>>,
     pub(super) qn: Vec<QuasiNewton<NX, NW, NE>>,
     /// What is computed once per stage when the problem declares its cost curvature
-    /// constant (empty otherwise; [`StageConstants`]).
-    pub(super) constants: Vec<StageConstants<NX, NW, NC>>,
+    /// constant (empty otherwise; [`ConstantsTable`]).
+    pub(super) constants: ConstantsTable<NX, NW, NC>,
     pub(super) terminal: TerminalDerivatives<NX>,
     /// The Riccati sweep of the Newton step, its buffers kept from one iteration to the next
     /// (empty until the first restart: the sparse KKT path never sweeps).
@@ -40,7 +40,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
             elim: vec![Elimination::zeros(); n],
             aux: vec![StageAux::zeros(); n],
             qn: vec![QuasiNewton::new(); if quasi_newton { n } else { 0 }],
-            constants: Vec::new(),
+            constants: ConstantsTable::default(),
             terminal: TerminalDerivatives {
                 cost: 0.0,
                 gx: SVector::zeros(),

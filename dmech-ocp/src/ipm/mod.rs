@@ -16,8 +16,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::derivatives::{
-    stage_derivatives_into, stage_values, terminal_derivatives, StageConstants, StageDerivatives,
-    StageValues, TerminalDerivatives,
+    stage_derivatives_into, stage_values, terminal_derivatives, ConstantsTable, StageConstants,
+    StageDerivatives, StageValues, TerminalDerivatives,
 };
 use crate::problem::{StageProblem, StateEquality};
 use crate::riccati::{BackwardSweep, LqSolution, LqStage, RiccatiError};

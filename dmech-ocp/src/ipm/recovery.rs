@@ -49,9 +49,9 @@ where
     pub(super) fn stage_constants(
         &self,
         it: &Iterate<NX, NW, NC>,
-    ) -> Result<Vec<StageConstants<NX, NW, NC>>, String> {
+    ) -> Result<ConstantsTable<NX, NW, NC>, String> {
         if !self.p.constant_cost_curvature() || self.n == 0 {
-            return Ok(Vec::new());
+            return Ok(ConstantsTable::default());
         }
         let affine = self.p.affine_in_state();
         let mut constants = vec![
@@ -104,7 +104,7 @@ where
                 ));
             }
         }
-        Ok(constants)
+        Ok(ConstantsTable::new(constants))
     }
 
     pub(super) fn finish(
