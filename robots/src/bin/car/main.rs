@@ -255,7 +255,6 @@ fn run_simulate(a: SimulateArgs) -> Result<(), String> {
 }
 
 fn main() -> ExitCode {
-    robots::cli::keep_freed_blocks();
     robots::cli::on_solver_stack(run_command)
 }
 

@@ -56,7 +56,6 @@ fn print_subcommand_usage(rendered: &str) {
 }
 
 fn main() -> ExitCode {
-    robots::cli::keep_freed_blocks();
     robots::cli::on_solver_stack(run_command)
 }
 
