@@ -100,8 +100,10 @@ impl Drop for Withdraw {
     }
 }
 
-/// `work()` on this thread and `helpers` kept workers at once. `false` (nothing run) when
-/// the pool is busy.
+/// `work()` on this thread and `helpers` kept workers at once. `work` must take its items
+/// from a shared queue until it is empty (as the stage loops do): a worker that comes late
+/// then finds nothing, and this thread's `work()` ends only when all items are handed out.
+/// `false` (nothing run) when the pool is busy.
 pub(super) fn run(helpers: usize, work: &(dyn Fn() + Sync)) -> bool {
     run_split(helpers, work, &mut || work())
 }
