@@ -54,13 +54,6 @@ where
             return Ok(ConstantsTable::default());
         }
         let affine = self.p.affine_in_state();
-        let mut constants = vec![
-            StageConstants {
-                curvature: (SMatrix::zeros(), SMatrix::zeros(), SMatrix::zeros()),
-                state_gradients: None,
-            };
-            self.n
-        ];
         let at = |k: usize, x: &SVector<f64, NX>, w: &SVector<f64, NW>, zeta: &SVector<f64, NC>| {
             let state_gradients = affine.then(|| {
                 let (l, c) = crate::derivatives::state_pass(self.p, k, x, w);
@@ -74,15 +67,28 @@ where
                 state_gradients,
             }
         };
-        par_fill(&mut constants, self.opts.threads, |k| {
-            at(k, &it.x[k], &it.w[k], &(it.z_hi[k] - it.z_lo[k]))
+        let at_stage = |k: usize| at(k, &it.x[k], &it.w[k], &(it.z_hi[k] - it.z_lo[k]));
+        // Kept only where a stage's constants differ from the first stage's: most problems'
+        // stages share one value, and a whole per-stage array (13 MB on the eight) was the
+        // start's largest allocation.
+        let first = at_stage(0);
+        let mut differing: Vec<Option<Box<StageConstants<NX, NW, NC>>>> = vec![None; self.n];
+        par_fill(&mut differing, self.opts.threads, |k| {
+            let c = at_stage(k);
+            (c != first).then(|| Box::new(c))
         });
+        let constants = ConstantsTable::new(
+            differing
+                .into_iter()
+                .map(|d| d.map_or_else(|| first.clone(), |c| *c)),
+        );
         let shift = |i: usize| 0.25 + 0.125 * (i % 3) as f64;
         for k in [0, self.n / 2, self.n - 1] {
             let x = SVector::<f64, NX>::from_fn(|i, _| it.x[k][i] + shift(i));
             let w = SVector::<f64, NW>::from_fn(|i, _| it.w[k][i] - shift(i + 1));
             let zeta = SVector::<f64, NC>::from_fn(|i, _| 1.0 + shift(i));
-            let (kept, there) = (&constants[k], at(k, &x, &w, &zeta));
+            let kept = constants.get(k).expect("a value per stage");
+            let there = at(k, &x, &w, &zeta);
             let (rxx, rxw, rww) = &kept.curvature;
             let (hxx, hxw, hww) = &there.curvature;
             let mut scale = rxx.amax().max(rxw.amax()).max(rww.amax());
@@ -104,7 +110,7 @@ where
                 ));
             }
         }
-        Ok(ConstantsTable::new(constants))
+        Ok(constants)
     }
 
     pub(super) fn finish(
