@@ -45,15 +45,15 @@ pub struct ConstantsTable<const NX: usize, const NW: usize, const NC: usize> {
 
 impl<const NX: usize, const NW: usize, const NC: usize> ConstantsTable<NX, NW, NC> {
     /// The table of `per_stage` (stage order), runs of equal values (as `==` on floats)
-    /// stored once.
-    pub fn new(per_stage: impl IntoIterator<Item = StageConstants<NX, NW, NC>>) -> Self {
+    /// stored once (cloned: only the distinct values are copied).
+    pub fn new<'a>(per_stage: impl IntoIterator<Item = &'a StageConstants<NX, NW, NC>>) -> Self {
         let mut table = ConstantsTable {
             distinct: Vec::new(),
             of_stage: Vec::new(),
         };
         for c in per_stage {
-            if table.distinct.last() != Some(&c) {
-                table.distinct.push(c);
+            if table.distinct.last() != Some(c) {
+                table.distinct.push(c.clone());
             }
             table.of_stage.push(table.distinct.len() - 1);
         }
@@ -547,7 +547,8 @@ mod tests {
     #[test]
     fn the_table_keeps_each_run_once_and_every_stage_its_value() {
         let values = [1.0, 1.0, 1.0, 2.0, 2.0, 1.0, -0.0, 0.0];
-        let table = ConstantsTable::new(values.iter().map(|&v| constants(v)));
+        let per_stage: Vec<_> = values.iter().map(|&v| constants(v)).collect();
+        let table = ConstantsTable::new(&per_stage);
         // 1, 2, 1, then ±0 (equal as numbers) once.
         assert_eq!(table.distinct(), 4);
         for (k, &v) in values.iter().enumerate() {

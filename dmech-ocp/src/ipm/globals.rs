@@ -506,11 +506,12 @@ where
             elim,
             qn,
             couplings,
+            sweep,
             ..
         } = ws;
-        let mut sweep = BackwardSweep::new(self.n, &q_n, &q_vec_n, delta);
+        sweep.restart(self.n, &q_n, &q_vec_n, delta);
         let (swept, _) = self
-            .condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
+            .condense_and_sweep(lq, elim, sweep, |k, l, e| {
                 let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
                 self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
             })
@@ -519,18 +520,8 @@ where
         // The couplings read no residual: those of the iteration's derivatives (with the
         // corrected `w0`).
         self.couplings(it, ders, qn, elim, mu, couplings).ok()?;
-        let schur = self.schur(&sweep, lq, couplings)?;
+        let schur = self.schur(sweep, lq, couplings)?;
         let (dp, y) = self.reduced_global_step(&schur, &it.globals, mu, delta)?;
-        Some(self.global_recover(
-            it,
-            ders,
-            lq,
-            elim,
-            couplings,
-            &sweep,
-            (schur, dp, y),
-            mu,
-            dc,
-        ))
+        Some(self.global_recover(it, ders, lq, elim, couplings, sweep, (schur, dp, y), mu, dc))
     }
 }

@@ -553,23 +553,27 @@ where
     pub(super) fn second_order_correction(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ders: &[StageDerivatives<NX, NW, NE, NC>],
-        qn: &[QuasiNewton<NX, NW, NE>],
-        terminal: &TerminalDerivatives<NX>,
+        ws: &mut Workspace<NX, NW, NE, NU, NC>,
         trial_vals: &[StageValues<NX, NE, NC>],
         trial: &Iterate<NX, NW, NC>,
         alpha: f64,
         mu: f64,
         dc: f64,
         delta: f64,
-        lq: &mut [LqStage<NX, NU>],
-        elim: &mut [Elimination<NX, NW, NU>],
     ) -> Option<Step<NX, NW, NC>> {
-        let n = self.n;
-        let (q_n, q_vec_n) = self.terminal_lq(it, terminal, dc);
-        let mut sweep = BackwardSweep::new(n, &q_n, &q_vec_n, delta);
+        let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
+        let Workspace {
+            ders,
+            lq,
+            elim,
+            qn,
+            sweep,
+            ..
+        } = ws;
+        // The iteration's step is recovered already: its sweep's buffers are free.
+        sweep.restart(self.n, &q_n, &q_vec_n, delta);
         let (swept, _) = self
-            .condense_and_sweep(lq, elim, &mut sweep, |k, l, e| {
+            .condense_and_sweep(lq, elim, sweep, |k, l, e| {
                 let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
                 self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
             })

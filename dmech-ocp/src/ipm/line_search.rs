@@ -235,18 +235,7 @@ where
                         )
                     } else {
                         self.second_order_correction(
-                            it,
-                            &ws.ders,
-                            &ws.qn,
-                            &ws.terminal,
-                            &soc_vals,
-                            &soc_trial,
-                            soc_alpha,
-                            mu,
-                            dc,
-                            delta,
-                            &mut ws.lq,
-                            &mut ws.elim,
+                            it, ws, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
                         )
                     };
                     let Some(sstep) = sstep else {

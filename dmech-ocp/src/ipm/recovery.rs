@@ -77,11 +77,8 @@ where
             let c = at_stage(k);
             (c != first).then(|| Box::new(c))
         });
-        let constants = ConstantsTable::new(
-            differing
-                .into_iter()
-                .map(|d| d.map_or_else(|| first.clone(), |c| *c)),
-        );
+        let constants =
+            ConstantsTable::new(differing.iter().map(|d| d.as_deref().unwrap_or(&first)));
         let shift = |i: usize| 0.25 + 0.125 * (i % 3) as f64;
         for k in [0, self.n / 2, self.n - 1] {
             let x = SVector::<f64, NX>::from_fn(|i, _| it.x[k][i] + shift(i));
