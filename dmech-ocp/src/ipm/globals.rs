@@ -16,7 +16,6 @@
 //! `δθ_k = δp[support(k)]`. The dual infeasibility of `p` is
 //! `c + Σ_k S_kᵀ ∇_θ L_k + Aᵀy_g − z_lo + z_hi`.
 
-use super::kkt::corrected_derivatives;
 use super::*;
 use crate::global_riccati::{global_forward, global_sweep, GlobalSchur, LqCoupling};
 use crate::problem::Globals;
@@ -351,6 +350,7 @@ where
         tm: &mut Timings,
     ) -> Result<(Step<NX, NW, NC>, f64), String> {
         let t1 = Instant::now();
+        let (first, t_sweep) = self.condense_workspace(it, ws, mu, dc, 0.0, None)?;
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
         let Workspace {
             ders,
@@ -361,10 +361,6 @@ where
             sweep,
             ..
         } = ws;
-        sweep.restart(self.n, &q_n, &q_vec_n, 0.0);
-        let (first, t_sweep) = self.condense_and_sweep(lq, elim, sweep, |k, l, e| {
-            self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e)
-        })?;
         self.couplings(it, ders, qn, elim, mu, couplings)?;
         tm.riccati += t_sweep;
         let mut attempt = Some(first);
@@ -499,7 +495,11 @@ where
         dc: f64,
         delta: f64,
     ) -> Option<Step<NX, NW, NC>> {
-        let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
+        let correction = Some((trial_vals, trial, alpha));
+        let (swept, _) = self
+            .condense_workspace(it, ws, mu, dc, delta, correction)
+            .ok()?;
+        swept.ok()?;
         let Workspace {
             ders,
             lq,
@@ -509,14 +509,6 @@ where
             sweep,
             ..
         } = ws;
-        sweep.restart(self.n, &q_n, &q_vec_n, delta);
-        let (swept, _) = self
-            .condense_and_sweep(lq, elim, sweep, |k, l, e| {
-                let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
-                self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
-            })
-            .ok()?;
-        swept.ok()?;
         // The couplings read no residual: those of the iteration's derivatives (with the
         // corrected `w0`).
         self.couplings(it, ders, qn, elim, mu, couplings).ok()?;

@@ -78,20 +78,16 @@ where
         }
         let t1 = Instant::now();
         let n = self.n;
+        let (first, t_sweep) = self.condense_workspace(it, ws, mu, dc, 0.0, None)?;
+        tm.riccati += t_sweep;
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
         let Workspace {
             ders,
             lq,
             elim,
-            qn,
             sweep,
             ..
         } = ws;
-        sweep.restart(n, &q_n, &q_vec_n, 0.0);
-        let (first, t_sweep) = self.condense_and_sweep(lq, elim, sweep, |k, l, e| {
-            self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e)
-        })?;
-        tm.riccati += t_sweep;
         let mut attempt = Some(first);
         let mut delta = 0.0;
         loop {
@@ -561,6 +557,31 @@ where
         dc: f64,
         delta: f64,
     ) -> Option<Step<NX, NW, NC>> {
+        // The iteration's step is recovered already: its sweep's buffers are free.
+        let correction = Some((trial_vals, trial, alpha));
+        let (swept, _) = self
+            .condense_workspace(it, ws, mu, dc, delta, correction)
+            .ok()?;
+        swept.ok()?;
+        let sol = ws.sweep.forward(&ws.lq, &SVector::zeros());
+        Some(self.recover(it, &ws.ders, &ws.elim, sol, mu, dc, None))
+    }
+
+    /// Every stage condensed into the workspace's buffers (`lq`, `elim`) with the Riccati
+    /// sweep restarted at the primal shift `shift` and run behind the condensing
+    /// ([`Solver::condense_and_sweep`]): from the iteration's derivatives, or, with
+    /// `correction = Some((trial_vals, trial, α))`, from a second-order correction's
+    /// ([`corrected_derivatives`]).
+    #[allow(clippy::type_complexity)]
+    pub(super) fn condense_workspace(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        mu: f64,
+        dc: f64,
+        shift: f64,
+        correction: Option<(&[StageValues<NX, NE, NC>], &Iterate<NX, NW, NC>, f64)>,
+    ) -> Result<(Result<(), RiccatiError>, f64), String> {
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
         let Workspace {
             ders,
@@ -570,17 +591,14 @@ where
             sweep,
             ..
         } = ws;
-        // The iteration's step is recovered already: its sweep's buffers are free.
-        sweep.restart(self.n, &q_n, &q_vec_n, delta);
-        let (swept, _) = self
-            .condense_and_sweep(lq, elim, sweep, |k, l, e| {
+        sweep.restart(self.n, &q_n, &q_vec_n, shift);
+        self.condense_and_sweep(lq, elim, sweep, |k, l, e| match correction {
+            None => self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e),
+            Some((trial_vals, trial, alpha)) => {
                 let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
                 self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
-            })
-            .ok()?;
-        swept.ok()?;
-        let sol = sweep.forward(lq, &SVector::zeros());
-        Some(self.recover(it, ders, elim, sol, mu, dc, None))
+            }
+        })
     }
 }
 
