@@ -397,6 +397,45 @@ pub fn stage_derivatives_into<
 ) where
     P: StageProblem<NX, NW, NE, NC>,
 {
+    stage_first_derivatives_into(d, p, k, x, w, constants);
+    // Second order of `ℓ + ζᵀc` (only its `ww` block when the problem declares itself affine
+    // in the state; the solver's copy when it declares it constant), plus the constraints'
+    // curvature when the exact Hessian is asked for.
+    (d.hxx, d.hxw, d.hww) = match constants {
+        Some(c) => c.curvature,
+        None => p.cost_curvature(k, x, w, 1.0, zeta),
+    };
+    if let Some(lam) = lambda {
+        let nu = d
+            .equality_multiplier(lam, zeta)
+            .unwrap_or_else(SVector::zeros);
+        let (cxx, cxw, cww) = p.constraint_curvature(k, x, w, lam, &nu);
+        d.hxx += cxx;
+        d.hxw += cxw;
+        d.hww += cww;
+    }
+}
+
+/// Everything [`stage_derivatives_into`] writes but the curvature blocks `hxx`, `hxw`,
+/// `hww`, which are left as they were: for a solver that reads a constant curvature from
+/// its [`ConstantsTable`] instead of copying 3 kB into every stage (that copy was the
+/// largest caller of `memcpy` in a plan).
+pub fn stage_first_derivatives_into<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NC: usize,
+>(
+    d: &mut StageDerivatives<NX, NW, NE, NC>,
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    constants: Option<&StageConstants<NX, NW, NC>>,
+) where
+    P: StageProblem<NX, NW, NE, NC>,
+{
     (d.f, d.fx, d.fw) = p.dynamics_jacobian(k, x, w);
     (d.e, d.ex, d.ew) = p.equality_jacobian(k, x, w);
     // Cost and inequalities: a pass seeded in w, and one in x unless its gradients are
@@ -422,22 +461,6 @@ pub fn stage_derivatives_into<
     }
     d.gw = grad(&l_w);
     d.nu = None;
-    // Second order of `ℓ + ζᵀc` (only its `ww` block when the problem declares itself affine
-    // in the state; the solver's copy when it declares it constant), plus the constraints'
-    // curvature when the exact Hessian is asked for.
-    (d.hxx, d.hxw, d.hww) = match constants {
-        Some(c) => c.curvature,
-        None => p.cost_curvature(k, x, w, 1.0, zeta),
-    };
-    if let Some(lam) = lambda {
-        let nu = d
-            .equality_multiplier(lam, zeta)
-            .unwrap_or_else(SVector::zeros);
-        let (cxx, cxw, cww) = p.constraint_curvature(k, x, w, lam, &nu);
-        d.hxx += cxx;
-        d.hxw += cxw;
-        d.hww += cww;
-    }
 }
 
 /// `(∇²_xx, ∇²_xw, ∇²_ww)` of `s ℓ_k + ζᵀc_k` at `(x, w)` by second-order passes over the

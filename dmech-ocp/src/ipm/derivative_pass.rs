@@ -86,16 +86,14 @@ where
         let derivatives = |k: usize, d: &mut StageDerivatives<NX, NW, NE, NC>| {
             let zeta = it.z_hi[k] - it.z_lo[k];
             let lam = &it.lambda[k];
-            stage_derivatives_into(
-                d,
-                self.p,
-                k,
-                &it.x[k],
-                &it.w[k],
-                &zeta,
-                o.exact_hessian.then_some(lam),
-                ws_constants.get(k),
-            );
+            let (x, w, constants) = (&it.x[k], &it.w[k], ws_constants.get(k));
+            if self.table_curvature(k, ws_constants).is_some() {
+                // The condensing reads the curvature from the table.
+                stage_first_derivatives_into(d, self.p, k, x, w, constants);
+            } else {
+                let lam_exact = o.exact_hessian.then_some(lam);
+                stage_derivatives_into(d, self.p, k, x, w, &zeta, lam_exact, constants);
+            }
             d.nu = d.equality_multiplier(lam, &zeta);
         };
         let finish =

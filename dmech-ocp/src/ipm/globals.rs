@@ -210,12 +210,12 @@ where
         k: usize,
         it: &Iterate<NX, NW, NC>,
         d: &StageDerivatives<NX, NW, NE, NC>,
-        qn: Option<&QuasiNewton<NX, NW, NE>>,
+        curvature: StageCurvature<'_, NX, NW, NE>,
         mu: f64,
         el: &Elimination<NX, NW, NU>,
         nt: usize,
     ) -> Result<StageCoupling<NX, NW, NU>, String> {
-        let (_, hxw, hww, _, gw) = self.stage_hessian(k, it, d, qn, mu);
+        let (_, hxw, hww, _, gw) = self.stage_hessian(k, it, d, curvature, mu);
         let t0 = NW - nt;
         let mut wt = SMatrix::<f64, NW, NW>::zeros();
         for i in 0..nt {
@@ -249,7 +249,7 @@ where
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
-        qn: &[QuasiNewton<NX, NW, NE>],
+        (constants, qn): (&ConstantsTable<NX, NW, NC>, &[QuasiNewton<NX, NW, NE>]),
         elim: &[Elimination<NX, NW, NU>],
         mu: f64,
         out: &mut Vec<StageCoupling<NX, NW, NU>>,
@@ -258,7 +258,8 @@ where
         out.resize_with(self.n, || (LqCoupling::zeros(), SMatrix::zeros()));
         let failed = std::sync::Mutex::new(None::<String>);
         par_update(out, self.opts.threads, |k, slot| {
-            match self.coupling(k, it, &ders[k], qn.get(k), mu, &elim[k], nt) {
+            let curvature = self.stage_curvature(k, constants, qn);
+            match self.coupling(k, it, &ders[k], curvature, mu, &elim[k], nt) {
                 Ok(c) => *slot = c,
                 Err(e) => *failed.lock().unwrap_or_else(|p| p.into_inner()) = Some(e),
             }
@@ -357,11 +358,12 @@ where
             lq,
             elim,
             qn,
+            constants,
             couplings,
             sweep,
             ..
         } = ws;
-        self.couplings(it, ders, qn, elim, mu, couplings)?;
+        self.couplings(it, ders, (constants, qn), elim, mu, couplings)?;
         tm.riccati += t_sweep;
         let mut attempt = Some(first);
         let mut delta = 0.0;
@@ -505,13 +507,15 @@ where
             lq,
             elim,
             qn,
+            constants,
             couplings,
             sweep,
             ..
         } = ws;
         // The couplings read no residual: those of the iteration's derivatives (with the
         // corrected `w0`).
-        self.couplings(it, ders, qn, elim, mu, couplings).ok()?;
+        self.couplings(it, ders, (constants, qn), elim, mu, couplings)
+            .ok()?;
         let schur = self.schur(sweep, lq, couplings)?;
         let (dp, y) = self.reduced_global_step(&schur, &it.globals, mu, delta)?;
         Some(self.global_recover(it, ders, lq, elim, couplings, sweep, (schur, dp, y), mu, dc))

@@ -35,6 +35,15 @@ impl<const NX: usize, const NE: usize, const NC: usize> StageAux<NX, NE, NC> {
     }
 }
 
+/// What stage `k`'s Hessian takes besides its derivatives: the cost's constant curvature
+/// when the derivative pass left it in the constants table (its blocks in the derivatives
+/// are then not written), and the stage's SR1 blocks.
+#[derive(Clone, Copy)]
+pub(super) struct StageCurvature<'c, const NX: usize, const NW: usize, const NE: usize> {
+    pub(super) constant: Option<&'c HessianBlocks<NX, NW>>,
+    pub(super) qn: Option<&'c QuasiNewton<NX, NW, NE>>,
+}
+
 /// KKT errors at an iterate: the scaled dual infeasibility, the largest constraint
 /// violation, and IPOPT's dual scaling `s_d` (for the complementarity).
 #[derive(Clone, Copy, Debug)]
@@ -126,13 +135,13 @@ where
         k: usize,
         it: &Iterate<NX, NW, NC>,
         d: &StageDerivatives<NX, NW, NE, NC>,
-        qn: Option<&QuasiNewton<NX, NW, NE>>,
+        curvature: StageCurvature<'_, NX, NW, NE>,
         mu: f64,
         dc: f64,
         lq: &mut LqStage<NX, NU>,
         el: &mut Elimination<NX, NW, NU>,
     ) -> Result<(), String> {
-        let (hxx, hxw, hww, gx, gw) = self.stage_hessian(k, it, d, qn, mu);
+        let (hxx, hxw, hww, gx, gw) = self.stage_hessian(k, it, d, curvature, mu);
 
         // δw = w0 + wx δx + wu δu, with δv from the linearised stage equality.
         let Elimination { w0, wx, wu } = el;
@@ -191,7 +200,7 @@ where
         k: usize,
         it: &Iterate<NX, NW, NC>,
         d: &StageDerivatives<NX, NW, NE, NC>,
-        qn: Option<&QuasiNewton<NX, NW, NE>>,
+        curvature: StageCurvature<'_, NX, NW, NE>,
         mu: f64,
     ) -> (
         SMatrix<f64, NX, NX>,
@@ -219,8 +228,11 @@ where
             }
         }
         let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
-        let (mut hxx0, mut hxw0, mut hww0) = (d.hxx, d.hxw, d.hww);
-        if let Some(q) = qn {
+        let (mut hxx0, mut hxw0, mut hww0) = match curvature.constant {
+            Some(&c) => c,
+            None => (d.hxx, d.hxw, d.hww),
+        };
+        if let Some(q) = curvature.qn {
             hxx0 += q.bxx;
             hxw0 += q.bxw;
             hww0 += q.bww;
@@ -233,6 +245,34 @@ where
         let gw = d.gw + d.cw.transpose() * bc;
 
         (hxx, hxw, hww, gx, gw)
+    }
+
+    /// The cost's constant curvature of stage `k`, if the derivative pass reads it from the
+    /// constants table rather than copying it into the stage's derivatives: a problem that
+    /// declares it constant, without the exact Hessian (which adds the constraints'
+    /// curvature to the derivatives' blocks).
+    pub(super) fn table_curvature<'c>(
+        &self,
+        k: usize,
+        constants: &'c ConstantsTable<NX, NW, NC>,
+    ) -> Option<&'c HessianBlocks<NX, NW>> {
+        if self.opts.exact_hessian {
+            return None;
+        }
+        constants.get(k).map(|c| &c.curvature)
+    }
+
+    /// What stage `k`'s Hessian takes besides its derivatives ([`StageCurvature`]).
+    pub(super) fn stage_curvature<'c>(
+        &self,
+        k: usize,
+        constants: &'c ConstantsTable<NX, NW, NC>,
+        qn: &'c [QuasiNewton<NX, NW, NE>],
+    ) -> StageCurvature<'c, NX, NW, NE> {
+        StageCurvature {
+            constant: self.table_curvature(k, constants),
+            qn: qn.get(k),
+        }
     }
 
     /// The terminal stage of the LQ problem: the terminal cost's curvature and gradient and
@@ -588,15 +628,19 @@ where
             lq,
             elim,
             qn,
+            constants,
             sweep,
             ..
         } = ws;
         sweep.restart(self.n, &q_n, &q_vec_n, shift);
-        self.condense_and_sweep(lq, elim, sweep, |k, l, e| match correction {
-            None => self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e),
-            Some((trial_vals, trial, alpha)) => {
-                let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
-                self.condense(k, it, &d, qn.get(k), mu, dc, l, e)
+        self.condense_and_sweep(lq, elim, sweep, |k, l, e| {
+            let curvature = self.stage_curvature(k, constants, qn);
+            match correction {
+                None => self.condense(k, it, &ders[k], curvature, mu, dc, l, e),
+                Some((trial_vals, trial, alpha)) => {
+                    let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
+                    self.condense(k, it, &d, curvature, mu, dc, l, e)
+                }
             }
         })
     }

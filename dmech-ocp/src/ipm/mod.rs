@@ -16,8 +16,9 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::derivatives::{
-    stage_derivatives_into, stage_values, terminal_derivatives, ConstantsTable, StageConstants,
-    StageDerivatives, StageValues, TerminalDerivatives,
+    stage_derivatives_into, stage_first_derivatives_into, stage_values, terminal_derivatives,
+    ConstantsTable, HessianBlocks, StageConstants, StageDerivatives, StageValues,
+    TerminalDerivatives,
 };
 use crate::problem::{StageProblem, StateEquality};
 use crate::riccati::{BackwardSweep, LqSolution, LqStage, RiccatiError};
@@ -51,7 +52,7 @@ use globals::GlobalSpec;
 use inertia::InertiaCorrection;
 use iterate::{Bounds, Elimination, Measures, Step};
 pub use iterate::{Iterate, SolveResult};
-use kkt::{KktError, StageAux};
+use kkt::{KktError, StageAux, StageCurvature};
 use line_search::LineSearch;
 pub use options::{IpOptions, KktMethod, Status, Timings};
 pub use parallel::STAGE_THREAD_STACK;

@@ -89,9 +89,10 @@ where
     ) -> Result<(Step<NX, NW, NC>, f64), String> {
         let t1 = Instant::now();
         {
-            let (ders, qn) = (&ws.ders, &ws.qn);
+            let (ders, qn, constants) = (&ws.ders, &ws.qn, &ws.constants);
             let condense = |k: usize, l: &mut LqStage<NX, NU>, e: &mut Elimination<NX, NW, NU>| {
-                self.condense(k, it, &ders[k], qn.get(k), mu, dc, l, e)
+                let curvature = self.stage_curvature(k, constants, qn);
+                self.condense(k, it, &ders[k], curvature, mu, dc, l, e)
             };
             // The closure borrows `ws` immutably; condense into fresh buffers, then move.
             let mut lq = std::mem::take(&mut ws.lq);
@@ -143,10 +144,11 @@ where
                 ders,
                 elim,
                 qn,
+                constants,
                 couplings,
                 ..
             } = ws;
-            self.couplings(it, ders, qn, elim, mu, couplings)
+            self.couplings(it, ders, (constants, qn), elim, mu, couplings)
         } else {
             ws.couplings
                 .resize_with(self.n, || (LqCoupling::zeros(), SMatrix::zeros()));
@@ -172,10 +174,11 @@ where
         let mut elim = std::mem::take(&mut ws.elim);
         let failed = std::sync::atomic::AtomicBool::new(false);
         {
-            let (ders, qn) = (&ws.ders, &ws.qn);
+            let (ders, qn, constants) = (&ws.ders, &ws.qn, &ws.constants);
             par_zip(&mut lq, &mut elim, self.opts.threads, |k, l, e| {
                 let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
-                if self.condense(k, it, &d, qn.get(k), mu, dc, l, e).is_err() {
+                let curvature = self.stage_curvature(k, constants, qn);
+                if self.condense(k, it, &d, curvature, mu, dc, l, e).is_err() {
                     failed.store(true, std::sync::atomic::Ordering::Relaxed);
                 }
             });
