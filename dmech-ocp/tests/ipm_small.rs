@@ -15,6 +15,8 @@ struct DoubleIntegrator {
     target: f64,
     nonlinear: bool,
     cost_scale: f64,
+    /// Whether the problem declares its (quadratic) cost's curvature constant.
+    declares_constant_curvature: bool,
 }
 
 impl StageProblem<3, 1, 0, 2> for DoubleIntegrator {
@@ -57,6 +59,9 @@ impl StageProblem<3, 1, 0, 2> for DoubleIntegrator {
         let hi = SVector::<f64, 2>::new(self.u_max, self.du_max);
         (-hi, hi)
     }
+    fn constant_cost_curvature(&self) -> bool {
+        self.declares_constant_curvature
+    }
     fn state_equalities(&self) -> Vec<StateEquality> {
         vec![
             StateEquality {
@@ -84,6 +89,7 @@ fn double_integrator_converges() {
             target: 1.0,
             nonlinear,
             cost_scale: 1.0,
+            declares_constant_curvature: false,
         };
         let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(
             &p,
@@ -113,6 +119,7 @@ fn threads_do_not_change_the_iterates() {
         target: 1.0,
         nonlinear: true,
         cost_scale: 1.0,
+        declares_constant_curvature: false,
     };
     let solve = |threads| {
         let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(
@@ -154,6 +161,7 @@ fn small_objectives_are_solved_scale_invariantly() {
             target: 1.0,
             nonlinear: true,
             cost_scale,
+            declares_constant_curvature: false,
         };
         let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(&p, IpOptions::default());
         let start = s.initial_iterate(
@@ -185,5 +193,46 @@ fn small_objectives_are_solved_scale_invariantly() {
         for (l, lb) in r.iterate.lambda.iter().zip(&base.iterate.lambda) {
             assert!((l / ratio - lb).amax() <= 1e-9 * lam_max, "scale {a}");
         }
+    }
+}
+
+/// A cost declared of constant curvature is solved as the same cost undeclared, to the
+/// last bit: the solver then reads the curvature from the table it builds at the start
+/// (not copied into the stages' derivatives without the exact Hessian, added to the
+/// constraints' curvature with it), and for a quadratic cost the table holds the very
+/// numbers the derivative pass would compute at every iteration.
+#[test]
+fn a_declared_constant_curvature_gives_the_same_iterates() {
+    for exact_hessian in [false, true] {
+        let solve = |declares_constant_curvature| {
+            let p = DoubleIntegrator {
+                n: 150,
+                h: 0.05,
+                u_max: 1.0,
+                du_max: 0.05,
+                target: 1.0,
+                nonlinear: true,
+                cost_scale: 1.0,
+                declares_constant_curvature,
+            };
+            let opts = IpOptions {
+                exact_hessian,
+                ..Default::default()
+            };
+            let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(&p, opts);
+            let start = s.initial_iterate(vec![SVector::zeros(); 151], vec![SVector::zeros(); 150]);
+            s.solve(start)
+        };
+        let (declared, undeclared) = (solve(true), solve(false));
+        assert_eq!(undeclared.status, Status::Solved, "exact {exact_hessian}");
+        assert_eq!(declared.status, undeclared.status);
+        assert_eq!(declared.iterations, undeclared.iterations);
+        assert_eq!(
+            declared.objective.to_bits(),
+            undeclared.objective.to_bits(),
+            "exact {exact_hessian}"
+        );
+        assert_eq!(declared.iterate.x, undeclared.iterate.x);
+        assert_eq!(declared.iterate.w, undeclared.iterate.w);
     }
 }
