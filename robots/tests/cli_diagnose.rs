@@ -178,6 +178,24 @@ fn generate_then_diagnose_end_to_end() {
         "every effect and the nominal model are listed"
     );
     assert_eq!(cands[0]["effect"], "tilt_offset", "best first");
+    // Why a candidate may not be named (parameters outside their physical range, or not
+    // determined by the log): in the file, and on the candidate's progress line.
+    let reasons = |c: &serde_json::Value, key: &str| c[key].as_array().unwrap().len();
+    assert_eq!(
+        reasons(&cands[0], "implausible") + reasons(&cands[0], "undetermined"),
+        0
+    );
+    for c in cands {
+        let name = c["effect"].as_str().unwrap();
+        let blocked = reasons(c, "implausible") + reasons(c, "undetermined") > 0;
+        let lines: Vec<&str> = stderr
+            .lines()
+            .filter(|l| l.split_whitespace().next() == Some(name) && l.contains(" error "))
+            .collect();
+        if let Some(line) = lines.last() {
+            assert_eq!(line.contains("(not nameable: "), blocked, "{name}: {line}");
+        }
+    }
     let report = std::fs::read_to_string(dir.join("d/report.md")).unwrap();
     assert!(report.contains("tilt_offset") && report.contains("noise floor"));
     for ch in ["alpha", "v_alpha", "phiR_rel", "iR", "x"] {

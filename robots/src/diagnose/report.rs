@@ -87,6 +87,7 @@ pub fn diagnosis_json<P: Plant>(plant: &P, d: &Diagnosis) -> Value {
                 "fitted": c.fitted,
                 "plausible": c.implausible.is_empty(),
                 "implausible": c.implausible,
+                "undetermined": c.undetermined,
             })
         })
         .collect();
@@ -277,7 +278,7 @@ Every effect is screened by one linearisation at the nominal model; the promisin
     );
     let _ = writeln!(
         s,
-        "| candidate | score | error | fitted | parameters | physically plausible |\n|---|---|---|---|---|---|"
+        "| candidate | score | error | fitted | parameters | physically plausible | determined by the log |\n|---|---|---|---|---|---|---|"
     );
     for c in &d.candidates {
         let ps: Vec<String> = c
@@ -294,7 +295,7 @@ Every effect is screened by one linearisation at the nominal model; the promisin
             .collect();
         let _ = writeln!(
             s,
-            "| {} | {:.1} | {:.3} | {} | {} | {} |",
+            "| {} | {:.1} | {:.3} | {} | {} | {} | {} |",
             c.fit.candidate.name(cat),
             c.score,
             c.error,
@@ -304,6 +305,11 @@ Every effect is screened by one linearisation at the nominal model; the promisin
                 "yes".to_string()
             } else {
                 format!("no: {}", c.implausible.join("; "))
+            },
+            if c.undetermined.is_empty() {
+                "yes".to_string()
+            } else {
+                format!("no: {}", c.undetermined.join("; "))
             }
         );
     }

@@ -116,9 +116,19 @@ impl<P: Plant> Session<'_, P> {
         }
     }
 
+    /// One candidate's progress line; one that may not be named says why (a better score
+    /// passed over is otherwise a puzzle in the log).
     pub(super) fn say(&self, name: &str, s: &Scored) {
+        let why_not = s.implausible.iter().map(|r| format!("implausible: {r}"));
+        let why_not = why_not.chain(s.undetermined.iter().map(|r| format!("undetermined: {r}")));
+        let why_not: Vec<String> = why_not.collect();
+        let not_named = if why_not.is_empty() {
+            String::new()
+        } else {
+            format!("  (not nameable: {})", why_not.join("; "))
+        };
         (self.progress)(&format!(
-            "  {:<28} error {:>8.3}  score {:>14.1}  {} iterations  ({:.1} s)",
+            "  {:<28} error {:>8.3}  score {:>14.1}  {} iterations  ({:.1} s){not_named}",
             name,
             s.error,
             s.score,
