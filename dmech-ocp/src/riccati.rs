@@ -66,6 +66,8 @@ pub enum RiccatiError {
 /// `k` on one thread while another sweeps through `k + 1 … N−1`).
 pub struct BackwardSweep<const NX: usize, const NU: usize> {
     shift: f64,
+    /// The terminal cost `(Q_N, q_N)` without the shift, for [`BackwardSweep::reshift`].
+    terminal: (SMatrix<f64, NX, NX>, SVector<f64, NX>),
     eye_x: SMatrix<f64, NX, NX>,
     eye_u: SMatrix<f64, NU, NU>,
     /// `(P_k, p_k)` for `k = next … N` (a step reads `P_{k+1}` here, in place).
@@ -87,6 +89,7 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
     ) -> Self {
         let mut sweep = BackwardSweep {
             shift,
+            terminal: (SMatrix::zeros(), SVector::zeros()),
             eye_x: SMatrix::zeros(),
             eye_u: SMatrix::zeros(),
             cost_to_go: Vec::new(),
@@ -109,6 +112,7 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
         shift: f64,
     ) {
         self.shift = shift;
+        self.terminal = (*q_n, *q_vec_n);
         self.eye_x = SMatrix::<f64, NX, NX>::identity() * shift;
         self.eye_u = SMatrix::<f64, NU, NU>::identity() * shift;
         let terminal = (q_n + self.eye_x, *q_vec_n);
@@ -116,6 +120,13 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
         self.cost_to_go[n] = terminal;
         self.gains.resize(n, (SMatrix::zeros(), SVector::zeros()));
         self.next = n;
+    }
+
+    /// The sweep begun again over the same stages and terminal cost with another primal
+    /// shift (an inertia correction's next trial).
+    pub fn reshift(&mut self, shift: f64) {
+        let (n, (q_n, q_vec_n)) = (self.gains.len(), self.terminal);
+        self.restart(n, &q_n, &q_vec_n, shift);
     }
 
     /// Every remaining stage of `stages`, last first.
@@ -293,6 +304,21 @@ mod tests {
             })
             .collect();
         let sol = solve_lq(&lq, &fixed(&q_n), &fixed_v(&q_vec_n), &fixed_v(&x0), 0.0).unwrap();
+        // A sweep re-shifted (an inertia correction's retry) is the sweep begun with that
+        // shift, to the bit; and back at shift 0 it is the unshifted one.
+        let mut sweep = sweep_lq(&lq, &fixed(&q_n), &fixed_v(&q_vec_n), 0.0).unwrap();
+        let shifted = sweep_lq(&lq, &fixed(&q_n), &fixed_v(&q_vec_n), 0.7).unwrap();
+        sweep.reshift(0.7);
+        sweep.sweep_all(&lq).unwrap();
+        let (a, b) = (
+            sweep.forward(&lq, &fixed_v(&x0)),
+            shifted.forward(&lq, &fixed_v(&x0)),
+        );
+        assert_eq!((a.x, a.u, a.lambda), (b.x, b.u, b.lambda));
+        sweep.reshift(0.0);
+        sweep.sweep_all(&lq).unwrap();
+        let back = sweep.forward(&lq, &fixed_v(&x0));
+        assert_eq!((back.x, back.u), (sol.x.clone(), sol.u.clone()));
 
         // Dense KKT in z = (u_0, x_1, u_1, …, x_N), constraints x_{k+1} − A x_k − B u_k = c.
         let nz = n * nu + n * nx;

@@ -352,7 +352,6 @@ where
     ) -> Result<(Step<NX, NW, NC>, f64), String> {
         let t1 = Instant::now();
         let (first, t_sweep) = self.condense_workspace(it, ws, mu, dc, 0.0, None)?;
-        let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
         let Workspace {
             ders,
             lq,
@@ -373,7 +372,7 @@ where
             let swept = match attempt.take() {
                 Some(s) => s,
                 None => {
-                    sweep.restart(self.n, &q_n, &q_vec_n, delta);
+                    sweep.reshift(delta);
                     sweep.sweep_all(lq)
                 }
             };

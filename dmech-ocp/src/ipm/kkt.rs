@@ -86,10 +86,8 @@ where
             return self.newton_step_global(it, ws, inertia, mu, dc, tm);
         }
         let t1 = Instant::now();
-        let n = self.n;
         let (first, t_sweep) = self.condense_workspace(it, ws, mu, dc, 0.0, None)?;
         tm.riccati += t_sweep;
-        let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
         let Workspace {
             ders,
             lq,
@@ -105,7 +103,7 @@ where
                 Some(r) => r,
                 None => {
                     let t_r = Instant::now();
-                    sweep.restart(n, &q_n, &q_vec_n, delta);
+                    sweep.reshift(delta);
                     let r = sweep.sweep_all(lq);
                     tm.riccati += t_r.elapsed().as_secs_f64();
                     r
