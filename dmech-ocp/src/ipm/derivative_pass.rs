@@ -33,13 +33,16 @@ pub(super) struct Workspace<
 impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
     Workspace<NX, NW, NE, NU, NC>
 {
-    pub(super) fn new(n: usize, quasi_newton: bool) -> Self {
+    /// Every per-stage array for `n` stages, built on `threads` threads ([`par_vec`]).
+    pub(super) fn new(n: usize, quasi_newton: bool, threads: usize) -> Self {
         Workspace {
-            ders: vec![StageDerivatives::zeros(); n],
-            lq: vec![LqStage::zeros(); n],
-            elim: vec![Elimination::zeros(); n],
-            aux: vec![StageAux::zeros(); n],
-            qn: vec![QuasiNewton::new(); if quasi_newton { n } else { 0 }],
+            ders: par_vec(n, threads, |_| StageDerivatives::zeros()),
+            lq: par_vec(n, threads, |_| LqStage::zeros()),
+            elim: par_vec(n, threads, |_| Elimination::zeros()),
+            aux: par_vec(n, threads, |_| StageAux::zeros()),
+            qn: par_vec(if quasi_newton { n } else { 0 }, threads, |_| {
+                QuasiNewton::new()
+            }),
             constants: ConstantsTable::default(),
             terminal: TerminalDerivatives {
                 cost: 0.0,

@@ -56,7 +56,7 @@ use kkt::{KktError, StageAux, StageCurvature};
 use line_search::LineSearch;
 pub use options::{IpOptions, KktMethod, Status, Timings};
 pub use parallel::STAGE_THREAD_STACK;
-use parallel::{par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
+use parallel::{par_fill, par_update, par_vec, par_zip, par_zip3, PAR_CHUNK};
 use quasi_newton::QuasiNewton;
 use restoration::Restored;
 
@@ -310,7 +310,7 @@ where
         let mut filter = Filter::new(m.theta);
         let mut inertia = InertiaCorrection::default();
         let mut stall = StallWatch::new();
-        let mut ws = Workspace::new(self.n, o.quasi_newton);
+        let mut ws = Workspace::new(self.n, o.quasi_newton, o.threads);
         let mut last = LineSearch::none();
         let mut forced_steps = 0usize;
         let mut iter = 0;
