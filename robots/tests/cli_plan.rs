@@ -320,6 +320,102 @@ fn plans_a_short_waypoint_problem_with_free_timing() {
     }
 }
 
+/// The hook's free-timing plan at 20 ms with the total time priced at `price` per second:
+/// (energy, duration, energy of the fixed-timing plan).
+fn priced_hook(price: &str) -> (f64, f64, f64) {
+    let dir = scratch(&format!("hook-priced-{price}"));
+    let file = dir.join("wp.json");
+    std::fs::write(
+        &file,
+        r#"{"name": "hook", "points": [[0, 0], [0.6, 0.2], [1.0, 0.6]], "duration": 7.0,
+            "accel": 0.2, "start_heading": 0.0, "end_heading": 0.8}"#,
+    )
+    .unwrap();
+    let out = wip()
+        .args(["plan", file.to_str().unwrap(), "--step", "0.02"])
+        .args(["--free-timing", "--time-price", price, "--quiet"])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "--time-price {price} failed: {stderr}"
+    );
+    let summary = read_json(dir.join("summary.json"));
+    let free = &summary["free_timing"];
+    assert_eq!(summary["status"], "solved");
+    let (energy, duration) = (number(&summary, "objective"), number(free, "duration_s"));
+    let p: f64 = price.parse().unwrap();
+    assert!((number(free, "time_price") - p).abs() == 0.0);
+    assert!((number(free, "time_cost") - p * duration).abs() <= 1e-12 * p * duration);
+    // The duration is the segments' steps added: ratios × steps × h.
+    let ratios: Vec<f64> = free["step_ratios"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        ratios.iter().all(|&r| (0.5..=2.0).contains(&r)),
+        "{ratios:?}"
+    );
+    let durations: Vec<f64> = free["segment_durations_s"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!((durations.iter().sum::<f64>() - duration).abs() <= 1e-9 * duration);
+    let fixed = number(&free["fixed_timing"], "objective");
+    (energy, duration, fixed)
+}
+
+/// `--time-price`: the total time is free at a price per second. Each plan is no worse, in
+/// its own priced objective `E + p T`, than the fixed timing (7 s, a feasible point), and
+/// than the other price's plan (also feasible): the exchange inequalities that make the
+/// duration fall as the price rises. Up to the solver's tolerance on each objective.
+#[test]
+fn a_priced_total_time_trades_energy_for_time() {
+    let (p1, p2) = (1.0, 10.0);
+    let (e1, t1, fixed) = priced_hook("1");
+    let (e2, t2, _) = priced_hook("10");
+    let tol = |j: f64| 1e-6 * j.abs();
+    for (p, e, t) in [(p1, e1, t1), (p2, e2, t2)] {
+        let own = e + p * t;
+        let at_fixed = fixed + p * 7.0;
+        assert!(
+            own <= at_fixed + tol(at_fixed),
+            "p = {p}: {own} against fixed {at_fixed}"
+        );
+    }
+    assert!(
+        e1 + p1 * t1 <= e2 + p1 * t2 + tol(e2 + p1 * t2),
+        "{e1} {t1} / {e2} {t2}"
+    );
+    assert!(
+        e2 + p2 * t2 <= e1 + p2 * t1 + tol(e1 + p2 * t1),
+        "{e1} {t1} / {e2} {t2}"
+    );
+    assert!(
+        t2 < t1,
+        "the duration at the higher price: {t2} against {t1}"
+    );
+}
+
+/// `--time-price` without `--free-timing` is a usage error.
+#[test]
+fn a_time_price_needs_free_timing() {
+    let out = wip()
+        .args(["plan", "eight", "--time-price", "1", "--quiet"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--free-timing"), "{stderr}");
+}
+
 /// `--free-timing` needs the first-order variational integrator: exit 2 otherwise.
 #[test]
 fn free_timing_needs_the_variational_integrator() {

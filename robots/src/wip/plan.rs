@@ -558,24 +558,27 @@ pub struct FreeTimingOutcome {
     pub ratios: Vec<f64>,
 }
 
-/// The plan with free waypoint timing (the first-order VI; total time fixed): the
-/// fixed-timing plan by mesh sequencing, then, from its solution, the problem whose
-/// segments between waypoints each have their own step `h_j = σ_j h`, `σ_j` in
-/// [`FREE_TIMING_RATIOS`], `Σ N_j σ_j = N` ([`dmech_ocp::free_timing`]). The fixed
-/// timing is a feasible point of the free problem, so its objective is an upper bound.
+/// The plan with free waypoint timing (the first-order VI): the fixed-timing plan by mesh
+/// sequencing, then, from its solution, the problem whose segments between waypoints each
+/// have their own step `h_j = σ_j h`, `σ_j` in [`FREE_TIMING_RATIOS`]
+/// ([`dmech_ocp::free_timing`]), with the total time fixed (`Σ N_j σ_j = N`) or priced
+/// (`total`). The fixed timing is a feasible point of the free problem, so its objective
+/// (plus, when priced, the price of its duration) is an upper bound.
 pub fn plan_free_timing(
     wip: &Wip,
     problem: &PlanProblem,
     bounds: PlanBounds,
     current: CurrentModel,
+    total: TotalTime,
     opts: IpOptions,
 ) -> Result<FreeTimingOutcome, String> {
     match current {
-        CurrentModel::Dynamic => free_model::<Wip, 5, NX, 7, 9>(wip, problem, bounds, opts),
+        CurrentModel::Dynamic => free_model::<Wip, 5, NX, 7, 9>(wip, problem, bounds, total, opts),
         CurrentModel::Algebraic => free_model::<_, 3, NX_ALGEBRAIC, 5, 7>(
             &WipAlgebraicCurrent::new(*wip),
             problem,
             bounds,
+            total,
             opts,
         ),
     }
@@ -592,6 +595,7 @@ fn free_model<
     model: &M,
     problem: &PlanProblem,
     bounds: PlanBounds,
+    total: TotalTime,
     opts: IpOptions,
 ) -> Result<FreeTimingOutcome, String> {
     let disc = Discretisation::FirstOrder;
@@ -604,7 +608,7 @@ fn free_model<
     let timing = FreeTiming {
         segment_starts: problem.stages[..problem.stages.len() - 1].to_vec(),
         ratio_bounds: FREE_TIMING_RATIOS,
-        total: TotalTime::Fixed,
+        total,
     };
     let ft = FreeTimingTranscription::new::<NS, NC>(
         varint_plan::<M, NS>(model, problem, bounds, disc),
@@ -613,10 +617,14 @@ fn free_model<
     .map_err(|e| e.to_string())?;
     if opts.verbose {
         crate::progress!(
-            "free timing: {} segments, step ratios in [{}, {}], from the fixed-timing plan",
+            "free timing: {} segments, step ratios in [{}, {}], total time {}, from the fixed-timing plan",
             ft.segments(),
             FREE_TIMING_RATIOS.0,
-            FREE_TIMING_RATIOS.1
+            FREE_TIMING_RATIOS.1,
+            match total {
+                TotalTime::Fixed => "fixed".to_string(),
+                TotalTime::Priced(p) => format!("free at {p} per second"),
+            }
         );
     }
     let o = IpOptions {

@@ -4,6 +4,7 @@ use crate::common::{
     check_size, load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg,
     Failure, IntegratorArg,
 };
+use dmech_ocp::free_timing::TotalTime;
 use dmech_ocp::ipm::{IpOptions, KktMethod, Status};
 use robots::cli::HessianArg;
 use robots::io::OutputSet;
@@ -67,6 +68,11 @@ pub struct PlanArgs {
     /// timing's plan (docs/ocp.md, "Free waypoint timing"). Needs --integrator varint
     #[arg(long)]
     free_timing: bool,
+    /// With --free-timing, the total time free too, at this price per second added to the
+    /// objective (the energy ½ Σ u·i, docs/formats.md); the plan then trades energy for
+    /// time within the step ratios [0.5, 2]. Without it the total time stays fixed
+    #[arg(long, value_name = "PER_SECOND", value_parser = time_price, requires = "free_timing")]
+    time_price: Option<f64>,
     /// Linear algebra of the Newton step: the Riccati recursion (augmented by the globals
     /// of --free-timing) or faer's sparse LDLᵀ of the whole KKT matrix (docs/ocp.md)
     #[arg(long, value_enum, default_value_t = KktArg::Riccati)]
@@ -95,6 +101,14 @@ fn voltage_bound(s: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!("{v} V is outside (0, 5] V"))
+    }
+}
+
+/// `--time-price`: a price per second, finite and not negative.
+fn time_price(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(p) if p.is_finite() && p >= 0.0 => Ok(p),
+        _ => Err(format!("'{s}' is not a price per second ≥ 0")),
     }
 }
 
@@ -163,8 +177,12 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         u_max: a.u_max,
         ..PlanBounds::default()
     };
-    let (o, free) = if a.free_timing {
-        let f = plan_free_timing(&wip, &problem, bounds, a.current.model(), opts)
+    let total = match a.time_price {
+        Some(p) => TotalTime::Priced(p),
+        None => TotalTime::Fixed,
+    };
+    let (mut o, free) = if a.free_timing {
+        let f = plan_free_timing(&wip, &problem, bounds, a.current.model(), total, opts)
             .map_err(|e| Failure::Run(e.to_string()))?;
         let fixed = (f.fixed.objective, f.fixed.iterations, f.fixed.timings.total);
         say!(
@@ -187,6 +205,14 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         );
         (o, None)
     };
+    // A priced total time is part of the solver's objective; the reported objective stays
+    // the energy, and the price of the duration is reported beside it.
+    let duration = o.times.as_ref().and_then(|t| t.last().copied());
+    let time_cost = match (total, duration) {
+        (TotalTime::Priced(p), Some(t)) => p * t,
+        _ => 0.0,
+    };
+    o.objective -= time_cost;
     let traj = reduced_trajectory(&wip, &o);
     let csv = trajectory_csv(&traj)?;
     files.write("trajectory.csv", csv.as_bytes())?;
@@ -212,6 +238,9 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
                 .map(|w| t[w[1]] - t[w[0]])
                 .collect();
             v["free_timing"] = serde_json::json!({
+                "time_price": a.time_price,
+                "duration_s": t.last(),
+                "time_cost": time_cost,
                 "step_ratios": ratios,
                 "segment_durations_s": durations,
                 "waypoint_times_s": problem.stages.iter().map(|&k| t[k]).collect::<Vec<f64>>(),
