@@ -64,8 +64,9 @@ pub struct PlanArgs {
     #[arg(long, value_name = "N", value_parser = thread_count)]
     threads: Option<usize>,
     /// Free waypoint timing: the planner chooses when each waypoint is reached (each
-    /// segment's step within [0.5, 2] of --step, total time fixed), starting from the fixed
-    /// timing's plan (docs/ocp.md, "Free waypoint timing"). Needs --integrator varint
+    /// segment's step within [0.5, 2] of --step, the total time fixed unless --time-price),
+    /// starting from the fixed timing's plan (docs/ocp.md, "Free waypoint timing"). Needs
+    /// --integrator varint
     #[arg(long)]
     free_timing: bool,
     /// With --free-timing, the total time free too, at this price per second added to the
