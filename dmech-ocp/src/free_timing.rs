@@ -21,10 +21,12 @@ use crate::ipm::Iterate;
 use crate::layout::segment;
 use crate::problem::{GlobalEquality, Globals, StageProblem, StateEquality};
 use crate::transcription::{PlannedTrajectory, PlanningProblem, VarIntTranscription};
-use dmech::partials::{dl_ds, dl_dv, dl_dxi};
+use crate::varint::VarIntStages;
+use dmech::partials::{dl_ds, dl_dv, dl_dxi, jacobian_part, lift_vec, seeded, split_passes};
 use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
 use dmech_lie::{LieGroup, Real};
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
+use num_dual::{Derivative, DualSVec64, DualVec};
 
 /// How the plan's total time enters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -293,6 +295,53 @@ where
                 * (dexp_inv(&(xi_prev * (-h_prev))).transpose()
                     * dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, &s_prev, &v_prev, &xi_prev));
         (out - inc) / h - sys.forcing(&s, &v, &u)
+    }
+    /// Inside a segment (both ratios of the stage equal, as the solver keeps the copies of
+    /// one global) the residual is the fixed-step one at `h = σ h̄` ([`Self::equality`]'s
+    /// docs), so its partials in `x` and `(v_k, u_k)` are the fixed transcription's
+    /// structured ones at that step ([`VarIntStages::first_order_equality_partials`]), and
+    /// one vector-dual pass of two lanes gives the ratios' columns. At a segment's first
+    /// stage the two steps differ: both passes of the generic path. Why: the generic path
+    /// seeds all of `x` and `w` in nested duals (three evaluations of `ℓ` per momentum),
+    /// most of a free iteration's derivative pass.
+    fn equality_jacobian(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
+        // The value as the line search measures it (see `VarIntStages::equality_jacobian`).
+        let e = self.equality(k, x, w);
+        let (sigma_prev, sigma) = (w[NW - 2], w[NW - 1]);
+        if sigma_prev != sigma {
+            let ex = self.equality(k, &seeded(x), &lift_vec::<f64, NX, NW>(w));
+            let ew = self.equality(k, &lift_vec::<f64, NW, NX>(x), &seeded(w));
+            let (_, ex, ew) = split_passes(&ex, &ew);
+            return (e, ex, ew);
+        }
+        let st = &self.plan.stages;
+        let at_step = VarIntStages {
+            sys: st.sys,
+            h: sigma * st.h,
+            quadrature: st.quadrature,
+            discretisation: st.discretisation,
+            layout: st.layout,
+        };
+        let (ex, mut ew) = at_step.first_order_equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w);
+        // w's last two entries (the ratios) seeded, the rest constant.
+        let ratios_seeded =
+            SVector::<DualSVec64<2>, NW>::from_fn(|i, _| match i.checked_sub(NW - 2) {
+                Some(lane) => {
+                    let mut eps = SVector::<f64, 2>::zeros();
+                    eps[lane] = 1.0;
+                    DualVec::new(w[i], Derivative::some(eps))
+                }
+                None => DualSVec64::<2>::from_re(w[i]),
+            });
+        let r = self.equality(k, &lift_vec::<f64, 2, NX>(x), &ratios_seeded);
+        let dr = jacobian_part(&r);
+        ew.fixed_columns_mut::<2>(NW - 2).copy_from(&dr);
+        (e, ex, ew)
     }
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         let stage = self.plan.stage::<T, NS, NX, NW>(x, w);

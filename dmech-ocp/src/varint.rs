@@ -238,8 +238,40 @@ impl<'a, S> VarIntStages<'a, S> {
         if self.discretisation == Discretisation::Midpoint {
             return self.midpoint_equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w);
         }
+        self.layout.check(NX, NW, NS + NU);
+        // The value as the line search measures it (`equality` in f64): the residual the
+        // Newton step removes must be the one the filter sees, to the last bit (the s-pass's
+        // real parts differ by round-off, and the iteration count is sensitive to it).
+        let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
+        let (ex, ew) = self.first_order_equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w);
+        (e, ex, ew)
+    }
+
+    /// `(E_x, E_w)` of the first-order scheme's residual at this step, each block of
+    /// `(s_k, v_{k−1}, u_{k−1}, v_k, u_k)` seeded alone. `w` starts with `(v_k, u_k)` and may
+    /// carry more entries (a free-timing stage's step ratios), whose columns stay zero: the
+    /// residual at a fixed step does not read them.
+    #[allow(clippy::type_complexity)]
+    pub fn first_order_equality_partials<
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    >(
+        &self,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>)
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        assert!(
+            self.discretisation == Discretisation::FirstOrder && NW >= NS + NU,
+            "the first-order scheme's partials, with (v_k, u_k) leading the decision"
+        );
         let l = self.layout;
-        l.check(NX, NW, NS + NU);
         let s: SVector<f64, NS> = segment(x, l.s_at());
         let v_prev: SVector<f64, NS> = segment(x, l.v_at());
         let u_prev: SVector<f64, NU> = segment(x, l.u_at());
@@ -257,10 +289,6 @@ impl<'a, S> VarIntStages<'a, S> {
             incoming,
             force,
         };
-        // The value as the line search measures it (`equality` in f64): the residual the
-        // Newton step removes must be the one the filter sees, to the last bit (the s-pass's
-        // real parts differ by round-off, and the iteration count is sensitive to it).
-        let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
         // s_k: every term.
         let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
             terms(true, true, true),
@@ -314,7 +342,7 @@ impl<'a, S> VarIntStages<'a, S> {
             );
             put_columns(&mut ew, NS, &r);
         }
-        (e, ex, ew)
+        (ex, ew)
     }
 
     /// [`VarIntStages::equality_jacobian`] of the midpoint scheme: each block of

@@ -9,13 +9,15 @@
 
 use dmech::partials::{seeded, split_passes};
 use dmech::{Discretisation, ForcingQuadrature, RungeKutta};
+use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
+use dmech_ocp::problem::StageProblem;
 use dmech_ocp::runge_kutta::RkStages;
 use dmech_ocp::varint::VarIntStages;
 use nalgebra::SVector;
 use num_dual::DualSVec64;
 use robots::wip::algebraic_current::WipAlgebraicCurrent;
 use robots::wip::benchmarks::eight;
-use robots::wip::plan::{rk_start, varint_start, PlanModel};
+use robots::wip::plan::{rk_start, varint_plan, varint_start, PlanBounds, PlanModel, NC};
 use robots::wip::Wip;
 
 /// Both are exact derivatives evaluated in double precision along different operation
@@ -61,6 +63,74 @@ fn structured_equality_jacobian_equals_generic() {
             }
         }
     }
+}
+
+/// The free-timing transcription's equality Jacobian (inside a segment: the fixed step's
+/// structured partials at `σ h̄` and a two-lane pass for the ratios; at a segment's first
+/// stage: the generic passes) against vector duals through the whole variable-step
+/// residual, at the eight's start perturbed, with ratios drawn in [0.5, 2].
+#[test]
+fn free_timing_equality_jacobian_equals_generic() {
+    let wip = Wip::default();
+    let p = eight(0.02);
+    let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
+    let plan = varint_plan::<Wip, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
+    let timing = FreeTiming {
+        segment_starts: p.stages[..p.stages.len() - 1].to_vec(),
+        ratio_bounds: (0.5, 2.0),
+        total: TotalTime::Fixed,
+    };
+    let ft = FreeTimingTranscription::new::<5, NC>(plan, timing).unwrap();
+    let mut rand = lcg(2024);
+    let mut inside = 0;
+    let last = ws.len() - 1;
+    // Stages inside segments and every segment's first stage (k > 0: two different steps).
+    let stages: Vec<usize> = [1, 2, 100, 500, last]
+        .into_iter()
+        .chain(p.stages[1..p.stages.len() - 1].iter().copied())
+        .collect();
+    for k in stages {
+        let first = p.stages.contains(&k);
+        for perturb in [0.0, 0.2] {
+            let x: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
+            let sigma = 1.25 + 0.75 * rand() * 2.0;
+            let sigma_prev = if first {
+                1.25 - 0.75 * rand().abs()
+            } else {
+                sigma
+            };
+            let w = SVector::<f64, 9>::from_fn(|i, _| match i {
+                7 => sigma_prev,
+                8 => sigma,
+                _ => ws[k][i] + perturb * rand(),
+            });
+            let (e, ex, ew) = StageProblem::<15, 9, 5, NC>::equality_jacobian(&ft, k, &x, &w);
+            let gx = StageProblem::<15, 9, 5, NC>::equality(
+                &ft,
+                k,
+                &seeded(&x),
+                &w.map(DualSVec64::<15>::from_re),
+            );
+            let gw = StageProblem::<15, 9, 5, NC>::equality(
+                &ft,
+                k,
+                &x.map(DualSVec64::<9>::from_re),
+                &seeded(&w),
+            );
+            let (e_ref, ex_ref, ew_ref) = split_passes(&gx, &gw);
+            let scale = ex_ref.amax().max(ew_ref.amax()).max(1.0);
+            let err = (ex - ex_ref)
+                .amax()
+                .max((ew - ew_ref).amax())
+                .max((e - e_ref).amax());
+            assert!(
+                err <= ROUND_OFF * scale,
+                "stage {k} (first of a segment: {first}), perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
+            );
+            inside += usize::from(!first);
+        }
+    }
+    assert!(inside >= 10, "stages inside segments checked: {inside}");
 }
 
 /// `(f, F_x, F_w)` of an RK transcription by its route (the stages composed in `f64`, each
