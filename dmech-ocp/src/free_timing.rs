@@ -17,6 +17,9 @@
 //! ([`crate::problem::Globals`]). The robot's cost and constraints see the step ratio
 //! through [`PlanningProblem::cost_at_step`] and [`PlanningProblem::constraints_at_step`].
 
+use crate::derivatives::{
+    cost_and_inequalities, generic_cost_curvature, hess2, seed2, seed_hyper, HessianBlocks,
+};
 use crate::ipm::Iterate;
 use crate::layout::segment;
 use crate::problem::{GlobalEquality, Globals, StageProblem, StateEquality};
@@ -26,7 +29,7 @@ use dmech::partials::{dl_ds, dl_dv, dl_dxi, jacobian_part, lift_vec, seeded, spl
 use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
-use num_dual::{Derivative, DualSVec64, DualVec};
+use num_dual::{Derivative, Dual2SVec64, DualSVec64, DualVec, HyperDualSVec64};
 
 /// How the plan's total time enters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -342,6 +345,49 @@ where
         let dr = jacobian_part(&r);
         ew.fixed_columns_mut::<2>(NW - 2).copy_from(&dr);
         (e, ex, ew)
+    }
+    /// When the robot's problem is affine in its configuration and previous input, and
+    /// those multiply neither velocity nor input ([`PlanningProblem::affine_in_configuration`];
+    /// the step ratio enters through `cost_at_step` and `constraints_at_step`, which keep
+    /// that form for a fixed ratio), `s ℓ_k + ζᵀc_k` is affine in `x` for a fixed `w`, and
+    /// `x` meets `w` only through the ratios (a cost per stage times `σ_k`, a rate limit
+    /// divided by it). So `∇²_xx = 0`, `∇²_xw` has only the ratios' two columns (one
+    /// hyper-dual pass, `x` against the ratios), and `∇²_ww` takes one second-order pass
+    /// over `w`. Why: the generic route's `xx` pass over all of `x` and its `xw` pass
+    /// against all of `w` were most of the curvature's cost. Otherwise the generic route.
+    fn cost_curvature(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+        cost_scale: f64,
+        zeta: &SVector<f64, NC>,
+    ) -> HessianBlocks<NX, NW> {
+        if !self.plan.problem.affine_in_configuration() {
+            return generic_cost_curvature::<Self, NX, NW, NS, NC>(self, k, x, w, cost_scale, zeta);
+        }
+        let hww = hess2(&cost_and_inequalities::<Self, _, NX, NW, NS, NC>(
+            self,
+            k,
+            cost_scale,
+            zeta,
+            &x.map(Dual2SVec64::<NW>::from_re),
+            &seed2(w),
+        ));
+        let ratios: SVector<f64, 2> = w.fixed_rows::<2>(NW - 2).into_owned();
+        let (xh, rh) = seed_hyper(x, &ratios);
+        let wh =
+            SVector::<HyperDualSVec64<NX, 2>, NW>::from_fn(|i, _| match i.checked_sub(NW - 2) {
+                Some(j) => rh[j],
+                None => HyperDualSVec64::<NX, 2>::from_re(w[i]),
+            });
+        let mut hxw = SMatrix::<f64, NX, NW>::zeros();
+        let xr =
+            cost_and_inequalities::<Self, _, NX, NW, NS, NC>(self, k, cost_scale, zeta, &xh, &wh);
+        if let Some(hxr) = xr.eps1eps2.0 {
+            hxw.fixed_columns_mut::<2>(NW - 2).copy_from(&hxr);
+        }
+        (SMatrix::zeros(), hxw, hww)
     }
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         let stage = self.plan.stage::<T, NS, NX, NW>(x, w);

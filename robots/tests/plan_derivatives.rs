@@ -9,6 +9,7 @@
 
 use dmech::partials::{seeded, split_passes};
 use dmech::{Discretisation, ForcingQuadrature, RungeKutta};
+use dmech_ocp::derivatives::generic_cost_curvature;
 use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
 use dmech_ocp::problem::StageProblem;
 use dmech_ocp::runge_kutta::RkStages;
@@ -131,6 +132,54 @@ fn free_timing_equality_jacobian_equals_generic() {
         }
     }
     assert!(inside >= 10, "stages inside segments checked: {inside}");
+}
+
+/// The free-timing transcription's cost curvature (`xx` zero, `xw` in the ratios'
+/// columns, `ww` by one pass) against the generic route over the whole stage, with the
+/// inequality multipliers and the cost scale drawn at random, at the eight's start
+/// perturbed and ratios in [0.5, 2].
+#[test]
+fn free_timing_cost_curvature_equals_generic() {
+    let wip = Wip::default();
+    let p = eight(0.02);
+    let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
+    let plan = varint_plan::<Wip, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
+    let timing = FreeTiming {
+        segment_starts: p.stages[..p.stages.len() - 1].to_vec(),
+        ratio_bounds: (0.5, 2.0),
+        total: TotalTime::Fixed,
+    };
+    let ft = FreeTimingTranscription::new::<5, NC>(plan, timing).unwrap();
+    let mut rand = lcg(77);
+    let mut largest = 0.0f64;
+    for k in [0, 1, 2, 100, 500, ws.len() - 1] {
+        for perturb in [0.0, 0.2] {
+            let x: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
+            let w = SVector::<f64, 9>::from_fn(|i, _| match i {
+                7 | 8 => 1.25 + 1.5 * rand(),
+                _ => ws[k][i] + perturb * rand(),
+            });
+            let zeta = SVector::<f64, NC>::from_fn(|_, _| 10.0 * rand());
+            let scale = 0.5 + rand();
+            let (hxx, hxw, hww) =
+                StageProblem::<15, 9, 5, NC>::cost_curvature(&ft, k, &x, &w, scale, &zeta);
+            let (rxx, rxw, rww) =
+                generic_cost_curvature::<_, 15, 9, 5, NC>(&ft, k, &x, &w, scale, &zeta);
+            let size = rxx.amax().max(rxw.amax()).max(rww.amax()).max(1.0);
+            let err = (hxx - rxx)
+                .amax()
+                .max((hxw - rxw).amax())
+                .max((hww - rww).amax());
+            assert!(
+                err <= ROUND_OFF * size,
+                "stage {k}, perturbation {perturb}: error {err:.3e} (size {size:.3e})"
+            );
+            largest = largest.max(rxw.amax());
+        }
+    }
+    // The ratios do meet the state (the rate limit's previous input): the check has a
+    // nonzero cross block to compare.
+    assert!(largest > 0.0);
 }
 
 /// `(f, F_x, F_w)` of an RK transcription by its route (the stages composed in `f64`, each
