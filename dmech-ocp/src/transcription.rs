@@ -192,7 +192,9 @@ pub trait PlanningProblem<const NP: usize, const NS: usize, const NU: usize, con
     /// `true` if the cost and the constraints are affine in the pose, the shape and the
     /// previous input, and those multiply neither the velocity nor the input. A variational
     /// transcription then tells the solver its cost is affine in the state (which saves
-    /// two of three second-order passes). Default `false`.
+    /// two of three second-order passes). The same must hold of
+    /// [`PlanningProblem::cost_at_step`] and [`PlanningProblem::constraints_at_step`] at a
+    /// fixed ratio (the free-timing curvature relies on it). Default `false`.
     fn affine_in_configuration(&self) -> bool {
         false
     }
