@@ -59,9 +59,8 @@ fn plan_short_problem_with(current: &str, h: f64, integrator: &str) {
     plan_short_problem_within(current, h, integrator, 5.0);
 }
 
-/// Plan the hook with voltage bound `u_max`, check it, and return the peak `|u|`.
-fn plan_short_problem_within(current: &str, h: f64, integrator: &str, u_max: f64) -> f64 {
-    let dir = scratch(&format!("short-{current}-{h}-{integrator}-{u_max}"));
+/// The hook (three waypoints, 7 s) as a waypoint file in `dir`.
+fn hook_file(dir: &std::path::Path) -> std::path::PathBuf {
     let file = dir.join("wp.json");
     std::fs::write(
         &file,
@@ -69,6 +68,13 @@ fn plan_short_problem_within(current: &str, h: f64, integrator: &str, u_max: f64
             "accel": 0.2, "start_heading": 0.0, "end_heading": 0.8}"#,
     )
     .unwrap();
+    file
+}
+
+/// Plan the hook with voltage bound `u_max`, check it, and return the peak `|u|`.
+fn plan_short_problem_within(current: &str, h: f64, integrator: &str, u_max: f64) -> f64 {
+    let dir = scratch(&format!("short-{current}-{h}-{integrator}-{u_max}"));
+    let file = hook_file(&dir);
     let out = wip()
         .args([
             "plan",
@@ -243,13 +249,7 @@ fn malformed_waypoint_files_exit_1() {
 #[test]
 fn plans_a_short_waypoint_problem_with_free_timing() {
     let dir = scratch("short-free-timing");
-    let file = dir.join("wp.json");
-    std::fs::write(
-        &file,
-        r#"{"name": "hook", "points": [[0, 0], [0.6, 0.2], [1.0, 0.6]], "duration": 7.0,
-            "accel": 0.2, "start_heading": 0.0, "end_heading": 0.8}"#,
-    )
-    .unwrap();
+    let file = hook_file(&dir);
     let h = 0.02;
     let out = wip()
         .args([
@@ -324,13 +324,7 @@ fn plans_a_short_waypoint_problem_with_free_timing() {
 /// (energy, duration, energy of the fixed-timing plan).
 fn priced_hook(price: &str) -> (f64, f64, f64) {
     let dir = scratch(&format!("hook-priced-{price}"));
-    let file = dir.join("wp.json");
-    std::fs::write(
-        &file,
-        r#"{"name": "hook", "points": [[0, 0], [0.6, 0.2], [1.0, 0.6]], "duration": 7.0,
-            "accel": 0.2, "start_heading": 0.0, "end_heading": 0.8}"#,
-    )
-    .unwrap();
+    let file = hook_file(&dir);
     let out = wip()
         .args(["plan", file.to_str().unwrap(), "--step", "0.02"])
         .args(["--free-timing", "--time-price", price, "--quiet"])

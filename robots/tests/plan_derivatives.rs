@@ -14,16 +14,32 @@ use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
 use dmech_ocp::problem::StageProblem;
 use dmech_ocp::runge_kutta::RkStages;
 use dmech_ocp::varint::VarIntStages;
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
 use robots::wip::algebraic_current::WipAlgebraicCurrent;
 use robots::wip::benchmarks::eight;
-use robots::wip::plan::{rk_start, varint_plan, varint_start, PlanBounds, PlanModel, NC};
+use robots::wip::benchmarks::PlanProblem;
+use robots::wip::plan::{rk_start, varint_plan, varint_start, PlanBounds, PlanModel, WipPlan, NC};
 use robots::wip::Wip;
 
 /// Both are exact derivatives evaluated in double precision along different operation
 /// orders: they may differ by round-off, a few hundred ulps of the largest entry.
 const ROUND_OFF: f64 = 512.0 * f64::EPSILON;
+
+/// The largest difference between two `(value, ∂/∂x, ∂/∂w)` triples, and the scale it is
+/// measured against (the reference Jacobian's largest entry, at least 1).
+#[allow(clippy::type_complexity)]
+fn jacobian_error<const M: usize, const NX: usize, const NW: usize>(
+    got: (SVector<f64, M>, SMatrix<f64, M, NX>, SMatrix<f64, M, NW>),
+    want: (SVector<f64, M>, SMatrix<f64, M, NX>, SMatrix<f64, M, NW>),
+) -> (f64, f64) {
+    let scale = want.1.amax().max(want.2.amax()).max(1.0);
+    let err = (got.1 - want.1)
+        .amax()
+        .max((got.2 - want.2).amax())
+        .max((got.0 - want.0).amax());
+    (err, scale)
+}
 
 #[test]
 fn structured_equality_jacobian_equals_generic() {
@@ -51,12 +67,7 @@ fn structured_equality_jacobian_equals_generic() {
                     &x.map(DualSVec64::<7>::from_re),
                     &seeded(&w),
                 );
-                let (e_ref, ex_ref, ew_ref) = split_passes(&gx, &gw);
-                let scale = ex_ref.amax().max(ew_ref.amax()).max(1.0);
-                let err = (ex - ex_ref)
-                    .amax()
-                    .max((ew - ew_ref).amax())
-                    .max((e - e_ref).amax());
+                let (err, scale) = jacobian_error((e, ex, ew), split_passes(&gx, &gw));
                 assert!(
                     err <= ROUND_OFF * scale,
                     "{d:?} {q:?}, stage {k}, perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
@@ -64,6 +75,21 @@ fn structured_equality_jacobian_equals_generic() {
             }
         }
     }
+}
+
+/// The WIP's first-order VI plan of `p` with a free step ratio per segment between
+/// waypoints, in [0.5, 2], the total time fixed.
+fn free_timing_plan<'a>(
+    wip: &'a Wip,
+    p: &'a PlanProblem,
+) -> FreeTimingTranscription<'a, Wip, WipPlan<'a, Wip>, 3, 2, 3, 2> {
+    let plan = varint_plan::<Wip, 5>(wip, p, PlanBounds::default(), Discretisation::FirstOrder);
+    let timing = FreeTiming {
+        segment_starts: p.stages[..p.stages.len() - 1].to_vec(),
+        ratio_bounds: (0.5, 2.0),
+        total: TotalTime::Fixed,
+    };
+    FreeTimingTranscription::new::<5, NC>(plan, timing).unwrap()
 }
 
 /// The free-timing transcription's equality Jacobian (inside a segment: the fixed step's
@@ -75,13 +101,7 @@ fn free_timing_equality_jacobian_equals_generic() {
     let wip = Wip::default();
     let p = eight(0.02);
     let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
-    let plan = varint_plan::<Wip, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
-    let timing = FreeTiming {
-        segment_starts: p.stages[..p.stages.len() - 1].to_vec(),
-        ratio_bounds: (0.5, 2.0),
-        total: TotalTime::Fixed,
-    };
-    let ft = FreeTimingTranscription::new::<5, NC>(plan, timing).unwrap();
+    let ft = free_timing_plan(&wip, &p);
     let mut rand = lcg(2024);
     let mut inside = 0;
     let last = ws.len() - 1;
@@ -118,12 +138,7 @@ fn free_timing_equality_jacobian_equals_generic() {
                 &x.map(DualSVec64::<9>::from_re),
                 &seeded(&w),
             );
-            let (e_ref, ex_ref, ew_ref) = split_passes(&gx, &gw);
-            let scale = ex_ref.amax().max(ew_ref.amax()).max(1.0);
-            let err = (ex - ex_ref)
-                .amax()
-                .max((ew - ew_ref).amax())
-                .max((e - e_ref).amax());
+            let (err, scale) = jacobian_error((e, ex, ew), split_passes(&gx, &gw));
             assert!(
                 err <= ROUND_OFF * scale,
                 "stage {k} (first of a segment: {first}), perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
@@ -143,13 +158,7 @@ fn free_timing_cost_curvature_equals_generic() {
     let wip = Wip::default();
     let p = eight(0.02);
     let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
-    let plan = varint_plan::<Wip, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
-    let timing = FreeTiming {
-        segment_starts: p.stages[..p.stages.len() - 1].to_vec(),
-        ratio_bounds: (0.5, 2.0),
-        total: TotalTime::Fixed,
-    };
-    let ft = FreeTimingTranscription::new::<5, NC>(plan, timing).unwrap();
+    let ft = free_timing_plan(&wip, &p);
     let mut rand = lcg(77);
     let mut largest = 0.0f64;
     for k in [0, 1, 2, 100, 500, ws.len() - 1] {
