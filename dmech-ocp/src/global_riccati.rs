@@ -61,6 +61,26 @@ pub struct GlobalSchur<const NXG: usize, const NUG: usize> {
     pub psi_vec: DVector<f64>,
 }
 
+/// The distinct globals of `support`, in order of first appearance, and for each the sum
+/// of `b`'s columns that read it: the nonzero columns of `b S_kᵀ`.
+fn distinct_columns<const R: usize, const NT: usize>(
+    b: &SMatrix<f64, R, NT>,
+    support: &[usize],
+) -> (Vec<usize>, Vec<SVector<f64, R>>) {
+    let mut js: Vec<usize> = Vec::with_capacity(NT);
+    let mut cols: Vec<SVector<f64, R>> = Vec::with_capacity(NT);
+    for (a, &j) in support.iter().enumerate() {
+        match js.iter().position(|&i| i == j) {
+            Some(i) => cols[i] += b.column(a),
+            None => {
+                js.push(j);
+                cols.push(b.column(a).into_owned());
+            }
+        }
+    }
+    (js, cols)
+}
+
 /// `m S_kᵀ`: the `NT` columns of `m` added into the columns `support` of an `r × n_g`
 /// matrix.
 fn scatter_columns<const R: usize, const NT: usize>(
@@ -103,19 +123,40 @@ pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
         let chol = huu
             .cholesky()
             .ok_or(RiccatiError::NotPositiveDefinite { stage: k })?;
-        let pi_next = pi[k + 1].clone();
-        let g = scatter_columns(&cp.b_t, sup, ng);
-        let m = p_mat * &g + &pi_next;
+        // G = B_θ S_kᵀ has a column only at the stage's distinct globals (a global read
+        // twice, as a free-timing stage reads its segment's ratio, adds its columns): the
+        // products with G are taken over those columns alone.
+        let (js, gcols) = distinct_columns(&cp.b_t, sup);
+        let pi_next = &pi[k + 1];
+        let mut m = pi_next.clone();
+        for (&j, gj) in js.iter().zip(&gcols) {
+            let pg = p_mat * gj;
+            let mut col = m.column_mut(j);
+            col += pg;
+        }
         let h_up = scatter_columns(&cp.s_ut, sup, ng) + st.b.transpose() * &m;
         let h_xp = scatter_columns(&cp.s_xt, sup, ng) + st.a.transpose() * &m;
         let mut k_p = h_up.clone();
         chol.solve_mut(&mut k_p);
         k_p.neg_mut();
-        pi[k] = h_xp + hux.transpose() * &k_p;
-        // Ψ += S R_θθ Sᵀ + Gᵀ P G + Gᵀ Π + Πᵀ G + H_upᵀ K_p, kept symmetric.
-        let gt_m = g.transpose() * &m;
-        let mut add =
-            &gt_m + gt_m.transpose() - g.transpose() * p_mat * &g + h_up.transpose() * &k_p;
+        // Ψ += S R_θθ Sᵀ + Gᵀ P G + Gᵀ Π + Πᵀ G + H_upᵀ K_p, kept symmetric; with
+        // M = P G + Π, Gᵀ M + Mᵀ G − Gᵀ P G is the same sum.
+        let mut add = h_up.transpose() * &k_p;
+        for (a, (&ja, ga)) in js.iter().zip(&gcols).enumerate() {
+            let gtm = ga.transpose() * &m;
+            for j in 0..ng {
+                add[(ja, j)] += gtm[j];
+                add[(j, ja)] += gtm[j];
+            }
+            let pga = p_mat * ga;
+            for (&jb, gb) in js.iter().zip(&gcols).take(a + 1) {
+                let gpg = gb.dot(&pga);
+                add[(ja, jb)] -= gpg;
+                if ja != jb {
+                    add[(jb, ja)] -= gpg;
+                }
+            }
+        }
         for (a, &ja) in sup.iter().enumerate() {
             for (b, &jb) in sup.iter().enumerate() {
                 add[(ja, jb)] += cp.r_tt[(a, b)];
@@ -123,10 +164,14 @@ pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
         }
         psi += (&add + add.transpose()) * 0.5;
         let pc = p_mat * st.c + p_vec;
-        psi_vec += g.transpose() * pc + pi_next.transpose() * st.c + h_up.transpose() * kappa;
+        psi_vec += pi_next.transpose() * st.c + h_up.transpose() * kappa;
+        for (&j, gj) in js.iter().zip(&gcols) {
+            psi_vec[j] += gj.dot(&pc);
+        }
         for (a, &ja) in sup.iter().enumerate() {
             psi_vec[ja] += cp.q_t[a];
         }
+        pi[k] = h_xp + hux.transpose() * &k_p;
         kp[k] = k_p;
     }
     psi_vec += pi[0].transpose() * x0;
