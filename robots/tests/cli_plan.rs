@@ -368,33 +368,42 @@ fn priced_hook(price: &str) -> (f64, f64, f64) {
 
 /// `--time-price`: the total time is free at a price per second. Each plan is no worse, in
 /// its own priced objective `E + p T`, than the fixed timing (7 s, a feasible point), and
-/// than the other price's plan (also feasible): the exchange inequalities that make the
-/// duration fall as the price rises. Up to the solver's tolerance on each objective.
+/// than the other prices' plans (also feasible): the exchange inequalities that make the
+/// duration fall as the price rises. Up to the solver's tolerance on each objective. The
+/// highest price (1e6 per second) checks the objective scaling's gradient cap: without
+/// it the solve crawled and ended "infeasible".
 #[test]
 fn a_priced_total_time_trades_energy_for_time() {
-    let (p1, p2) = (1.0, 10.0);
-    let (e1, t1, fixed) = priced_hook("1");
-    let (e2, t2, _) = priced_hook("10");
+    let plans: Vec<(f64, (f64, f64, f64))> = ["1", "10", "1e6"]
+        .iter()
+        .map(|p| (p.parse().unwrap(), priced_hook(p)))
+        .collect();
     let tol = |j: f64| 1e-6 * j.abs();
-    for (p, e, t) in [(p1, e1, t1), (p2, e2, t2)] {
+    for &(p, (e, t, fixed)) in &plans {
         let own = e + p * t;
         let at_fixed = fixed + p * 7.0;
         assert!(
             own <= at_fixed + tol(at_fixed),
             "p = {p}: {own} against fixed {at_fixed}"
         );
+        for &(_, (e_other, t_other, _)) in &plans {
+            let other = e_other + p * t_other;
+            assert!(
+                own <= other + tol(other),
+                "p = {p}: {e} {t} against {e_other} {t_other}"
+            );
+        }
+    }
+    for w in plans.windows(2) {
+        let ((p1, (_, t1, _)), (p2, (_, t2, _))) = (w[0], w[1]);
+        assert!(
+            t2 <= t1,
+            "the duration at {p2} per second: {t2} against {t1} at {p1}"
+        );
     }
     assert!(
-        e1 + p1 * t1 <= e2 + p1 * t2 + tol(e2 + p1 * t2),
-        "{e1} {t1} / {e2} {t2}"
-    );
-    assert!(
-        e2 + p2 * t2 <= e1 + p2 * t1 + tol(e1 + p2 * t1),
-        "{e1} {t1} / {e2} {t2}"
-    );
-    assert!(
-        t2 < t1,
-        "the duration at the higher price: {t2} against {t1}"
+        plans[1].1 .1 < plans[0].1 .1,
+        "a price of 10 shortens the plan of price 1"
     );
 }
 

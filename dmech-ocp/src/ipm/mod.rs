@@ -235,15 +235,24 @@ where
                 scaling::objective_scale(self.p, &probe.run(start.clone()).iterate)
             })
             .unwrap_or(1.0);
+        let global_cost = self.globals.as_ref().map_or(&[][..], |g| &g.g.cost[..]);
+        let (c, capped) = scaling::capped_by_global_cost(c, global_cost);
         if c == 1.0 {
             return self.run(start);
         }
         if self.opts.verbose {
-            let _ = writeln!(
-                std::io::stderr(),
-                "objective scaled by {c:.3e} (mean stage cost {:.3e} at the start or after one step)",
-                1.0 / c
-            );
+            let why = if capped {
+                format!(
+                    "the globals' cost gradient at most {}",
+                    scaling::MAX_GRADIENT
+                )
+            } else {
+                format!(
+                    "mean stage cost {:.3e} at the start or after one step",
+                    1.0 / c
+                )
+            };
+            let _ = writeln!(std::io::stderr(), "objective scaled by {c:.3e} ({why})");
         }
         let scaled = scaling::ScaledCost { p: self.p, c };
         let inner: Solver<_, NX, NW, NE, NU, NC> = Solver {

@@ -150,6 +150,26 @@ where
     (s > 0.0 && s.is_finite()).then(|| (1.0 / s).max(1.0))
 }
 
+/// IPOPT's `nlp_scaling_max_gradient`: the largest objective gradient entry the solver
+/// works with.
+pub(super) const MAX_GRADIENT: f64 = 100.0;
+
+/// The scale `c` lowered so that no coefficient of the globals' linear cost exceeds
+/// [`MAX_GRADIENT`] after scaling (IPOPT's gradient-based rule, applied where the gradient
+/// is known at no cost: a global's cost coefficient is its gradient everywhere). Why: a
+/// free total time priced at 1e3 per second or more put entries of 1e4–1e13 in the
+/// gradient of a few globals, and the solver crawled at steps of 1e-13 and ended at the
+/// iteration limit or reported a feasible problem infeasible. `true` with the result when
+/// the cap applied.
+pub(super) fn capped_by_global_cost(c: f64, global_cost: &[f64]) -> (f64, bool) {
+    let largest = global_cost.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if largest * c > MAX_GRADIENT {
+        (MAX_GRADIENT / largest, true)
+    } else {
+        (c, false)
+    }
+}
+
 impl<const NX: usize, const NW: usize, const NC: usize> Iterate<NX, NW, NC> {
     /// The same primal point with the equality multipliers (`λ`, `y`) times `c`, and the
     /// bound multipliers `z` times `c` when `scale_bounds`.
