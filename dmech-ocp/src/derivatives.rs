@@ -463,6 +463,31 @@ pub fn stage_first_derivatives_into<
     d.nu = None;
 }
 
+/// `(e, E_x, E_w)` of `p`'s stage equality by two vector-dual passes through
+/// [`StageProblem::equality`] (seeded in `x`, then in `w`): the default of
+/// [`StageProblem::equality_jacobian`], for an override that takes it where its own
+/// route does not apply.
+#[allow(clippy::type_complexity)]
+pub fn generic_equality_jacobian<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NC: usize,
+>(
+    p: &P,
+    k: usize,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>)
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    let ex = p.equality(k, &seed(x), &w.map(DualSVec64::<NX>::from_re));
+    let ew = p.equality(k, &x.map(DualSVec64::<NW>::from_re), &seed(w));
+    split_passes(&ex, &ew)
+}
+
 /// `(∇²_xx, ∇²_xw, ∇²_ww)` of `s ℓ_k + ζᵀc_k` at `(x, w)` by second-order passes over the
 /// whole stage (only the `ww` block when the problem declares itself affine in the state):
 /// the default of [`StageProblem::cost_curvature`].

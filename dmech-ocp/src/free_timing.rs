@@ -18,14 +18,15 @@
 //! through [`PlanningProblem::cost_at_step`] and [`PlanningProblem::constraints_at_step`].
 
 use crate::derivatives::{
-    cost_and_inequalities, generic_cost_curvature, hess2, seed2, seed_hyper, HessianBlocks,
+    cost_and_inequalities, generic_cost_curvature, generic_equality_jacobian, hess2, seed2,
+    seed_hyper, HessianBlocks,
 };
 use crate::ipm::Iterate;
 use crate::layout::segment;
 use crate::problem::{GlobalEquality, Globals, StageProblem, StateEquality};
 use crate::transcription::{PlannedTrajectory, PlanningProblem, VarIntTranscription};
 use crate::varint::VarIntStages;
-use dmech::partials::{dl_ds, dl_dv, dl_dxi, jacobian_part, lift_vec, seeded, split_passes};
+use dmech::partials::{dl_ds, dl_dv, dl_dxi, jacobian_part, lift_vec};
 use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
@@ -317,9 +318,7 @@ where
         let e = self.equality(k, x, w);
         let (sigma_prev, sigma) = (w[NW - 2], w[NW - 1]);
         if sigma_prev != sigma {
-            let ex = self.equality(k, &seeded(x), &lift_vec::<f64, NX, NW>(w));
-            let ew = self.equality(k, &lift_vec::<f64, NW, NX>(x), &seeded(w));
-            let (_, ex, ew) = split_passes(&ex, &ew);
+            let (_, ex, ew) = generic_equality_jacobian::<Self, NX, NW, NS, NC>(self, k, x, w);
             return (e, ex, ew);
         }
         let st = &self.plan.stages;

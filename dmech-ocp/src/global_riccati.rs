@@ -61,24 +61,43 @@ pub struct GlobalSchur<const NXG: usize, const NUG: usize> {
     pub psi_vec: DVector<f64>,
 }
 
-/// The distinct globals of `support`, in order of first appearance, and for each the sum
-/// of `b`'s columns that read it: the nonzero columns of `b S_kᵀ`.
-fn distinct_columns<const R: usize, const NT: usize>(
-    b: &SMatrix<f64, R, NT>,
-    support: &[usize],
-) -> (Vec<usize>, Vec<SVector<f64, R>>) {
-    let mut js: Vec<usize> = Vec::with_capacity(NT);
-    let mut cols: Vec<SVector<f64, R>> = Vec::with_capacity(NT);
-    for (a, &j) in support.iter().enumerate() {
-        match js.iter().position(|&i| i == j) {
-            Some(i) => cols[i] += b.column(a),
-            None => {
-                js.push(j);
-                cols.push(b.column(a).into_owned());
-            }
+/// The distinct globals of `support` (at most `NT`), in order of first appearance, and for
+/// each the sum of `b`'s columns that read it: the nonzero columns of `b S_kᵀ`. Fixed-size,
+/// so that the serial sweep allocates nothing per stage for it.
+struct DistinctColumns<const R: usize, const NT: usize> {
+    globals: [usize; NT],
+    cols: [SVector<f64, R>; NT],
+    len: usize,
+}
+
+impl<const R: usize, const NT: usize> DistinctColumns<R, NT> {
+    fn new(b: &SMatrix<f64, R, NT>, support: &[usize]) -> Self {
+        let mut d = DistinctColumns {
+            globals: [0; NT],
+            cols: [SVector::zeros(); NT],
+            len: 0,
+        };
+        for (a, &j) in support.iter().enumerate() {
+            let i = d.globals[..d.len]
+                .iter()
+                .position(|&g| g == j)
+                .unwrap_or_else(|| {
+                    d.globals[d.len] = j;
+                    d.len += 1;
+                    d.len - 1
+                });
+            d.cols[i] += b.column(a);
         }
+        d
     }
-    (js, cols)
+
+    /// `(global, column)` pairs.
+    fn iter(&self) -> impl Iterator<Item = (usize, &SVector<f64, R>)> {
+        self.globals[..self.len]
+            .iter()
+            .copied()
+            .zip(&self.cols[..self.len])
+    }
 }
 
 /// `m S_kᵀ`: the `NT` columns of `m` added into the columns `support` of an `r × n_g`
@@ -126,10 +145,10 @@ pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
         // G = B_θ S_kᵀ has a column only at the stage's distinct globals (a global read
         // twice, as a free-timing stage reads its segment's ratio, adds its columns): the
         // products with G are taken over those columns alone.
-        let (js, gcols) = distinct_columns(&cp.b_t, sup);
+        let g = DistinctColumns::new(&cp.b_t, sup);
         let pi_next = &pi[k + 1];
         let mut m = pi_next.clone();
-        for (&j, gj) in js.iter().zip(&gcols) {
+        for (j, gj) in g.iter() {
             let pg = p_mat * gj;
             let mut col = m.column_mut(j);
             col += pg;
@@ -142,14 +161,14 @@ pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
         // Ψ += S R_θθ Sᵀ + Gᵀ P G + Gᵀ Π + Πᵀ G + H_upᵀ K_p, kept symmetric; with
         // M = P G + Π, Gᵀ M + Mᵀ G − Gᵀ P G is the same sum.
         let mut add = h_up.transpose() * &k_p;
-        for (a, (&ja, ga)) in js.iter().zip(&gcols).enumerate() {
+        for (a, (ja, ga)) in g.iter().enumerate() {
             let gtm = ga.transpose() * &m;
             for j in 0..ng {
                 add[(ja, j)] += gtm[j];
                 add[(j, ja)] += gtm[j];
             }
             let pga = p_mat * ga;
-            for (&jb, gb) in js.iter().zip(&gcols).take(a + 1) {
+            for (jb, gb) in g.iter().take(a + 1) {
                 let gpg = gb.dot(&pga);
                 add[(ja, jb)] -= gpg;
                 if ja != jb {
@@ -165,7 +184,7 @@ pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
         psi += (&add + add.transpose()) * 0.5;
         let pc = p_mat * st.c + p_vec;
         psi_vec += pi_next.transpose() * st.c + h_up.transpose() * kappa;
-        for (&j, gj) in js.iter().zip(&gcols) {
+        for (j, gj) in g.iter() {
             psi_vec[j] += gj.dot(&pc);
         }
         for (a, &ja) in sup.iter().enumerate() {

@@ -230,9 +230,10 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
         k: usize,
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
-    ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
-        let ex = self.equality(k, &seeded(x), &lift_vec::<f64, NX, NW>(w));
-        let ew = self.equality(k, &lift_vec::<f64, NW, NX>(x), &seeded(w));
-        split_passes(&ex, &ew)
+    ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>)
+    where
+        Self: Sized,
+    {
+        crate::derivatives::generic_equality_jacobian::<Self, NX, NW, NE, NC>(self, k, x, w)
     }
 }

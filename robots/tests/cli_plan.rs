@@ -249,29 +249,9 @@ fn malformed_waypoint_files_exit_1() {
 #[test]
 fn plans_a_short_waypoint_problem_with_free_timing() {
     let dir = scratch("short-free-timing");
-    let file = hook_file(&dir);
     let h = 0.02;
-    let out = wip()
-        .args([
-            "plan",
-            file.to_str().unwrap(),
-            "--h",
-            "0.02",
-            "--free-timing",
-            "--quiet",
-        ])
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "wip plan --free-timing failed: {stderr}"
-    );
-    let summary = read_json(dir.join("summary.json"));
+    let summary = free_hook(&dir, &[]);
     println!("{}", summary["free_timing"]);
-    assert_eq!(summary["status"], "solved");
     let free = number(&summary, "objective");
     let fixed = number(&summary["free_timing"]["fixed_timing"], "objective");
     // No higher than the fixed timing's, up to the solver's tolerance on each.
@@ -320,26 +300,34 @@ fn plans_a_short_waypoint_problem_with_free_timing() {
     }
 }
 
-/// The hook's free-timing plan at 20 ms with the total time priced at `price` per second:
-/// (energy, duration, energy of the fixed-timing plan).
-fn priced_hook(price: &str) -> (f64, f64, f64) {
-    let dir = scratch(&format!("hook-priced-{price}"));
-    let file = hook_file(&dir);
+/// The hook planned at 20 ms with `--free-timing` and `extra` options into `dir`: solved
+/// (exit 0, status `solved`); its summary.
+fn free_hook(dir: &std::path::Path, extra: &[&str]) -> serde_json::Value {
+    let file = hook_file(dir);
     let out = wip()
         .args(["plan", file.to_str().unwrap(), "--step", "0.02"])
-        .args(["--free-timing", "--time-price", price, "--quiet"])
+        .args(["--free-timing", "--quiet"])
+        .args(extra)
         .arg("--out")
-        .arg(&dir)
+        .arg(dir)
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         out.status.success(),
-        "--time-price {price} failed: {stderr}"
+        "wip plan --free-timing {extra:?} failed: {stderr}"
     );
     let summary = read_json(dir.join("summary.json"));
-    let free = &summary["free_timing"];
     assert_eq!(summary["status"], "solved");
+    summary
+}
+
+/// The hook's free-timing plan at 20 ms with the total time priced at `price` per second:
+/// (energy, duration, energy of the fixed-timing plan).
+fn priced_hook(price: &str) -> (f64, f64, f64) {
+    let dir = scratch(&format!("hook-priced-{price}"));
+    let summary = free_hook(&dir, &["--time-price", price]);
+    let free = &summary["free_timing"];
     let (energy, duration) = (number(&summary, "objective"), number(free, "duration_s"));
     let p: f64 = price.parse().unwrap();
     assert!((number(free, "time_price") - p).abs() == 0.0);

@@ -301,19 +301,20 @@ Every effect is screened by one linearisation at the nominal model; the promisin
             c.error,
             if c.fitted { "yes" } else { "screened" },
             ps.join(", "),
-            if c.implausible.is_empty() {
-                "yes".to_string()
-            } else {
-                format!("no: {}", c.implausible.join("; "))
-            },
-            if c.undetermined.is_empty() {
-                "yes".to_string()
-            } else {
-                format!("no: {}", c.undetermined.join("; "))
-            }
+            yes_or_why_not(&c.implausible),
+            yes_or_why_not(&c.undetermined),
         );
     }
     s
+}
+
+/// A table cell: `yes` when nothing stands against, else `no:` and the reasons.
+fn yes_or_why_not(reasons: &[String]) -> String {
+    if reasons.is_empty() {
+        "yes".to_string()
+    } else {
+        format!("no: {}", reasons.join("; "))
+    }
 }
 
 /// The calibration's combinations and calibrated parameters, if any.

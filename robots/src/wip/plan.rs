@@ -553,9 +553,13 @@ const FREE_TIMING_BARRIER: f64 = 1e-2;
 /// A plan with free waypoint timing, and the fixed-timing plan it started from.
 pub struct FreeTimingOutcome {
     pub fixed: PlanOutcome,
+    /// The free plan; its `objective` is the energy alone (the price of its duration, which
+    /// the solver minimised with it, is `time_cost`).
     pub free: PlanOutcome,
     /// Each segment's step ratio `h_j / h`, between consecutive waypoints.
     pub ratios: Vec<f64>,
+    /// `P T` for a total time priced at `P` per second (`TotalTime::Priced`), else 0.
+    pub time_cost: f64,
 }
 
 /// The plan with free waypoint timing (the first-order VI): the fixed-timing plan by mesh
@@ -636,11 +640,17 @@ fn free_model<
     let (ratios, _) = ft.times(&r.iterate);
     let (plan, times) = ft.trajectory::<NS, NX, NW, NC>(&r.iterate);
     let mut free = outcome::<M, NS, NX, NW>(model, r, plan, true);
+    let time_cost = match total {
+        TotalTime::Priced(p) => p * times.last().copied().unwrap_or(0.0),
+        TotalTime::Fixed => 0.0,
+    };
+    free.objective -= time_cost;
     free.times = Some(times);
     Ok(FreeTimingOutcome {
         fixed,
         free,
         ratios,
+        time_cost,
     })
 }
 

@@ -182,7 +182,7 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         Some(p) => TotalTime::Priced(p),
         None => TotalTime::Fixed,
     };
-    let (mut o, free) = if a.free_timing {
+    let (o, free) = if a.free_timing {
         let f = plan_free_timing(&wip, &problem, bounds, a.current.model(), total, opts)
             .map_err(|e| Failure::Run(e.to_string()))?;
         let fixed = (f.fixed.objective, f.fixed.iterations, f.fixed.timings.total);
@@ -194,7 +194,7 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
             fixed.2,
             fixed.0
         );
-        (f.free, Some((fixed, f.ratios)))
+        (f.free, Some((fixed, f.ratios, f.time_cost)))
     } else {
         let o = plan(
             &wip,
@@ -206,14 +206,6 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         );
         (o, None)
     };
-    // A priced total time is part of the solver's objective; the reported objective stays
-    // the energy, and the price of the duration is reported beside it.
-    let duration = o.times.as_ref().and_then(|t| t.last().copied());
-    let time_cost = match (total, duration) {
-        (TotalTime::Priced(p), Some(t)) => p * t,
-        _ => 0.0,
-    };
-    o.objective -= time_cost;
     let traj = reduced_trajectory(&wip, &o);
     let csv = trajectory_csv(&traj)?;
     files.write("trajectory.csv", csv.as_bytes())?;
@@ -229,7 +221,7 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
     );
     let summary = match &free {
         None => summary,
-        Some(((objective, iterations, time), ratios)) => {
+        Some(((objective, iterations, time), ratios, time_cost)) => {
             let mut v: serde_json::Value =
                 serde_json::from_str(&summary).expect("summary_json writes JSON");
             let t = &traj.t;
