@@ -321,6 +321,8 @@ where
         let mut stall = StallWatch::new();
         let mut ws = Workspace::new(self.n, o.quasi_newton, o.threads);
         let mut last = LineSearch::none();
+        // The shift of the step that led to the current iterate (IPOPT's `lg(rg)` column).
+        let mut last_shift = 0.0;
         let mut forced_steps = 0usize;
         let mut iter = 0;
         let mut restored = false;
@@ -366,7 +368,7 @@ where
             self.derivative_pass(&it, &mut ws, &mut tm);
             let kkt = self.kkt_error(&it, &ws.terminal, &ws.ders, ws.aux.iter().map(|a| a.kkt));
             let compl0 = self.complementarity(&it, 0.0, kkt.s_d);
-            self.print_row(iter, &m, &kkt, mu, inertia.last, &last, t_start);
+            self.print_row(iter, &m, &kkt, mu, last_shift, &last, t_start);
             if kkt.dual <= o.tol && compl0 <= o.tol && kkt.primal <= o.constr_viol_tol {
                 break Status::Solved;
             }
@@ -393,6 +395,7 @@ where
                     Ok(s) => s,
                     Err(msg) => break Status::Failed(msg),
                 };
+            last_shift = delta;
             last = self.line_search(
                 &it,
                 &m,
