@@ -11,17 +11,15 @@
 
 use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::PlanProblem;
+pub use super::plan_free_timing::{plan_free_timing, FreeTimingOutcome, FREE_TIMING_RATIOS};
+use super::plan_sequence::{friction_continuation, varint_solve};
 pub use super::plan_start::{polyline_start, rk_start, varint_start};
 use super::simulate::Integrator;
 use super::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
-use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
-use dmech_ocp::ipm::{IpOptions, SolveResult, Solver};
-use dmech_ocp::layout::Layout;
-use dmech_ocp::sequencing::{
-    continuation, direct_or_continuation, mesh_sequence, SequenceSettings, SequencedPlan,
-};
+use dmech_ocp::ipm::{IpOptions, SolveResult};
+use dmech_ocp::sequencing::{continuation, direct_or_continuation};
 use dmech_ocp::transcription::{
     Condition, PlannedTrajectory as GenericTrajectory, PlanningProblem, Quantity, RkTranscription,
     Stage, StartState, VarIntTranscription,
@@ -379,7 +377,7 @@ pub struct PlanOutcome {
 
 /// The solution in the full model's terms: the algebraic-current model's currents from
 /// [`PlanModel::currents`], its charges `q_{k+1} = q_k + h i_k`.
-fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
+pub(super) fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
     model: &M,
     r: SolveResult<NX, NW, NC>,
     plan: GenericTrajectory<3, NS, 2>,
@@ -434,7 +432,7 @@ fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
 
 /// Plan with the given transcription and current model from the polyline start.
 ///
-/// VI plans run by mesh sequencing ([`mesh_sequence`]): the coarsest mesh, and an RK plan,
+/// VI plans run by mesh sequencing ([`dmech_ocp::sequencing::mesh_sequence`]): the coarsest mesh, and an RK plan,
 /// are solved in two phases: the problem with a gentler Coulomb friction (`d_0 = 1 s/rad` instead of 8:
 /// same saturated torque, 8× smaller slope at zero relative wheel speed) from the
 /// polyline start; then the true problem, warm-started from that solution with a small
@@ -505,293 +503,5 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
             let traj = own.trajectory::<2, NX, NC>(&r.iterate);
             outcome::<M, NS, NX, 2>(model, r, traj, false)
         }
-    }
-}
-
-/// The VI plan by mesh sequencing over the friction continuation's `models`.
-fn varint_solve<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
-    model: &M,
-    models: Vec<M>,
-    problem: &PlanProblem,
-    bounds: PlanBounds,
-    disc: Discretisation,
-    opts: IpOptions,
-) -> SolveResult<NX, NW, NC> {
-    let seq = WipSequence {
-        model,
-        models,
-        bounds,
-        disc,
-    };
-    let settings = SequenceSettings {
-        coarsest_step: MESH_COARSEST_STEP,
-        restart_barrier: MESH_RESTART_BARRIER,
-        coarse_tol: MESH_COARSE_TOL,
-    };
-    let verbose = opts.verbose;
-    let progress = |m: &str| {
-        if verbose {
-            crate::progress!("{m}");
-        }
-    };
-    mesh_sequence::<_, NX, NW, NS, 2, NC>(&seq, problem.clone(), settings, opts, &progress)
-}
-
-/// Bounds on each segment's step ratio `h_j / h` in a plan with free timing: within a
-/// factor of two of the nominal step, so that the first-order integrator's error stays
-/// within twice that of the fixed-timing plan.
-pub const FREE_TIMING_RATIOS: (f64, f64) = (0.5, 2.0);
-
-/// The barrier the free-timing solve starts at from the fixed plan's solution. At the
-/// fixed optimum the bounds that will move (voltage rates, currents) are active; a small
-/// barrier holds their slacks within it, and the fraction-to-the-boundary rule cut the
-/// first steps to 1e-2. Measured (iterations of the free solve; zigzag and eight at
-/// 20 ms): 1e-4: failed after 191 / –; 1e-3: 49 / 91; 1e-2: 32 / 44; 1e-1: 65 / –; at
-/// 5 ms 1e-4 took 268 / 412, 1e-2 74 / 152.
-const FREE_TIMING_BARRIER: f64 = 1e-2;
-
-/// A plan with free waypoint timing, and the fixed-timing plan it started from.
-pub struct FreeTimingOutcome {
-    pub fixed: PlanOutcome,
-    /// The free plan; its `objective` is the energy alone (the price of its duration, which
-    /// the solver minimised with it, is `time_cost`).
-    pub free: PlanOutcome,
-    /// Each segment's step ratio `h_j / h`, between consecutive waypoints.
-    pub ratios: Vec<f64>,
-    /// `P T` for a total time priced at `P` per second (`TotalTime::Priced`), else 0.
-    pub time_cost: f64,
-}
-
-/// The plan with free waypoint timing (the first-order VI): the fixed-timing plan by mesh
-/// sequencing, then, from its solution, the problem whose segments between waypoints each
-/// have their own step `h_j = σ_j h`, `σ_j` in [`FREE_TIMING_RATIOS`]
-/// ([`dmech_ocp::free_timing`]), with the total time fixed (`Σ N_j σ_j = N`) or priced
-/// (`total`). The fixed timing is a feasible point of the free problem, so its objective
-/// (plus, when priced, the price of its duration) is an upper bound.
-pub fn plan_free_timing(
-    wip: &Wip,
-    problem: &PlanProblem,
-    bounds: PlanBounds,
-    current: CurrentModel,
-    total: TotalTime,
-    opts: IpOptions,
-) -> Result<FreeTimingOutcome, String> {
-    match current {
-        CurrentModel::Dynamic => free_model::<Wip, 5, NX, 7, 9>(wip, problem, bounds, total, opts),
-        CurrentModel::Algebraic => free_model::<_, 3, NX_ALGEBRAIC, 5, 7>(
-            &WipAlgebraicCurrent::new(*wip),
-            problem,
-            bounds,
-            total,
-            opts,
-        ),
-    }
-}
-
-/// [`plan_free_timing`] for one model: `NW0` the fixed-timing decision size, `NW = NW0 + 2`.
-fn free_model<
-    M: PlanModel<NS>,
-    const NS: usize,
-    const NX: usize,
-    const NW0: usize,
-    const NW: usize,
->(
-    model: &M,
-    problem: &PlanProblem,
-    bounds: PlanBounds,
-    total: TotalTime,
-    opts: IpOptions,
-) -> Result<FreeTimingOutcome, String> {
-    let disc = Discretisation::FirstOrder;
-    let models = friction_continuation(model, false);
-    let r = varint_solve::<M, NS, NX, NW0>(model, models, problem, bounds, disc, opts.clone());
-    let traj = varint_plan::<M, NS>(model, problem, bounds, disc)
-        .trajectory::<NS, NX, NW0, NC>(&r.iterate);
-    let start = r.iterate.clone();
-    let fixed = outcome::<M, NS, NX, NW0>(model, r, traj, true);
-    let timing = FreeTiming {
-        segment_starts: problem.stages[..problem.stages.len() - 1].to_vec(),
-        ratio_bounds: FREE_TIMING_RATIOS,
-        total,
-    };
-    let ft = FreeTimingTranscription::new::<NS, NC>(
-        varint_plan::<M, NS>(model, problem, bounds, disc),
-        timing,
-    )
-    .map_err(|e| e.to_string())?;
-    if opts.verbose {
-        crate::progress!(
-            "free timing: {} segments, step ratios in [{}, {}], total time {}, from the fixed-timing plan",
-            ft.segments(),
-            FREE_TIMING_RATIOS.0,
-            FREE_TIMING_RATIOS.1,
-            match total {
-                TotalTime::Fixed => "fixed".to_string(),
-                TotalTime::Priced(p) => format!("free at {p} per second"),
-            }
-        );
-    }
-    let o = IpOptions {
-        mu_init: FREE_TIMING_BARRIER,
-        ..opts
-    };
-    let s: Solver<_, NX, NW, NS, 2, NC> = Solver::new(&ft, o);
-    let r = s.solve(s.warm_iterate(ft.start_from_fixed::<NX, NW0, NW, NC>(start)));
-    let (ratios, _) = ft.times(&r.iterate);
-    let (plan, times) = ft.trajectory::<NS, NX, NW, NC>(&r.iterate);
-    let mut free = outcome::<M, NS, NX, NW>(model, r, plan, true);
-    let time_cost = match total {
-        TotalTime::Priced(p) => p * times.last().copied().unwrap_or(0.0),
-        TotalTime::Fixed => 0.0,
-    };
-    free.objective -= time_cost;
-    free.times = Some(times);
-    Ok(FreeTimingOutcome {
-        fixed,
-        free,
-        ratios,
-        time_cost,
-    })
-}
-
-/// The coarsest step of mesh sequencing: the VI plan starts on the mesh of step
-/// `h·2^L ≤ MESH_COARSEST_STEP` (20 ms: the scale series' coarsest mesh, solved directly
-/// in 38 iterations and 0.4 s for the eight).
-const MESH_COARSEST_STEP: f64 = 0.02;
-
-/// The barrier a finer mesh restarts at from the refined coarse solution. Measured on the
-/// eight at 1.25 ms from the 2.5 ms solution (iterations of the fine mesh): 1e-3: 54,
-/// 1e-4: 34–37, 1e-5: 39–40.
-const MESH_RESTART_BARRIER: f64 = 1e-4;
-
-/// Tolerance of the coarse meshes: the barrier the next mesh restarts at (solving a coarse
-/// mesh below it is work the refinement throws away). Measured (eight 5 ms / eight 1.25 ms /
-/// zigzag 5 ms, seconds): 1e-6: 1.91 / 10.4 / 1.66; 1e-4: 1.72 / 9.7 / 1.44; 1e-3: 1.96 /
-/// 29.3 (one mesh took 272 iterations) / 1.31.
-const MESH_COARSE_TOL: f64 = MESH_RESTART_BARRIER;
-
-/// The WIP's VI plan as a family of meshes for [`dmech_ocp::sequencing::mesh_sequence`]:
-/// the meshes are [`PlanProblem::at_step`], the continuation phases the friction
-/// continuation's models (the last is the model itself), the start the polyline start.
-///
-/// Why: where the robot leaves and reaches rest the voltage rate is bang-bang, and the
-/// interior point moves its switch by one or two stages per iteration; on the finest mesh
-/// alone the switch has a fixed time to travel, i.e. `∝ 1/h` stages, and the iteration
-/// count grew like `N^0.29` (eight: 38 iterations at 20 ms, 86 at 1.25 ms). From the
-/// coarse solution the switch is within a coarse step of its place, each finer mesh takes
-/// 14–36 iterations (eight, 10 ms … 1.25 ms), and the coarse meshes cost a geometric fraction of the finest
-/// (`docs/ocp.md`).
-struct WipSequence<'m, M> {
-    model: &'m M,
-    models: Vec<M>,
-    bounds: PlanBounds,
-    disc: Discretisation,
-}
-
-impl<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>
-    SequencedPlan<NX, NW, NS, NC> for WipSequence<'_, M>
-where
-    M: PlanModel<NS>,
-{
-    type Mesh = PlanProblem;
-    type Problem<'a>
-        = VarIntPlan<'a, M>
-    where
-        Self: 'a;
-    fn steps(&self, mesh: &PlanProblem) -> usize {
-        mesh.n
-    }
-    fn step(&self, mesh: &PlanProblem) -> f64 {
-        mesh.h
-    }
-    fn coarser(&self, mesh: &PlanProblem) -> Option<PlanProblem> {
-        mesh.at_step(mesh.h * 2.0)
-    }
-    fn problem<'a>(&'a self, mesh: &'a PlanProblem, phase: usize) -> VarIntPlan<'a, M> {
-        varint_plan::<M, NS>(&self.models[phase], mesh, self.bounds, self.disc)
-    }
-    fn phases(&self) -> usize {
-        self.models.len()
-    }
-    fn start(&self, mesh: &PlanProblem) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
-        varint_start::<M, NS, NX, NW>(self.model, mesh)
-    }
-    fn layout(&self) -> Layout {
-        Layout {
-            nc: 3,
-            ns: NS,
-            nu: 2,
-        }
-    }
-}
-
-/// The problems of the friction continuation: the model with `d_0` lowered to
-/// [`SMOOTH_FRICTION_SLOPE`], with `intermediate` one more at the geometric mean of the two
-/// slopes, then the model itself (only the model if its `d_0` is not above that already).
-/// See [`plan`].
-///
-/// The intermediate step is for RK4 with the current dynamics: the change of the friction
-/// slope changes the wheel accelerations, hence the back-EMF the current sees, and an
-/// explicit step amplifies a current off its slow manifold by its stability function at
-/// `z = −h R_m/L_m = −18.75`: 17.75 for RK1, 157 for RK2, 4209 for RK4. Measured on the
-/// eight: the violation at the start of the model's phase is 9.8e-2 (RK1) and 4.18 (RK4);
-/// from there RK4 did not converge within 300 s (198 iterations), with the intermediate
-/// step it solves in 121 iterations (zigzag: 125). Without any continuation RK4 solves the
-/// eight (72 iterations) but not the zigzag, and RK2 neither (`docs/ocp.md`).
-fn friction_continuation<M: PlanModel<NS>, const NS: usize>(
-    model: &M,
-    intermediate: bool,
-) -> Vec<M> {
-    let d_0 = model.wip().params.d_0;
-    if d_0 <= SMOOTH_FRICTION_SLOPE {
-        return vec![model.clone()];
-    }
-    let mut slopes = vec![SMOOTH_FRICTION_SLOPE];
-    if intermediate {
-        slopes.push((SMOOTH_FRICTION_SLOPE * d_0).sqrt());
-    }
-    let mut models: Vec<M> = slopes
-        .into_iter()
-        .map(|slope| {
-            let mut m = model.clone();
-            m.wip_mut().params.d_0 = slope;
-            m
-        })
-        .collect();
-    models.push(model.clone());
-    models
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The slopes of the continuation: the smooth one, the geometric mean when asked for,
-    /// the model's; a model already as smooth is solved alone.
-    #[test]
-    fn friction_continuation_slopes() {
-        let wip = Wip::default();
-        let d_0 = wip.params.d_0;
-        let slopes = |ms: Vec<Wip>| ms.iter().map(|m| m.params.d_0).collect::<Vec<_>>();
-        assert_eq!(
-            slopes(friction_continuation(&wip, false)),
-            vec![SMOOTH_FRICTION_SLOPE, d_0]
-        );
-        let three = slopes(friction_continuation(&wip, true));
-        assert_eq!(three.len(), 3);
-        assert_eq!((three[0], three[2]), (SMOOTH_FRICTION_SLOPE, d_0));
-        // The middle slope is equally far from both in log scale.
-        assert!(((three[1] / three[0]).ln() - (three[2] / three[1]).ln()).abs() < 1e-14);
-        let mut smooth = wip;
-        smooth.params.d_0 = SMOOTH_FRICTION_SLOPE;
-        assert_eq!(
-            slopes(friction_continuation(&smooth, true)),
-            vec![SMOOTH_FRICTION_SLOPE]
-        );
-        // Only the slope changes.
-        let m = &friction_continuation(&wip, true)[1];
-        let mut back = *m;
-        back.params.d_0 = d_0;
-        assert_eq!(back, wip);
     }
 }
