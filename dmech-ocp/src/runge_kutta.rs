@@ -105,7 +105,7 @@ impl<'a, S> RkStages<'a, S> {
     }
 
     /// `(f, F_x, F_w)`, exact, by the chain rule through the method's stages: each stage
-    /// evaluation's rate Jacobian ([`RkStages::rate_jacobian`]) takes the acceleration's
+    /// evaluation's rate Jacobian (`RkStages::rate_jacobian`) takes the acceleration's
     /// derivatives from the system's closed form where it supplies one, else by the implicit
     /// function theorem with only the blocks the equations of motion read seeded
     /// ([`acceleration_jacobian`]), and the stages are composed in `f64`

@@ -9,7 +9,7 @@
 //!   momentum-matching equation solved by Newton's method with an exact Jacobian), in the
 //!   paper's first-order form or the symmetric, second-order [`midpoint`] form;
 //! - [`continuous`]: the continuous-time equations of motion and RK1/RK2/RK4 on them;
-//! - [`energy`]: the energy function `E = v·∂ℓ/∂v + ξ·∂ℓ/∂ξ − ℓ`.
+//! - [`energy`](mod@energy): the energy function `E = v·∂ℓ/∂v + ξ·∂ℓ/∂ξ − ℓ`.
 //!
 //! A system that has them may also hand over closed forms (the partials of `ℓ`, the shape
 //! acceleration): optional trait methods, `None` by default, that the planner's

@@ -1,7 +1,7 @@
 //! A primal–dual interior-point method for [`StageProblem`]s whose Newton systems are
 //! solved by a Riccati recursion over the stages (the FATROP/HPIPM family).
 //!
-//! Per iteration ([`Solver::run`]): stage derivatives in parallel (`derivative_pass.rs`);
+//! Per iteration (`Solver::run`): stage derivatives in parallel (`derivative_pass.rs`);
 //! the Newton step (`kkt.rs`): the stage equality eliminated for its `NE` dependent
 //! decisions, inequality slacks and multipliers condensed into the stage Hessian
 //! (`Cᵀ Σ C`), state equalities as dual-regularised rows (a quadratic term

@@ -77,7 +77,7 @@ where
     /// A warm start from a previous solution (of this or a nearby problem): primal values
     /// and multipliers kept, slacks recomputed from the constraints at this problem and
     /// pushed at least `μ₀` into the interior, bound multipliers kept but not below
-    /// [`WARM_MULT_FLOOR`]` · μ₀/t`.
+    /// `WARM_MULT_FLOOR · μ₀/t`.
     pub fn warm_iterate(&self, prev: Iterate<NX, NW, NC>) -> Iterate<NX, NW, NC> {
         let mut it = prev;
         it.x[0] = self.p.initial_state();

@@ -149,7 +149,7 @@ fn start_states<M: PlanModel<NS>, const NS: usize, const NX: usize>(
     (xs, vel)
 }
 
-/// The VI start: [`start_states`] with `w_k = (v_k, u_k = 0)`.
+/// The VI start: `start_states` with `w_k = (v_k, u_k = 0)`.
 pub fn varint_start<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
     model: &M,
     p: &PlanProblem,
@@ -166,7 +166,7 @@ pub fn varint_start<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW
     (xs, ws)
 }
 
-/// The RK start: [`start_states`] with `v_k` in the state, `u = 0`.
+/// The RK start: `start_states` with `v_k` in the state, `u = 0`.
 pub fn rk_start<M: PlanModel<NS>, const NS: usize, const NX: usize>(
     model: &M,
     p: &PlanProblem,

@@ -19,7 +19,7 @@ use std::path::PathBuf;
 /// uncertainty and reports the gain. With --calibrate, the robot's own parameters are
 /// calibrated first (the combinations the log determines). Writes
 /// DIR/diagnosis.json, DIR/params_refit.json (the refitted model as a parameter file that
-/// plan and simulate read), DIR/report.md, DIR/residual_<channel>.svg and
+/// plan and simulate read), DIR/report.md, DIR/residual_CHANNEL.svg and
 /// DIR/residuals.csv. Method: docs/diagnose.md.
 ///
 /// Exit status: 0 diagnosed (whatever the verdict); 1 a malformed log (one line naming the
