@@ -2,7 +2,7 @@
 //! solved by a Riccati recursion over the stages (the FATROP/HPIPM family).
 //!
 //! Per iteration (`Solver::run`): stage derivatives in parallel (`derivative_pass.rs`);
-//! the Newton step (`kkt.rs`): the stage equality eliminated for its `NE` dependent
+//! the KKT error (`kkt_error.rs`); the Newton step (`kkt.rs`): the stage equality eliminated for its `NE` dependent
 //! decisions, inequality slacks and multipliers condensed into the stage Hessian
 //! (`Cᵀ Σ C`), state equalities as dual-regularised rows (a quadratic term
 //! `‖G δx + c‖²/(2δ_c)` and the multiplier update `y⁺ = y + (G δx + c)/δ_c`), one backward
@@ -33,6 +33,7 @@ mod globals;
 mod inertia;
 mod iterate;
 mod kkt;
+mod kkt_error;
 mod line_search;
 mod measures;
 mod options;
@@ -52,7 +53,8 @@ use globals::GlobalSpec;
 use inertia::InertiaCorrection;
 use iterate::{Bounds, Elimination, Measures, Step};
 pub use iterate::{Iterate, SolveResult};
-use kkt::{KktError, StageAux, StageCurvature};
+use kkt::StageCurvature;
+use kkt_error::{KktError, StageAux};
 use line_search::LineSearch;
 pub use options::{IpOptions, KktMethod, Status, Timings};
 pub use parallel::STAGE_THREAD_STACK;
