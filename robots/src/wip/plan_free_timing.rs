@@ -4,9 +4,8 @@
 
 use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::PlanProblem;
-use super::plan::{
-    outcome, varint_plan, CurrentModel, PlanBounds, PlanModel, PlanOutcome, NC, NX, NX_ALGEBRAIC,
-};
+use super::plan::{outcome, CurrentModel, PlanOutcome};
+use super::plan_problem::{varint_plan, PlanBounds, PlanModel, NC, NX, NX_ALGEBRAIC};
 use super::plan_sequence::{friction_continuation, varint_solve};
 use super::Wip;
 use dmech::Discretisation;

@@ -2,7 +2,9 @@
 //! the friction continuation's phases on the coarsest, and the sequencing's constants.
 
 use super::benchmarks::PlanProblem;
-use super::plan::{varint_plan, PlanBounds, PlanModel, VarIntPlan, NC, SMOOTH_FRICTION_SLOPE};
+use super::plan_problem::{
+    varint_plan, PlanBounds, PlanModel, VarIntPlan, NC, SMOOTH_FRICTION_SLOPE,
+};
 use super::plan_start::varint_start;
 use dmech::Discretisation;
 use dmech_ocp::ipm::{IpOptions, SolveResult};
@@ -113,7 +115,7 @@ where
 /// The problems of the friction continuation: the model with `d_0` lowered to
 /// [`SMOOTH_FRICTION_SLOPE`], with `intermediate` one more at the geometric mean of the two
 /// slopes, then the model itself (only the model if its `d_0` is not above that already).
-/// See [`super::plan::plan`].
+/// See [`crate::wip::plan::plan`].
 ///
 /// The intermediate step is for RK4 with the current dynamics: the change of the friction
 /// slope changes the wheel accelerations, hence the back-EMF the current sees, and an

@@ -2,7 +2,7 @@
 //! laid out for the variational and the Runge–Kutta transcriptions.
 
 use super::benchmarks::{arc_lengths, PlanProblem};
-use super::plan::PlanModel;
+use super::plan_problem::PlanModel;
 use super::Wip;
 use nalgebra::SVector;
 
