@@ -1,0 +1,218 @@
+//! The planning problem's vocabulary: a [`Stage`]'s named parts, the start, the planned
+//! trajectory, [`Condition`]s and the [`PlanningProblem`] trait a robot implements; where a
+//! quantity sits in a transcription's state.
+
+use crate::layout::Layout;
+use crate::problem::StateEquality;
+use dmech_lie::Real;
+use nalgebra::SVector;
+
+/// What a robot's cost and constraints read at stage `k`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stage<T, const NP: usize, const NS: usize, const NU: usize> {
+    /// `coords(g_k)`: the pose's coordinates (SE(2): `x, y, θ`).
+    pub pose: SVector<T, NP>,
+    /// `s_k`.
+    pub shape: SVector<T, NS>,
+    /// The shape velocity leaving stage `k`: `v_k` on `[t_k, t_{k+1})` (variational) or
+    /// `v(t_k)` (Runge–Kutta).
+    pub velocity: SVector<T, NS>,
+    /// `u_k`, held on `[t_k, t_{k+1})`.
+    pub input: SVector<T, NU>,
+    /// `u_{k−1}` (zero before the start), for rate limits.
+    pub previous_input: SVector<T, NU>,
+}
+
+/// The state a plan starts from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StartState<const NP: usize, const NS: usize, const NU: usize> {
+    pub pose: SVector<f64, NP>,
+    pub shape: SVector<f64, NS>,
+    /// The velocity the robot has arrived with (zero: at rest).
+    pub velocity: SVector<f64, NS>,
+    /// The input before the start.
+    pub previous_input: SVector<f64, NU>,
+}
+
+impl<const NP: usize, const NS: usize, const NU: usize> StartState<NP, NS, NU> {
+    /// At rest at `pose` and `shape`, no input before the start.
+    pub fn at_rest(pose: SVector<f64, NP>, shape: SVector<f64, NS>) -> Self {
+        StartState {
+            pose,
+            shape,
+            velocity: SVector::zeros(),
+            previous_input: SVector::zeros(),
+        }
+    }
+}
+
+/// A plan read back in the robot's terms, whatever the transcription: stage `k = 0..=N`
+/// holds the pose, the shape, the velocity leaving it, the input held from it and the
+/// previous input. At `k = N` the velocity is the one the robot arrives with and the input
+/// repeats `u_{N−1}`.
+#[derive(Clone, Debug)]
+pub struct PlannedTrajectory<const NP: usize, const NS: usize, const NU: usize> {
+    pub h: f64,
+    pub stages: Vec<Stage<f64, NP, NS, NU>>,
+}
+
+/// A state component a [`Condition`] fixes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Quantity {
+    /// Pose coordinate `i`.
+    Pose(usize),
+    /// Shape component `i`.
+    Shape(usize),
+    /// Velocity component `i` *arriving* at the stage: `v_{k−1}` (variational) or `v(t_k)`
+    /// (Runge–Kutta). `Velocity(i) = 0` at the last stage says "arrive at rest" in both.
+    Velocity(usize),
+    /// Component `i` of the input before the stage, `u_{k−1}`.
+    PreviousInput(usize),
+}
+
+/// `quantity = value` at `stage` (`stage = N` is the end).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Condition {
+    pub stage: usize,
+    pub quantity: Quantity,
+    pub value: f64,
+}
+
+/// A robot's planning problem, in the terms of [`Stage`].
+pub trait PlanningProblem<const NP: usize, const NS: usize, const NU: usize, const NC: usize>:
+    Sync
+{
+    /// The number of steps `N`.
+    fn horizon(&self) -> usize;
+    /// The start state.
+    fn start(&self) -> StartState<NP, NS, NU>;
+    /// The running cost of stage `k` (`k < N`).
+    fn cost<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>) -> T;
+    /// The path constraints of stage `k`, bounded by [`PlanningProblem::bounds`].
+    fn constraints<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>) -> SVector<T, NC>;
+    /// `(lo, hi)`; infinite entries mean "no bound".
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>);
+    /// Waypoints and the end state, any order.
+    fn conditions(&self) -> Vec<Condition>;
+    /// `true` if the cost and the constraints are affine in the pose, the shape and the
+    /// previous input, and those multiply neither the velocity nor the input. A variational
+    /// transcription then tells the solver its cost is affine in the state (which saves
+    /// two of three second-order passes). The same must hold of
+    /// [`PlanningProblem::cost_at_step`] and [`PlanningProblem::constraints_at_step`] at a
+    /// fixed ratio (the free-timing curvature relies on it). Default `false`.
+    fn affine_in_configuration(&self) -> bool {
+        false
+    }
+    /// `true` if the cost is quadratic and the constraints affine in the stage's quantities
+    /// (pose, shape, velocity, input, previous input). A transcription's stage vectors hold
+    /// those quantities linearly, so the solver may compute the cost's curvature once per
+    /// stage ([`crate::problem::StageProblem::constant_cost_curvature`]). Default `false`.
+    fn quadratic_cost_affine_constraints(&self) -> bool {
+        false
+    }
+    /// The running cost of stage `k` when its step is `ratio` times the nominal one (free
+    /// timing, [`crate::free_timing`]). Default: `ratio · cost`, a cost per stage being the
+    /// rectangle rule of a running cost over the step (the same at `ratio = 1`).
+    fn cost_at_step<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>, ratio: T) -> T {
+        self.cost(k, stage) * ratio
+    }
+    /// The path constraints of stage `k` at step ratio `ratio`. Default: the constraints
+    /// (pointwise in time); a constraint on a difference quotient, such as a rate limit,
+    /// overrides this to divide by the actual step.
+    fn constraints_at_step<T: Real>(
+        &self,
+        k: usize,
+        stage: &Stage<T, NP, NS, NU>,
+        _ratio: T,
+    ) -> SVector<T, NC> {
+        self.constraints(k, stage)
+    }
+}
+
+/// A problem borrowed: the transcription of a problem that lives elsewhere (one per mesh,
+/// say).
+impl<P, const NP: usize, const NS: usize, const NU: usize, const NC: usize>
+    PlanningProblem<NP, NS, NU, NC> for &P
+where
+    P: PlanningProblem<NP, NS, NU, NC>,
+{
+    fn horizon(&self) -> usize {
+        (**self).horizon()
+    }
+    fn start(&self) -> StartState<NP, NS, NU> {
+        (**self).start()
+    }
+    fn cost<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>) -> T {
+        (**self).cost(k, stage)
+    }
+    fn constraints<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>) -> SVector<T, NC> {
+        (**self).constraints(k, stage)
+    }
+    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
+        (**self).bounds(k)
+    }
+    fn conditions(&self) -> Vec<Condition> {
+        (**self).conditions()
+    }
+    fn affine_in_configuration(&self) -> bool {
+        (**self).affine_in_configuration()
+    }
+    fn quadratic_cost_affine_constraints(&self) -> bool {
+        (**self).quadratic_cost_affine_constraints()
+    }
+    fn cost_at_step<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>, ratio: T) -> T {
+        (**self).cost_at_step(k, stage, ratio)
+    }
+    fn constraints_at_step<T: Real>(
+        &self,
+        k: usize,
+        stage: &Stage<T, NP, NS, NU>,
+        ratio: T,
+    ) -> SVector<T, NC> {
+        (**self).constraints_at_step(k, stage, ratio)
+    }
+}
+
+/// Where each quantity of a stage state sits in the solver's `x_k`: the same for every
+/// transcription (`coords(g)`, `s`, the state's velocity, `u_{k−1}`).
+pub fn state_index(layout: Layout, quantity: Quantity) -> usize {
+    let (offset, i, n) = match quantity {
+        Quantity::Pose(i) => (0, i, layout.nc),
+        Quantity::Shape(i) => (layout.s_at(), i, layout.ns),
+        Quantity::Velocity(i) => (layout.v_at(), i, layout.ns),
+        Quantity::PreviousInput(i) => (layout.u_at(), i, layout.nu),
+    };
+    assert!(
+        i < n,
+        "{quantity:?} is out of range for the system ({n} components)"
+    );
+    offset + i
+}
+
+/// The conditions as the solver's state equalities, in the problem's order.
+pub fn state_equalities(layout: Layout, conditions: &[Condition]) -> Vec<StateEquality> {
+    conditions
+        .iter()
+        .map(|c| StateEquality {
+            stage: c.stage,
+            index: state_index(layout, c.quantity),
+            value: c.value,
+        })
+        .collect()
+}
+
+/// `x_0` from the start state.
+pub(crate) fn initial_state<const NP: usize, const NS: usize, const NU: usize, const NX: usize>(
+    layout: Layout,
+    start: &StartState<NP, NS, NU>,
+) -> SVector<f64, NX> {
+    let mut x = SVector::<f64, NX>::zeros();
+    x.fixed_rows_mut::<NP>(0).copy_from(&start.pose);
+    x.fixed_rows_mut::<NS>(layout.s_at())
+        .copy_from(&start.shape);
+    x.fixed_rows_mut::<NS>(layout.v_at())
+        .copy_from(&start.velocity);
+    x.fixed_rows_mut::<NU>(layout.u_at())
+        .copy_from(&start.previous_input);
+    x
+}
