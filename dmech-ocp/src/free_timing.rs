@@ -190,29 +190,13 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
         }
     }
 
-    /// The solution as a [`PlannedTrajectory`] at the nominal step, with its stage times.
+    /// The solution as a [`PlannedTrajectory`] at the nominal step (the fixed
+    /// transcription's reading of the stages: the ratios trail `w`), with its stage times.
     pub fn trajectory<const NS: usize, const NX: usize, const NW: usize, const NC: usize>(
         &self,
         it: &Iterate<NX, NW, NC>,
     ) -> (PlannedTrajectory<NP, NS, NU>, Vec<f64>) {
-        let n = it.w.len();
-        let l = self.plan.stages.layout;
-        let mut stages: Vec<_> = (0..n)
-            .map(|k| self.plan.stage::<f64, NS, NX, NW>(&it.x[k], &it.w[k]))
-            .collect();
-        let x = &it.x[n];
-        stages.push(crate::transcription::Stage {
-            pose: segment(x, 0),
-            shape: segment(x, l.s_at()),
-            velocity: segment(x, l.v_at()),
-            input: segment(&it.w[n - 1], NS),
-            previous_input: segment(x, l.u_at()),
-        });
-        let traj = PlannedTrajectory {
-            h: self.plan.stages.h,
-            stages,
-        };
-        (traj, self.times(it).1)
+        (self.plan.trajectory::<NS, NX, NW, NC>(it), self.times(it).1)
     }
 }
 
@@ -323,11 +307,8 @@ where
         }
         let st = &self.plan.stages;
         let at_step = VarIntStages {
-            sys: st.sys,
             h: sigma * st.h,
-            quadrature: st.quadrature,
-            discretisation: st.discretisation,
-            layout: st.layout,
+            ..*st
         };
         let (ex, mut ew) = at_step.first_order_equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w);
         // w's last two entries (the ratios) seeded, the rest constant.

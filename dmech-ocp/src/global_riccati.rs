@@ -146,12 +146,19 @@ pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
         // twice, as a free-timing stage reads its segment's ratio, adds its columns): the
         // products with G are taken over those columns alone.
         let g = DistinctColumns::new(&cp.b_t, sup);
+        // P G's columns, each used twice below.
+        let pg: [SVector<f64, NX>; NT] = std::array::from_fn(|i| {
+            if i < g.len {
+                p_mat * g.cols[i]
+            } else {
+                SVector::zeros()
+            }
+        });
         let pi_next = &pi[k + 1];
         let mut m = pi_next.clone();
-        for (j, gj) in g.iter() {
-            let pg = p_mat * gj;
+        for (a, (j, _)) in g.iter().enumerate() {
             let mut col = m.column_mut(j);
-            col += pg;
+            col += pg[a];
         }
         let h_up = scatter_columns(&cp.s_ut, sup, ng) + st.b.transpose() * &m;
         let h_xp = scatter_columns(&cp.s_xt, sup, ng) + st.a.transpose() * &m;
@@ -167,9 +174,8 @@ pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
                 add[(ja, j)] += gtm[j];
                 add[(j, ja)] += gtm[j];
             }
-            let pga = p_mat * ga;
             for (jb, gb) in g.iter().take(a + 1) {
-                let gpg = gb.dot(&pga);
+                let gpg = gb.dot(&pg[a]);
                 add[(ja, jb)] -= gpg;
                 if ja != jb {
                     add[(jb, ja)] -= gpg;

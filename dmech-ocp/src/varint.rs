@@ -37,6 +37,7 @@ pub(crate) struct Terms {
 }
 
 /// The stage functions of the VI transcription of `sys` at step `h`.
+#[derive(Clone, Copy)]
 pub struct VarIntStages<'a, S> {
     pub sys: &'a S,
     pub h: f64,
