@@ -188,7 +188,7 @@ where
         verbose: false,
         ..IpOptions::default()
     };
-    let solver: Solver<_, NS, NS, 0, NS, 0> = Solver::new(&problem, opts);
+    let solver: Solver<NS, NS, 0, NS, 0> = Solver::new(&problem, opts);
     // The solver starts from the stage-wise answer: `v_k` the regularised least-squares
     // solution at `s_k` alone, `s_{k+1} = s_k + h v_k`. From `v = 0` the residual does not
     // see the shape variables that act through `A` (their derivative multiplies `v`), and

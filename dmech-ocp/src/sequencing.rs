@@ -47,7 +47,7 @@ where
         if j > 0 {
             o.mu_init = intermediate_tol;
         }
-        let s: Solver<_, NX, NW, NE, NU, NC> = Solver::new(p, o);
+        let s: Solver<NX, NW, NE, NU, NC> = Solver::new(p, o);
         let r = match &done {
             None => {
                 let (xs, ws) = start.take().expect("only the first problem starts cold");
@@ -259,7 +259,7 @@ where
         let mut o = time_left(&opts, &r);
         o.tol = tol(j);
         o.mu_init = settings.restart_barrier;
-        let s: Solver<_, NX, NW, NE, NU, NC> = Solver::new(&problem, o);
+        let s: Solver<NX, NW, NE, NU, NC> = Solver::new(&problem, o);
         r = merge(s.solve(s.warm_iterate(start)), &r);
     }
     if last > 0 && r.status != Status::Solved {

@@ -163,7 +163,7 @@ fn interior_point_equals_clarabel_on_a_constrained_lq_problem() {
             target: 1.0,
         };
         let tol = 1e-10;
-        let s: Solver<_, 2, 1, 0, 1, 2> = Solver::new(
+        let s: Solver<2, 1, 0, 1, 2> = Solver::new(
             &p,
             IpOptions {
                 tol,

@@ -91,7 +91,7 @@ fn double_integrator_converges() {
             cost_scale: 1.0,
             declares_constant_curvature: false,
         };
-        let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(
+        let s: Solver<3, 1, 0, 1, 2> = Solver::new(
             &p,
             IpOptions {
                 verbose: true,
@@ -122,7 +122,7 @@ fn threads_do_not_change_the_iterates() {
         declares_constant_curvature: false,
     };
     let solve = |threads| {
-        let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(
+        let s: Solver<3, 1, 0, 1, 2> = Solver::new(
             &p,
             IpOptions {
                 threads,
@@ -163,7 +163,7 @@ fn small_objectives_are_solved_scale_invariantly() {
             cost_scale,
             declares_constant_curvature: false,
         };
-        let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(&p, IpOptions::default());
+        let s: Solver<3, 1, 0, 1, 2> = Solver::new(&p, IpOptions::default());
         let start = s.initial_iterate(
             vec![SVector::zeros(); 201],
             vec![SVector::repeat(0.01); 200],
@@ -219,7 +219,7 @@ fn a_declared_constant_curvature_gives_the_same_iterates() {
                 exact_hessian,
                 ..Default::default()
             };
-            let s: Solver<_, 3, 1, 0, 1, 2> = Solver::new(&p, opts);
+            let s: Solver<3, 1, 0, 1, 2> = Solver::new(&p, opts);
             let start = s.initial_iterate(vec![SVector::zeros(); 151], vec![SVector::zeros(); 150]);
             s.solve(start)
         };

@@ -114,7 +114,7 @@ fn least_violation(p: &RestToRest, tol: f64) -> f64 {
 }
 
 fn solve(p: &RestToRest) -> dmech_ocp::ipm::SolveResult<2, 1, 1> {
-    let s: Solver<_, 2, 1, 0, 1, 1> = Solver::new(p, IpOptions::default());
+    let s: Solver<2, 1, 0, 1, 1> = Solver::new(p, IpOptions::default());
     s.solve(s.initial_iterate(vec![SVector::zeros(); p.n + 1], vec![SVector::zeros(); p.n]))
 }
 

@@ -62,17 +62,8 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
     }
 }
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// Every stage's derivatives at `it`, with, while they are in cache, its SR1 update, its
     /// part of the KKT error and its values (reading the 36 MB of derivatives again for
@@ -92,10 +83,11 @@ where
             let (x, w, constants) = (&it.x[k], &it.w[k], ws_constants.get(k));
             if self.table_curvature(k, ws_constants).is_some() {
                 // The condensing reads the curvature from the table.
-                stage_first_derivatives_into(d, self.p, k, x, w, constants);
+                self.p.first_derivatives_into(d, k, x, w, constants);
             } else {
                 let lam_exact = o.exact_hessian.then_some(lam);
-                stage_derivatives_into(d, self.p, k, x, w, &zeta, lam_exact, constants);
+                self.p
+                    .derivatives_into(d, k, x, w, &zeta, lam_exact, constants);
             }
             d.nu = d.equality_multiplier(lam, &zeta);
         };
@@ -128,7 +120,7 @@ where
                 finish(k, d, a);
             });
         }
-        ws.terminal = terminal_derivatives(self.p, &it.x[self.n]);
+        ws.terminal = self.p.terminal_derivatives(&it.x[self.n]);
         tm.derivatives += t0.elapsed().as_secs_f64();
     }
 }

@@ -145,17 +145,8 @@ impl GlobalSpec {
     }
 }
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// The last `per_stage` entries of every `w_k` set to the globals they copy.
     pub(super) fn sync_globals(&self, it: &mut Iterate<NX, NW, NC>) {

@@ -14,17 +14,8 @@ pub(super) struct StageCurvature<'c, const NX: usize, const NW: usize, const NE:
     pub(super) qn: Option<&'c QuasiNewton<NX, NW, NE>>,
 }
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// The Newton step at `it` and the primal shift it took: every stage condensed, the
     /// Riccati recursion run behind the condensing with no shift, and, while some stage's

@@ -4,17 +4,8 @@
 use super::filter::Acceptance;
 use super::*;
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// The largest steps `(α_p, α_d)` in `(0, 1]` that keep the slacks and the bound
     /// multipliers a fraction `τ` away from zero.
@@ -152,17 +143,8 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
     }
 }
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// IPOPT's filter line search along `step` from `it` (measures `m`): backtracking from
     /// the largest step the boundary allows, with second-order corrections after a

@@ -3,17 +3,8 @@
 
 use super::*;
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     pub(super) fn values(&self, it: &Iterate<NX, NW, NC>) -> Vec<StageValues<NX, NE, NC>> {
         let mut out = vec![
@@ -26,7 +17,7 @@ where
             self.n
         ];
         par_fill(&mut out, self.opts.threads, |k| {
-            stage_values(self.p, k, &it.x[k], &it.w[k])
+            self.p.values(k, &it.x[k], &it.w[k])
         });
         out
     }
@@ -88,7 +79,7 @@ where
     pub fn max_violation(&self, x: &[SVector<f64, NX>], w: &[SVector<f64, NW>]) -> f64 {
         let mut worst = 0.0f64;
         for k in 0..self.n {
-            let v = stage_values(self.p, k, &x[k], &w[k]);
+            let v = self.p.values(k, &x[k], &w[k]);
             worst = worst.max((v.f - x[k + 1]).amax()).max(v.e.amax());
             let b = &self.bounds[k];
             for i in 0..NC {

@@ -16,7 +16,6 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::derivatives::{
-    stage_derivatives_into, stage_first_derivatives_into, stage_values, terminal_derivatives,
     ConstantsTable, HessianBlocks, StageConstants, StageDerivatives, StageValues,
     TerminalDerivatives,
 };
@@ -38,6 +37,7 @@ mod kkt_error;
 mod line_search;
 mod measures;
 mod options;
+mod oracle;
 mod parallel;
 mod quasi_newton;
 mod recovery;
@@ -146,16 +146,20 @@ enum Mode<'f, const NX: usize, const NW: usize, const NC: usize> {
     },
 }
 
+/// The solver of one problem. It holds the problem as an [`oracle::StageOracle`], so that
+/// its code is compiled once per set of sizes, not once per problem type (`oracle.rs`).
 pub struct Solver<
     'a,
-    P,
     const NX: usize,
     const NW: usize,
     const NE: usize,
     const NU: usize,
     const NC: usize,
 > {
-    p: &'a P,
+    p: &'a dyn oracle::StageOracle<NX, NW, NE, NC>,
+    /// The problems derived from `p` (scaled, restoration); `None` for a restoration
+    /// problem's own solver, which derives none.
+    derived: Option<&'a dyn oracle::DerivedProblems<NX, NW, NE, NC>>,
     n: usize,
     opts: IpOptions,
     bounds: Vec<Bounds<NC>>,
@@ -167,22 +171,22 @@ pub struct Solver<
     sparse: std::sync::OnceLock<Result<crate::sparse_kkt::SparseKkt, String>>,
 }
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// The solver of `p`. Panics if the sizes do not fit (`NU` must be `NW − NE`, less the
     /// globals' copies per stage) or the problem's globals are inconsistent: programming
     /// errors of the problem's definition, reported with both sides.
-    pub fn new(p: &'a P, opts: IpOptions) -> Self {
+    pub fn new<P: StageProblem<NX, NW, NE, NC>>(p: &'a P, opts: IpOptions) -> Self {
+        Self::of_oracle(p, Some(p), opts)
+    }
+
+    /// [`Solver::new`] once the problem's type is erased.
+    fn of_oracle(
+        p: &'a dyn oracle::StageOracle<NX, NW, NE, NC>,
+        derived: Option<&'a dyn oracle::DerivedProblems<NX, NW, NE, NC>>,
+        opts: IpOptions,
+    ) -> Self {
         let n = p.horizon();
         let globals = p.globals().map(|g| {
             if let Err(e) = g.check(n, NW) {
@@ -215,6 +219,7 @@ where
         }
         Solver {
             p,
+            derived,
             n,
             opts,
             bounds,
@@ -257,9 +262,13 @@ where
             };
             let _ = writeln!(std::io::stderr(), "objective scaled by {c:.3e} ({why})");
         }
-        let scaled = scaling::ScaledCost { p: self.p, c };
-        let inner: Solver<_, NX, NW, NE, NU, NC> = Solver {
-            p: &scaled,
+        let scaled = self
+            .derived
+            .expect("a restoration problem is run, not solved")
+            .scaled(c);
+        let inner: Solver<NX, NW, NE, NU, NC> = Solver {
+            p: &*scaled,
+            derived: self.derived,
             n: self.n,
             opts: self.opts.clone(),
             bounds: self.bounds.clone(),
@@ -284,6 +293,7 @@ where
     fn with_options(&self, opts: IpOptions) -> Self {
         Solver {
             p: self.p,
+            derived: self.derived,
             n: self.n,
             opts,
             bounds: self.bounds.clone(),

@@ -4,17 +4,8 @@
 
 use super::*;
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// If the problem declares its cost and inequalities affine in the state, check it at
     /// the first, middle and last stage of the start (with unit inequality multipliers).
@@ -24,8 +15,7 @@ where
         }
         let ones = SVector::<f64, NC>::repeat(1.0);
         for k in [0, self.n / 2, self.n - 1] {
-            let (hxx, hxw) =
-                crate::derivatives::state_curvature(self.p, k, &it.x[k], &it.w[k], &ones);
+            let (hxx, hxw) = self.p.state_curvature(k, &it.x[k], &it.w[k], &ones);
             let worst = hxx.amax().max(hxw.amax());
             if worst != 0.0 {
                 return Some(format!(
@@ -55,15 +45,9 @@ where
         }
         let affine = self.p.affine_in_state();
         let at = |k: usize, x: &SVector<f64, NX>, w: &SVector<f64, NW>, zeta: &SVector<f64, NC>| {
-            let state_gradients = affine.then(|| {
-                let (l, c) = crate::derivatives::state_pass(self.p, k, x, w);
-                (
-                    dmech::partials::grad_part(&l),
-                    dmech::partials::jacobian_part(&c),
-                )
-            });
+            let state_gradients = affine.then(|| self.p.state_gradients(k, x, w));
             StageConstants {
-                curvature: self.p.cost_curvature(k, x, w, 1.0, zeta),
+                curvature: self.p.cost_curvature(k, x, w, zeta),
                 state_gradients,
             }
         };

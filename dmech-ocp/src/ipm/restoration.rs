@@ -29,6 +29,7 @@
 //! stationary point of the squared violation within the hard constraints, a point of local
 //! infeasibility, and the problem is reported [`Status::Infeasible`].
 
+use super::oracle::{RestorationOracle, RestorationSetup};
 use super::*;
 use crate::derivatives::HessianBlocks;
 use dmech_lie::Real;
@@ -50,15 +51,15 @@ const FEASIBLE_FRACTION: f64 = 1e-4;
 
 /// The restoration problem of `p` around `(x̂, ŵ)`: `p`'s stages with the objective above.
 pub(super) struct Restoration<'a, P, const NX: usize, const NW: usize> {
-    p: &'a P,
-    eqs: &'a [StateEquality],
-    eqs_at: &'a [Vec<usize>],
-    x_ref: Vec<SVector<f64, NX>>,
-    w_ref: Vec<SVector<f64, NW>>,
-    rho: f64,
+    pub(super) p: &'a P,
+    pub(super) eqs: &'a [StateEquality],
+    pub(super) eqs_at: &'a [Vec<usize>],
+    pub(super) x_ref: Vec<SVector<f64, NX>>,
+    pub(super) w_ref: Vec<SVector<f64, NW>>,
+    pub(super) rho: f64,
     /// `ζ`, as the bits of an `f64` (set between iterations, read by the stage functions on
     /// every thread).
-    zeta: AtomicU64,
+    pub(super) zeta: AtomicU64,
 }
 
 /// `D (v − v̂)` with `D = diag(min(1, 1/|v̂_i|))`, squared and summed.
@@ -178,6 +179,16 @@ where
     }
 }
 
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>
+    RestorationOracle<NX, NW, NE, NC> for Restoration<'_, P, NX, NW>
+where
+    P: StageProblem<NX, NW, NE, NC>,
+{
+    fn follow(&self, mu: f64) -> bool {
+        Restoration::follow(self, mu)
+    }
+}
+
 /// How a restoration ended.
 pub(super) enum Restored<const NX: usize, const NW: usize, const NC: usize> {
     /// The violation fell to `κ_R` of its value at entry: go on from this iterate.
@@ -188,17 +199,8 @@ pub(super) enum Restored<const NX: usize, const NW: usize, const NC: usize> {
     Stop(Status, Iterate<NX, NW, NC>),
 }
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// `Σ_j |x_{k_j}[i_j] − v_j|`, the state equalities' part of `θ`.
     pub(super) fn state_equality_violation(&self, it: &Iterate<NX, NW, NC>) -> f64 {
@@ -223,17 +225,20 @@ where
     ) -> (Restored<NX, NW, NC>, usize) {
         let (max_iter, time_limit) = limits;
         let mu_r = mu.max(m.theta_max.min(self.opts.mu_init));
-        let problem = Restoration {
-            p: self.p,
-            eqs: &self.eqs,
-            eqs_at: &self.eqs_at,
-            x_ref: it.x.clone(),
-            w_ref: it.w.clone(),
-            rho: RHO_AT_ENTRY / m.theta_max.max(f64::MIN_POSITIVE),
-            zeta: AtomicU64::new(mu_r.sqrt().to_bits()),
-        };
-        let solver: Solver<_, NX, NW, NE, NU, NC> = Solver::new(
-            &problem,
+        let problem = self
+            .derived
+            .expect("a restoration problem's solver does not restore")
+            .restoration(RestorationSetup {
+                eqs: &self.eqs,
+                eqs_at: &self.eqs_at,
+                x_ref: it.x.clone(),
+                w_ref: it.w.clone(),
+                rho: RHO_AT_ENTRY / m.theta_max.max(f64::MIN_POSITIVE),
+                zeta: mu_r.sqrt(),
+            });
+        let solver: Solver<NX, NW, NE, NU, NC> = Solver::of_oracle(
+            &*problem,
+            None,
             IpOptions {
                 mu_init: mu_r,
                 max_iter,

@@ -130,22 +130,16 @@ where
 /// The objective scale `c = max(1, 1/s)` of `p` at the point `it` (module doc), or `None`
 /// if its mean stage cost `s` is zero (or not finite): no scale to read there.
 pub(super) fn objective_scale<
-    P,
     const NX: usize,
     const NW: usize,
     const NE: usize,
     const NC: usize,
 >(
-    p: &P,
+    p: &dyn super::oracle::StageOracle<NX, NW, NE, NC>,
     it: &Iterate<NX, NW, NC>,
-) -> Option<f64>
-where
-    P: StageProblem<NX, NW, NE, NC>,
-{
+) -> Option<f64> {
     let n = it.w.len();
-    let total: f64 = (0..n)
-        .map(|k| p.cost::<f64>(k, &it.x[k], &it.w[k]).abs())
-        .sum();
+    let total: f64 = (0..n).map(|k| p.cost(k, &it.x[k], &it.w[k]).abs()).sum();
     let s = total / n.max(1) as f64;
     (s > 0.0 && s.is_finite()).then(|| (1.0 / s).max(1.0))
 }

@@ -8,17 +8,8 @@ use super::*;
 use crate::global_riccati::LqCoupling;
 use crate::sparse_kkt::{SparseKkt, SparseKktError};
 
-impl<
-        'a,
-        P,
-        const NX: usize,
-        const NW: usize,
-        const NE: usize,
-        const NU: usize,
-        const NC: usize,
-    > Solver<'a, P, NX, NW, NE, NU, NC>
-where
-    P: StageProblem<NX, NW, NE, NC>,
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NU, NC>
 {
     /// The pattern's symbolic factorisation, built at the first sparse step of a solve.
     fn sparse_kkt(&self) -> Result<&SparseKkt, String> {

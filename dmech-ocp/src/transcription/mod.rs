@@ -79,7 +79,7 @@
 //!     &DiffDrive, Forward { n }, h, Discretisation::FirstOrder,
 //! );
 //! // NX = 3 + 2·2 + 2 = 9, NW = 2 + 2 = 4, NE = 2, free inputs NW − NE = 2, NC = 0.
-//! let solver: Solver<_, 9, 4, 2, 2, 0> =
+//! let solver: Solver<9, 4, 2, 2, 0> =
 //!     Solver::new(&p, IpOptions { verbose: false, ..Default::default() });
 //! // Any start: `initial_iterate` puts the problem's start state into x_0.
 //! let r = solver.solve(solver.initial_iterate(vec![SVector::zeros(); n + 1], vec![SVector::zeros(); n]));

@@ -110,7 +110,7 @@ fn free_model<
         mu_init: FREE_TIMING_BARRIER,
         ..opts
     };
-    let s: Solver<_, NX, NW, NS, 2, NC> = Solver::new(&ft, o);
+    let s: Solver<NX, NW, NS, 2, NC> = Solver::new(&ft, o);
     let r = s.solve(s.warm_iterate(ft.start_from_fixed::<NX, NW0, NW, NC>(start)));
     let (ratios, _) = ft.times(&r.iterate);
     let (plan, times) = ft.trajectory::<NS, NX, NW, NC>(&r.iterate);
