@@ -501,7 +501,7 @@ fn variable_radius_robot_first_order_drifts_midpoint_stays_bounded() {
 
 /// The steered car of issue 19 (steering spring k, reversing at 1 m/s from φ = 0.3 rad,
 /// φ̇ = 0.5 rad/s): the figures of docs/integrator.md, printed, not asserted (a measurement:
-/// `cargo test --release -p dmech-tests --test midpoint_integrator -- --ignored --nocapture`).
+/// `cargo test --release -p dmech-tests --test generic -- midpoint_integrator:: --ignored --nocapture`).
 /// With k = 0.05 the steering swings through full turns, the motion is not quasi-periodic,
 /// and the midpoint scheme's error also grows, at O(h²) per unit time. Then random systems
 /// with two shape variables, for which no boundedness argument is at hand.

@@ -1,0 +1,14 @@
+//! The generic integrators and transcriptions on systems with known answers and on random
+//! systems, no robot involved. One test binary: each file of `tests/` is compiled and
+//! linked on its own, and these share the generic code they instantiate.
+//!
+//! - `generic_integrator`: the integrators on small systems with known answers;
+//! - `midpoint_integrator`: both discretisations of the reduced LDAP principle on random
+//!   systems (order, reversibility, energy, momentum);
+//! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
+//! - `varint_curvature`: the VI transcription's exact constraint curvature by blocks.
+
+mod generic_integrator;
+mod midpoint_integrator;
+mod rk_transcription;
+mod varint_curvature;
