@@ -8,7 +8,7 @@
 //! the readings over a window from an initial state (generic in the scalar, so that one
 //! pass in dual numbers gives the derivatives), and the operating conditions worth
 //! testing the residual against. The WIP's plant is `crate::wip::diagnose::plant`; a toy
-//! system in `tests/diagnose_toy.rs` shows the machinery on a second system.
+//! system in `tests/diagnose/toy.rs` shows the machinery on a second system.
 //!
 //! One concept per module: [`diagnosis`] (what `diagnose` takes and gives), [`error`]
 //! (why a log cannot be diagnosed), [`log`] (the measured log), [`model`] (parameters, effects,

@@ -103,7 +103,7 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 3, 2> for WipAlgebraicCurrent<P> {
     }
 
     /// [`closed_form::shape_acceleration`] at the steady-state currents. Checked against the
-    /// generic path in `tests/wip_continuous.rs`.
+    /// generic path in `tests/model/wip_continuous.rs`.
     fn closed_form_acceleration<T: Lift<P>>(
         &self,
         s: &SVector<T, 3>,

@@ -174,7 +174,7 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
     /// The partials of [`Wip::reduced_lagrangian`] term by term (the same symbols; with
     /// `c = k_e n_wm` and the gear stage's motor and gear rates `m = v_α + n_wm (φ̇ − v_α)`,
     /// `g = v_α − n_wg (φ̇ − v_α)`). Checked against the dual-number partials in
-    /// `tests/wip_continuous.rs`.
+    /// `tests/model/wip_continuous.rs`.
     fn closed_form_lagrangian_gradient<T: Lift<P>>(
         &self,
         s: &SVector<T, 5>,
@@ -240,7 +240,7 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
 
     /// The mechanical accelerations of [`closed_form::shape_acceleration`] at the currents
     /// `(v₃, v₄)`, and the motor circuits `L_m i̇ = u − R_m i − k_e n_wm (φ̇ − α̇)`. Checked
-    /// against the generic path in `tests/wip_continuous.rs`.
+    /// against the generic path in `tests/model/wip_continuous.rs`.
     fn closed_form_acceleration<T: Lift<P>>(
         &self,
         s: &SVector<T, 5>,

@@ -1,6 +1,5 @@
-//! What the command-line tests share: the `wip` binary, a scratch directory, and the
-//! check that a run fails with one clear line.
-#![allow(dead_code)]
+//! What the command-line tests (`tests/cli/`) share: the `wip` and `car` binaries, a scratch
+//! directory, and the check that a run fails with one clear line.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -20,9 +19,14 @@ pub fn read_json(path: impl AsRef<Path>) -> serde_json::Value {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-/// A fresh directory for one test (`name` keeps the tests of one file apart).
+/// A fresh directory for one test: `name` keeps the tests of one file apart, the calling
+/// file's name the files of one test binary (whose tests run at the same time in one
+/// process, so the process id alone does not).
+#[track_caller]
 pub fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wip-test-{}-{name}", std::process::id()));
+    let file = Path::new(std::panic::Location::caller().file());
+    let stem = file.file_stem().unwrap_or_default().to_string_lossy();
+    let d = std::env::temp_dir().join(format!("wip-test-{}-{stem}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d

@@ -527,7 +527,7 @@ fn clamp01<T: FitScalar>(x: T) -> T {
 
 /// Illinois steps locating a mode switch within a step (each one Runge–Kutta step; four
 /// bring the switch within `~10⁻⁴` of the step, measured against the truth's fine steps in
-/// `tests/diagnose_prediction.rs`).
+/// `tests/diagnose/prediction.rs`).
 const SWITCH_ITERATIONS: usize = 4;
 
 /// The most mode switches resolved within one step; beyond, the step finishes in the last
@@ -541,7 +541,7 @@ const MAX_SWITCHES: usize = 6;
 /// robot reverses often. At `h/4` (`λh ≈ 0.4`) the prediction from the true states of a
 /// closed-loop run with a 20–30 % payload still misses the encoders by 1.4 noise levels
 /// (and a run without effect by 0.16); at `h/8` by 0.16 and 0.012
-/// (`tests/diagnose_prediction.rs`, which requires below 0.5).
+/// (`tests/diagnose/prediction.rs`, which requires below 0.5).
 pub const MAX_SUBSTEP: f64 = 0.125;
 
 /// `τ = m h + f` with `0 ≤ f < h` (on the real part; `f` keeps the derivative).

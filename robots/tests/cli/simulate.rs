@@ -1,7 +1,6 @@
 //! `wip simulate` through the real binary: a closed-form steady state, and clear failures.
 
-mod common;
-use common::{fails_with_one_line, scratch, wip};
+use crate::common::{fails_with_one_line, scratch, wip};
 
 fn last_row(csv: &str) -> Vec<f64> {
     csv.lines()

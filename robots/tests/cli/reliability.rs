@@ -2,8 +2,7 @@
 //! clear one-line error (exit 1), a usage error with the subcommand's usage (exit 2), or a
 //! correct result; never a panic (101) or an abort (134).
 
-mod common;
-use common::{fails_with_one_line, scratch, wip};
+use crate::common::{fails_with_one_line, scratch, wip};
 
 use std::io::Read;
 use std::path::Path;

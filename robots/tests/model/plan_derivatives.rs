@@ -5,7 +5,7 @@
 //! Jacobian from the WIP's closed form) against vector duals through the whole step, and
 //! their cost curvature (over the velocity and the input) against the whole stage's, for
 //! RK1/2/4 and both current models; at the eight's start and at perturbed points. (The
-//! closed form against the accelerations derived from `ℓ`: `tests/wip_continuous.rs`.)
+//! closed form against the accelerations derived from `ℓ`: `tests/model/wip_continuous.rs`.)
 
 use dmech::partials::{seeded, split_passes};
 use dmech::{Discretisation, ForcingQuadrature, RungeKutta};

@@ -46,7 +46,7 @@ fn parallel_park_and_lane_change_solve_from_the_kinematic_start() {
 /// The solver issue's stall on the car's own model: the steering-angle bound lowered below
 /// the unconstrained plan's peak until it is active over much of the manoeuvre; every plan
 /// solves with the default options (the steered car of
-/// `dmech-ocp/tests/steered_car_bounds.rs` stalled at 500 iterations with a bound active on
+/// `dmech-ocp/tests/solver/steered_car_bounds.rs` stalled at 500 iterations with a bound active on
 /// many stages).
 #[test]
 fn parallel_park_solves_with_the_steering_bound_active() {

@@ -2,8 +2,7 @@
 //! feedforward reproduces a trajectory of the plant exactly, the noisy loop along a short
 //! plan stays up, and bad inputs fail with one line.
 
-mod common;
-use common::{fails_with_one_line, read_json, scratch, wip};
+use crate::common::{fails_with_one_line, read_json, scratch, wip};
 use robots::wip::simulate::Trajectory;
 use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::lq::{LqController, SAMPLE};

@@ -1,8 +1,7 @@
 //! `car plan` and `car simulate`: the built-in problems solve from the generic start, and
 //! every constraint holds on the written trajectory.csv (re-measured from the file).
 
-mod common;
-use common::{car, read_json, scratch};
+use crate::common::{car, read_json, scratch};
 
 fn rows(csv: &str) -> Vec<Vec<f64>> {
     csv.lines()

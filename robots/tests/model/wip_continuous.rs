@@ -29,7 +29,7 @@ fn rel_err(a: &SVector<f64, 9>, b: &SVector<f64, 9>) -> f64 {
 fn reference_vectors() {
     // `Ẋ = f(X, u)` of the continuous model at eight states and inputs (default parameters),
     // computed by an independent implementation of the model of docs/wip.md.
-    let text = include_str!("data/reference-vectors.json");
+    let text = include_str!("../data/reference-vectors.json");
     let json: serde_json::Value = serde_json::from_str(text).unwrap();
     let w = Wip::default();
     let mut worst: f64 = 0.0;

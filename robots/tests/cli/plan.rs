@@ -1,8 +1,7 @@
 //! `wip plan`: a small problem solved and checked on the returned trajectory, an
 //! infeasible one reported as such, malformed waypoint files rejected.
 
-mod common;
-use common::{read_json, scratch, wip};
+use crate::common::{read_json, scratch, wip};
 
 use std::time::Instant;
 

@@ -437,7 +437,7 @@ fn wip_simulate_midpoint_converges_with_order_two() {
 /// The stiff electromechanical mode undamped (R_m = 0, ω ≈ 363 rad/s, hω ≈ 1.8 at 5 ms),
 /// 10⁵ steps: the midpoint scheme is stable on it and its energy error is bounded (the
 /// last tenth's envelope under twice the first's: a drift over the run larger than 1.25×
-/// the bounded error would exceed that; see `tests/tests/midpoint_integrator.rs`), with
+/// the bounded error would exceed that; see `tests/tests/generic/midpoint_integrator.rs`), with
 /// the Newton iterations per step the simulator's policy needs. The first-order scheme's
 /// envelope is printed beside it (docs/integrator.md).
 #[test]

@@ -12,7 +12,7 @@
 //! test suite can carry); the full matrix of five per effect is ignored by default:
 //!
 //! ```sh
-//! cargo test --release -p robots --test diagnose_recovery -- --ignored --nocapture
+//! cargo test --release -p robots --test diagnose -- recovery:: --ignored --nocapture
 //! ```
 //!
 //! `WIP_DIAGNOSE_EFFECTS=stick_slip,none` restricts either matrix to some effects.

@@ -2,8 +2,7 @@
 //! exit status 1 and one line naming the problem; a generated log diagnosed end to end,
 //! with every output file written and `diagnosis.json` carrying the keys of docs/formats.md.
 
-mod common;
-use common::{read_json, scratch, wip};
+use crate::common::{read_json, scratch, wip};
 
 /// A well-formed log of `n` rows (tilt, rate and one current channel), as text.
 fn good_rows(n: usize) -> String {
@@ -106,7 +105,7 @@ fn text_in_a_number_names_line_and_column() {
 
 /// `wip generate` hides a tilt-sensor offset in a 12 s closed-loop log; `wip diagnose`
 /// names it and writes every file. (The recovery over seeds and effects is
-/// `diagnose_recovery.rs`; this checks the command-line surfaces.)
+/// `tests/diagnose/recovery.rs`; this checks the command-line surfaces.)
 #[test]
 fn generate_then_diagnose_end_to_end() {
     let dir = scratch("e2e");

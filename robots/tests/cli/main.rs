@@ -1,0 +1,23 @@
+//! The `wip` and `car` tools through their binaries, in one binary: every test file of
+//! `tests/` is compiled and linked as its own binary, so together these compile the shared
+//! helpers (`common`) and the generic library code they call directly (the closed loop of
+//! `track`) once, and link once.
+//!
+//! - `car`: `car plan` and `car simulate`;
+//! - `diagnose`: `wip generate` and `wip diagnose`;
+//! - `plan`: `wip plan`;
+//! - `reliability`: every subcommand under careless or hostile use (issue 24);
+//! - `simulate`: `wip simulate`;
+//! - `track`: `wip track` and the closed loop.
+//!
+//! One module's tests: `cargo test -p robots --test cli -- plan::`.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod car;
+mod diagnose;
+mod plan;
+mod reliability;
+mod simulate;
+mod track;
