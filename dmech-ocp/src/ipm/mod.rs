@@ -135,8 +135,8 @@ type RestoreFn<'f, const NX: usize, const NW: usize, const NC: usize> = dyn Fn(&
 /// What a run of the loop is.
 enum Mode<'f, const NX: usize, const NW: usize, const NC: usize> {
     /// The problem itself, restored by this function when it cannot go on far from
-    /// feasibility. (Passed in, not called directly, so that a restoration problem's solver
-    /// does not instantiate a restoration of its own.)
+    /// feasibility. (Passed in, not called directly: a restoration problem's solver has no
+    /// derived problems, and its loop runs in the other mode.)
     Main(&'f RestoreFn<'f, NX, NW, NC>),
     /// A restoration problem, which stops as soon as `done` holds at an iterate, and whose
     /// objective follows the barrier parameter (`follow(μ)`: `true` if it changed).
