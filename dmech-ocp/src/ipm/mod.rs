@@ -146,8 +146,9 @@ enum Mode<'f, const NX: usize, const NW: usize, const NC: usize> {
     },
 }
 
-/// The solver of one problem. It holds the problem as an [`oracle::StageOracle`], so that
-/// its code is compiled once per set of sizes, not once per problem type (`oracle.rs`).
+/// The solver of one problem. It holds the problem as a trait object (`StageOracle`,
+/// `oracle.rs`), so that its code is compiled once per set of sizes, not once per problem
+/// type.
 pub struct Solver<
     'a,
     const NX: usize,
