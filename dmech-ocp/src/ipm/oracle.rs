@@ -21,7 +21,6 @@ use crate::derivatives::{
 };
 use crate::problem::{Globals, StageProblem, StateEquality};
 use nalgebra::{SMatrix, SVector};
-use std::sync::atomic::AtomicU64;
 
 /// A problem's `f64` face: what the engine evaluates, stage by stage.
 pub(super) trait StageOracle<const NX: usize, const NW: usize, const NE: usize, const NC: usize>:
@@ -247,14 +246,6 @@ where
         &'s self,
         s: RestorationSetup<'s, NX, NW>,
     ) -> Box<dyn RestorationOracle<NX, NW, NE, NC> + 's> {
-        Box::new(Restoration {
-            p: self,
-            eqs: s.eqs,
-            eqs_at: s.eqs_at,
-            x_ref: s.x_ref,
-            w_ref: s.w_ref,
-            rho: s.rho,
-            zeta: AtomicU64::new(s.zeta.to_bits()),
-        })
+        Box::new(Restoration::new(self, s))
     }
 }

@@ -51,15 +51,15 @@ const FEASIBLE_FRACTION: f64 = 1e-4;
 
 /// The restoration problem of `p` around `(x̂, ŵ)`: `p`'s stages with the objective above.
 pub(super) struct Restoration<'a, P, const NX: usize, const NW: usize> {
-    pub(super) p: &'a P,
-    pub(super) eqs: &'a [StateEquality],
-    pub(super) eqs_at: &'a [Vec<usize>],
-    pub(super) x_ref: Vec<SVector<f64, NX>>,
-    pub(super) w_ref: Vec<SVector<f64, NW>>,
-    pub(super) rho: f64,
+    p: &'a P,
+    eqs: &'a [StateEquality],
+    eqs_at: &'a [Vec<usize>],
+    x_ref: Vec<SVector<f64, NX>>,
+    w_ref: Vec<SVector<f64, NW>>,
+    rho: f64,
     /// `ζ`, as the bits of an `f64` (set between iterations, read by the stage functions on
     /// every thread).
-    pub(super) zeta: AtomicU64,
+    zeta: AtomicU64,
 }
 
 /// `D (v − v̂)` with `D = diag(min(1, 1/|v̂_i|))`, squared and summed.
@@ -72,7 +72,20 @@ fn proximity<T: Real, const N: usize>(v: &SVector<T, N>, v_ref: &SVector<f64, N>
     s
 }
 
-impl<P, const NX: usize, const NW: usize> Restoration<'_, P, NX, NW> {
+impl<'a, P, const NX: usize, const NW: usize> Restoration<'a, P, NX, NW> {
+    /// The restoration problem of `p` around `setup`'s point.
+    pub(super) fn new(p: &'a P, setup: RestorationSetup<'a, NX, NW>) -> Self {
+        Restoration {
+            p,
+            eqs: setup.eqs,
+            eqs_at: setup.eqs_at,
+            x_ref: setup.x_ref,
+            w_ref: setup.w_ref,
+            rho: setup.rho,
+            zeta: AtomicU64::new(setup.zeta.to_bits()),
+        }
+    }
+
     fn zeta(&self) -> f64 {
         f64::from_bits(self.zeta.load(Ordering::Relaxed))
     }
