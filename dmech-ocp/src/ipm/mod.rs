@@ -128,16 +128,11 @@ const QN_RESET_BACKTRACKS: usize = 4;
 const MAX_FORCED_STEPS: usize = 20;
 const FORCED_STEP_FRACTION: f64 = 0.125;
 
-/// `restore(it, m, μ, (iterations, seconds) left, complete)`: a restoration from `it`.
-type RestoreFn<'f, const NX: usize, const NW: usize, const NC: usize> = dyn Fn(&Iterate<NX, NW, NC>, &Measures, f64, (usize, f64), bool) -> (Restored<NX, NW, NC>, usize)
-    + 'f;
-
 /// What a run of the loop is.
 enum Mode<'f, const NX: usize, const NW: usize, const NC: usize> {
-    /// The problem itself, restored by this function when it cannot go on far from
-    /// feasibility. (Passed in, not called directly: a restoration problem's solver has no
-    /// derived problems, and its loop runs in the other mode.)
-    Main(&'f RestoreFn<'f, NX, NW, NC>),
+    /// The problem itself, restored (`restoration.rs`) when it cannot go on far from
+    /// feasibility.
+    Main,
     /// A restoration problem, which stops as soon as `done` holds at an iterate, and whose
     /// objective follows the barrier parameter (`follow(μ)`: `true` if it changed).
     Restoration {
@@ -235,12 +230,16 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     pub fn solve(&self, start: Iterate<NX, NW, NC>) -> SolveResult<NX, NW, NC> {
         let c = scaling::objective_scale(self.p, &start)
             .or_else(|| {
-                let probe = self.with_options(IpOptions {
-                    max_iter: 1,
-                    verbose: false,
-                    time_limit: f64::INFINITY,
-                    ..self.opts.clone()
-                });
+                let probe = self.variant(
+                    self.p,
+                    self.globals.clone(),
+                    IpOptions {
+                        max_iter: 1,
+                        verbose: false,
+                        time_limit: f64::INFINITY,
+                        ..self.opts.clone()
+                    },
+                );
                 scaling::objective_scale(self.p, &probe.run(start.clone()).iterate)
             })
             .unwrap_or(1.0);
@@ -267,17 +266,8 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
             .derived
             .expect("a restoration problem is run, not solved")
             .scaled(c);
-        let inner: Solver<NX, NW, NE, NU, NC> = Solver {
-            p: &*scaled,
-            derived: self.derived,
-            n: self.n,
-            opts: self.opts.clone(),
-            bounds: self.bounds.clone(),
-            eqs: self.eqs.clone(),
-            eqs_at: self.eqs_at.clone(),
-            globals: self.globals.clone().map(|g| g.with_cost_scaled(c)),
-            sparse: Default::default(),
-        };
+        let globals = self.globals.clone().map(|g| g.with_cost_scaled(c));
+        let inner = self.variant(&*scaled, globals, self.opts.clone());
         // A cold start (no equality multipliers) has the initial bound multipliers 1 of
         // `initial_iterate`, IPOPT's initial value for the problem the solver works on;
         // a warm start's multipliers are in the problem's units and are scaled with it.
@@ -290,30 +280,30 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         }
     }
 
-    /// The same solver with other options.
-    fn with_options(&self, opts: IpOptions) -> Self {
+    /// This solver on `p` (the problem itself or its scaled cost: the same stages, bounds
+    /// and state equalities), with `globals` and `opts`.
+    fn variant<'b>(
+        &'b self,
+        p: &'b dyn oracle::StageOracle<NX, NW, NE, NC>,
+        globals: Option<GlobalSpec>,
+        opts: IpOptions,
+    ) -> Solver<'b, NX, NW, NE, NU, NC> {
         Solver {
-            p: self.p,
+            p,
             derived: self.derived,
             n: self.n,
             opts,
             bounds: self.bounds.clone(),
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
-            globals: self.globals.clone(),
+            globals,
             sparse: Default::default(),
         }
     }
 
     /// The interior-point loop on the problem as given, with feasibility restoration.
     fn run(&self, start: Iterate<NX, NW, NC>) -> SolveResult<NX, NW, NC> {
-        let restore =
-            |it: &Iterate<NX, NW, NC>,
-             m: &Measures,
-             mu: f64,
-             limits: (usize, f64),
-             complete: bool| { self.restore(it, m, mu, limits, complete) };
-        self.run_with(start, Mode::Main(&restore)).0
+        self.run_with(start, Mode::Main).0
     }
 
     /// The interior-point loop. In [`Mode::Restoration`] it also reports whether it stopped
@@ -422,7 +412,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                 &mut tm,
             );
             if last.accepted.is_none() {
-                if m.theta_max > INFEASIBLE_VIOLATION && matches!(mode, Mode::Main(_)) {
+                if m.theta_max > INFEASIBLE_VIOLATION && matches!(mode, Mode::Main) {
                     restore = true;
                     continue;
                 }
@@ -476,15 +466,15 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     ) -> Option<Status> {
         let vals = self.values(it);
         let m = self.measures(it, &vals, mu);
-        let Mode::Main(restore) = mode else {
+        if !matches!(mode, Mode::Main) {
             return Some(Status::Infeasible {
                 violation: m.theta_max,
             });
-        };
+        }
         let t = Instant::now();
         let secs_left = self.opts.time_limit - t_start.elapsed().as_secs_f64();
         let limits = (self.opts.max_iter - *iter, secs_left);
-        let (outcome, iterations) = restore(it, &m, mu, limits, tm.restorations > 0);
+        let (outcome, iterations) = self.restore(it, &m, mu, limits, tm.restorations > 0);
         tm.restorations += 1;
         tm.restoration += t.elapsed().as_secs_f64();
         *iter += iterations;

@@ -115,7 +115,9 @@ pub(super) struct RestorationSetup<'s, const NX: usize, const NW: usize> {
 }
 
 /// The problems the solver derives from the one it was given, built where the problem's
-/// type is still known.
+/// type is still known. A trait of its own rather than methods of [`StageOracle`]: the
+/// derived problems are oracles too, and a `scaled` in their vtables would ask for the
+/// scaled problem of the scaled problem, without end.
 pub(super) trait DerivedProblems<const NX: usize, const NW: usize, const NE: usize, const NC: usize>:
     Sync
 {
