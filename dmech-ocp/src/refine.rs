@@ -178,8 +178,8 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
     // Bound multipliers (and slacks) belong to the stage's constraints on `(x_k, w_k)`,
     // which span the step: linear between the coarse stages' middles. Matching the steps'
     // starts instead read each fine stage's multiplier `(H − h)/2` late (a quarter of a
-    // coarse step when halving); at the corners of a rate-limited input that cost the
-    // eight 7 iterations of 73.
+    // coarse step when halving), which cuts the fine mesh's first steps where an active
+    // bound's multiplier rises from zero (docs/ocp.md, mesh sequencing).
     let bound = |v: &[SVector<f64, NC>]| (0..n_fine).map(|j| at_stage_middle(v, j)).collect();
     Iterate {
         x,

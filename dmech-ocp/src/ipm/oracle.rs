@@ -103,15 +103,14 @@ pub(super) trait RestorationOracle<
     fn follow(&self, mu: f64) -> bool;
 }
 
-/// Where a restoration starts: the point `(x̂, ŵ)`, the penalty weight `ρ`, the first `ζ`,
-/// and the problem's state equalities by stage.
+/// Where a restoration starts: the point `(x̂, ŵ)`, the penalty weight `ρ`, and the
+/// problem's state equalities by stage.
 pub(super) struct RestorationSetup<'s, const NX: usize, const NW: usize> {
     pub(super) eqs: &'s [StateEquality],
     pub(super) eqs_at: &'s [Vec<usize>],
     pub(super) x_ref: Vec<SVector<f64, NX>>,
     pub(super) w_ref: Vec<SVector<f64, NW>>,
     pub(super) rho: f64,
-    pub(super) zeta: f64,
 }
 
 /// The problems the solver derives from the one it was given, built where the problem's
@@ -123,11 +122,12 @@ pub(super) trait DerivedProblems<const NX: usize, const NW: usize, const NE: usi
 {
     /// The problem with its cost times `c` (`scaling.rs`).
     fn scaled(&self, c: f64) -> Box<dyn StageOracle<NX, NW, NE, NC> + '_>;
-    /// The restoration problem around `setup`'s point (`restoration.rs`). The same for the
-    /// scaled problem: it drops the cost.
+    /// The restoration problem around `setup`'s point, its proximity weight first `zeta`
+    /// (`restoration.rs`). The same for the scaled problem: it drops the cost.
     fn restoration<'s>(
         &'s self,
         setup: RestorationSetup<'s, NX, NW>,
+        zeta: f64,
     ) -> Box<dyn RestorationOracle<NX, NW, NE, NC> + 's>;
 }
 
@@ -247,7 +247,8 @@ where
     fn restoration<'s>(
         &'s self,
         s: RestorationSetup<'s, NX, NW>,
+        zeta: f64,
     ) -> Box<dyn RestorationOracle<NX, NW, NE, NC> + 's> {
-        Box::new(Restoration::new(self, s))
+        Box::new(Restoration::new(self, s, zeta))
     }
 }

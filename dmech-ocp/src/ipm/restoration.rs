@@ -52,11 +52,8 @@ const FEASIBLE_FRACTION: f64 = 1e-4;
 /// The restoration problem of `p` around `(x̂, ŵ)`: `p`'s stages with the objective above.
 pub(super) struct Restoration<'a, P, const NX: usize, const NW: usize> {
     p: &'a P,
-    eqs: &'a [StateEquality],
-    eqs_at: &'a [Vec<usize>],
-    x_ref: Vec<SVector<f64, NX>>,
-    w_ref: Vec<SVector<f64, NW>>,
-    rho: f64,
+    /// The point, the penalty weight and the state equalities.
+    at: RestorationSetup<'a, NX, NW>,
     /// `ζ`, as the bits of an `f64` (set between iterations, read by the stage functions on
     /// every thread).
     zeta: AtomicU64,
@@ -73,16 +70,12 @@ fn proximity<T: Real, const N: usize>(v: &SVector<T, N>, v_ref: &SVector<f64, N>
 }
 
 impl<'a, P, const NX: usize, const NW: usize> Restoration<'a, P, NX, NW> {
-    /// The restoration problem of `p` around `setup`'s point.
-    pub(super) fn new(p: &'a P, setup: RestorationSetup<'a, NX, NW>) -> Self {
+    /// The restoration problem of `p` around `at`'s point, with `ζ` first `zeta`.
+    pub(super) fn new(p: &'a P, at: RestorationSetup<'a, NX, NW>, zeta: f64) -> Self {
         Restoration {
             p,
-            eqs: setup.eqs,
-            eqs_at: setup.eqs_at,
-            x_ref: setup.x_ref,
-            w_ref: setup.w_ref,
-            rho: setup.rho,
-            zeta: AtomicU64::new(setup.zeta.to_bits()),
+            at,
+            zeta: AtomicU64::new(zeta.to_bits()),
         }
     }
 
@@ -90,20 +83,15 @@ impl<'a, P, const NX: usize, const NW: usize> Restoration<'a, P, NX, NW> {
         f64::from_bits(self.zeta.load(Ordering::Relaxed))
     }
 
-    /// `ζ = √μ`; `true` if it changed.
-    fn follow(&self, mu: f64) -> bool {
-        let new = mu.sqrt().to_bits();
-        self.zeta.swap(new, Ordering::Relaxed) != new
-    }
-
     /// `ρ/2 Σ (x[i_j] − v_j)²` over the state equalities at stage `k`.
     fn penalty<T: Real>(&self, k: usize, x: &SVector<T, NX>) -> T {
         let mut s = T::zero();
-        for &j in &self.eqs_at[k] {
-            let r = x[self.eqs[j].index] - self.eqs[j].value;
+        for &j in &self.at.eqs_at[k] {
+            let e = &self.at.eqs[j];
+            let r = x[e.index] - e.value;
             s += r * r;
         }
-        s * (0.5 * self.rho)
+        s * (0.5 * self.at.rho)
     }
 }
 
@@ -135,12 +123,12 @@ where
         self.p.equality(k, x, w)
     }
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
-        let prox = proximity(x, &self.x_ref[k]) + proximity(w, &self.w_ref[k]);
+        let prox = proximity(x, &self.at.x_ref[k]) + proximity(w, &self.at.w_ref[k]);
         self.penalty(k, x) + prox * (0.5 * self.zeta())
     }
     fn terminal_cost<T: Real>(&self, x: &SVector<T, NX>) -> T {
-        let n = self.x_ref.len() - 1;
-        self.penalty(n, x) + proximity(x, &self.x_ref[n]) * (0.5 * self.zeta())
+        let n = self.at.x_ref.len() - 1;
+        self.penalty(n, x) + proximity(x, &self.at.x_ref[n]) * (0.5 * self.zeta())
     }
     fn constraints<T: Real>(
         &self,
@@ -198,7 +186,8 @@ where
     P: StageProblem<NX, NW, NE, NC>,
 {
     fn follow(&self, mu: f64) -> bool {
-        Restoration::follow(self, mu)
+        let new = mu.sqrt().to_bits();
+        self.zeta.swap(new, Ordering::Relaxed) != new
     }
 }
 
@@ -241,14 +230,16 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         let problem = self
             .derived
             .expect("a restoration problem's solver does not restore")
-            .restoration(RestorationSetup {
-                eqs: &self.eqs,
-                eqs_at: &self.eqs_at,
-                x_ref: it.x.clone(),
-                w_ref: it.w.clone(),
-                rho: RHO_AT_ENTRY / m.theta_max.max(f64::MIN_POSITIVE),
-                zeta: mu_r.sqrt(),
-            });
+            .restoration(
+                RestorationSetup {
+                    eqs: &self.eqs,
+                    eqs_at: &self.eqs_at,
+                    x_ref: it.x.clone(),
+                    w_ref: it.w.clone(),
+                    rho: RHO_AT_ENTRY / m.theta_max.max(f64::MIN_POSITIVE),
+                },
+                mu_r.sqrt(),
+            );
         let solver: Solver<NX, NW, NE, NU, NC> = Solver::of_oracle(
             &*problem,
             None,
