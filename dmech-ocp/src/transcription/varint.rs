@@ -138,6 +138,15 @@ where
     ) -> SVector<T, NS> {
         self.stages.equality::<T, DOF, DIM, NS, NU, NX, NW>(x, w)
     }
+    fn dynamics_jacobian(
+        &self,
+        _k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
+        self.stages
+            .dynamics_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w)
+    }
     fn equality_jacobian(
         &self,
         _k: usize,
