@@ -54,17 +54,32 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
     ) {
         if self.valid {
             let (sx, sw) = (x - self.x, w - self.w);
-            let yx = (d.fx - self.fx).transpose() * lam + (d.ex - self.ex).transpose() * nu;
-            let yw = (d.fw - self.fw).transpose() * lam + (d.ew - self.ew).transpose() * nu;
-            let rx = yx - (self.bxx * sx + self.bxw * sw);
-            let rw = yw - (self.bxw.transpose() * sx + self.bww * sw);
+            // r = y − B s with y = (J − J_old)ᵀ(λ, ν): the old Jacobians are subtracted in
+            // place (the stored copies are replaced right after), so no temporary matrix
+            // and no transposed copy is built; the rank-one terms go into B in place.
+            self.fx -= d.fx;
+            self.fw -= d.fw;
+            self.ex -= d.ex;
+            self.ew -= d.ew;
+            let mut rx = self.bxx * sx;
+            rx.gemv(1.0, &self.bxw, &sw, 1.0);
+            rx.gemv_tr(1.0, &self.fx, lam, 1.0);
+            rx.gemv_tr(1.0, &self.ex, nu, 1.0);
+            let mut rw = self.bww * sw;
+            rw.gemv_tr(1.0, &self.bxw, &sx, 1.0);
+            rw.gemv_tr(1.0, &self.fw, lam, 1.0);
+            rw.gemv_tr(1.0, &self.ew, nu, 1.0);
+            // (The old minus the new Jacobians were multiplied: r is negated here.)
+            rx.neg_mut();
+            rw.neg_mut();
             let den = sx.dot(&rx) + sw.dot(&rw);
             let ns = (sx.norm_squared() + sw.norm_squared()).sqrt();
             let nr = (rx.norm_squared() + rw.norm_squared()).sqrt();
             if den.abs() > skip * ns * nr && ns > 0.0 {
-                self.bxx += rx * rx.transpose() / den;
-                self.bxw += rx * rw.transpose() / den;
-                self.bww += rw * rw.transpose() / den;
+                let inv = 1.0 / den;
+                self.bxx.ger(inv, &rx, &rx, 1.0);
+                self.bxw.ger(inv, &rx, &rw, 1.0);
+                self.bww.ger(inv, &rw, &rw, 1.0);
             }
         }
         self.x = *x;
