@@ -178,19 +178,18 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
             }
         }
         let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
-        let (mut hxx0, mut hxw0, mut hww0) = match curvature.constant {
+        // Every term is added into the blocks in place (no zeroed temporaries).
+        let (mut hxx, mut hxw, mut hww) = match curvature.constant {
             Some(&c) => c,
             None => (d.hxx, d.hxw, d.hww),
         };
         if let Some(q) = curvature.qn {
-            hxx0 += q.bxx;
-            hxw0 += q.bxw;
-            hww0 += q.bww;
+            hxx += q.bxx;
+            hxw += q.bxw;
+            hww += q.bww;
         }
-        let (cxx, cxw) = state_rows_weighted(&d.cx, &d.cw, &sigma);
-        let hxx = hxx0 + cxx;
-        let hxw = hxw0 + cxw;
-        let hww = hww0 + cw_s * d.cw;
+        add_state_rows_weighted(&d.cx, &d.cw, &sigma, &mut hxx, &mut hxw);
+        hww.gemm(1.0, &cw_s, &d.cw, 1.0);
         let gx = d.gx + d.cx.transpose() * bc;
         let gw = d.gw + d.cw.transpose() * bc;
 
@@ -482,18 +481,16 @@ pub(super) fn corrected_derivatives<
     d
 }
 
-/// `(C_xᵀ Σ C_x, C_xᵀ Σ C_w)` over the nonzeros of `C_x`'s rows: an inequality reads one
-/// or two state entries (a bound on the tilt, a rate limit on `u_{k−1}`), so the dense
-/// `NX·NC·NX` products were mostly multiplications by zero. The terms `(c_ia σ_i) c_ib` are
-/// the dense products' and are summed over `i` in the same order, the zero ones left out,
-/// so the sums are the same numbers.
-fn state_rows_weighted<const NX: usize, const NW: usize, const NC: usize>(
+/// `C_xᵀ Σ C_x` and `C_xᵀ Σ C_w` added into `hxx`, `hxw`, over the nonzeros of `C_x`'s
+/// rows: an inequality reads one or two state entries (a bound on the tilt, a rate limit
+/// on `u_{k−1}`), so the dense `NX·NC·NX` products were mostly multiplications by zero.
+fn add_state_rows_weighted<const NX: usize, const NW: usize, const NC: usize>(
     cx: &SMatrix<f64, NC, NX>,
     cw: &SMatrix<f64, NC, NW>,
     sigma: &SVector<f64, NC>,
-) -> (SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
-    let mut cxx = SMatrix::<f64, NX, NX>::zeros();
-    let mut cxw = SMatrix::<f64, NX, NW>::zeros();
+    hxx: &mut SMatrix<f64, NX, NX>,
+    hxw: &mut SMatrix<f64, NX, NW>,
+) {
     let mut nz = [0usize; NX];
     for i in 0..NC {
         let mut m = 0;
@@ -506,12 +503,11 @@ fn state_rows_weighted<const NX: usize, const NW: usize, const NC: usize>(
         for &a in &nz[..m] {
             let ca = cx[(i, a)] * sigma[i];
             for &b in &nz[..m] {
-                cxx[(a, b)] += ca * cx[(i, b)];
+                hxx[(a, b)] += ca * cx[(i, b)];
             }
             for b in 0..NW {
-                cxw[(a, b)] += ca * cw[(i, b)];
+                hxw[(a, b)] += ca * cw[(i, b)];
             }
         }
     }
-    (cxx, cxw)
 }
