@@ -120,8 +120,9 @@ impl StallWatch {
 }
 
 /// Line-search trials (the first one included) after which the quasi-Newton curvature is
-/// reset.
-const QN_RESET_BACKTRACKS: usize = 4;
+/// reset: a step cut by 2⁵. At 4 (a cut by 2³) the midpoint VI's resets themselves kept
+/// its barrier subproblem cycling (docs/ocp.md).
+const QN_RESET_BACKTRACKS: usize = 6;
 
 /// Steps taken without line-search acceptance, at most, per solve, and their length as
 /// a fraction of the largest step to the boundary.
@@ -431,9 +432,8 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                     last.accepted = Some((trial, tv, tmz));
                 }
             }
-            // A step accepted only after cutting it by 2³ or more says the secant model
-            // predicts badly: start it over from the exact cost curvature. (Measured on the
-            // eight: without it, runs of hundreds of steps cut 2⁷–2⁸ each; docs/ocp.md.)
+            // A step accepted only after cutting it by 2⁵ or more says the secant model
+            // predicts badly: start it over from the exact cost curvature (docs/ocp.md).
             if last.accepted.is_some() && last.trials >= QN_RESET_BACKTRACKS {
                 ws.reset_quasi_newton();
             }
