@@ -125,8 +125,8 @@ impl<'a, S> VarIntStages<'a, S> {
     /// `f` reads only `(coords(g_k), s_k)` of `x` and all of `w`; `w` is seeded in the
     /// directions of the entries of `x` that `f` does not read, `(v_{k−1}, u_{k−1})`, which
     /// `w = (v_k, u_k)` fills exactly. Each direction of a vector dual is propagated on its
-    /// own, so the columns are the two-pass default's to the bit; one pass instead of two
-    /// (widths `NX` and `NW`) halves the cost. Checked against the default in a test.
+    /// own, so the columns are the two-pass default's to the bit, from one pass instead of
+    /// two (widths `NX` and `NW`). Checked against the default in a test.
     #[allow(clippy::type_complexity)]
     pub fn dynamics_jacobian<
         const DOF: usize,
