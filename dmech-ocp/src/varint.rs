@@ -17,7 +17,7 @@ use dmech::midpoint::{
     interval_body_velocity, interval_force, midpoint_incoming_momentum,
     midpoint_momentum_matching_residual, midpoint_outgoing_momentum,
 };
-use dmech::partials::{grad_part, lift_vec, seeded};
+use dmech::partials::{grad_part, jacobian_part, lift_vec, seeded, seeded_from};
 use dmech::variational::{
     discrete_force, incoming_momentum_dual, momentum_matching_residual, outgoing_momentum_dual,
 };
@@ -144,36 +144,16 @@ impl<'a, S> VarIntStages<'a, S> {
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
         let at = self.layout.v_at();
-        assert!(
-            at + NW == NX,
-            "w fills the unread entries of x (NX = {NX}, NW = {NW}, v at {at})"
-        );
-        let unit = |i: usize| {
-            let mut e = SVector::<f64, NX>::zeros();
-            e[i] = 1.0;
-            num_dual::Derivative::some(e)
-        };
-        let xd = SVector::<D<NX>, NX>::from_fn(|i, _| {
-            if i < at {
-                D::<NX>::new(x[i], unit(i))
-            } else {
-                D::<NX>::from_re(x[i])
-            }
-        });
-        let wd = SVector::<D<NX>, NW>::from_fn(|i, _| D::<NX>::new(w[i], unit(at + i)));
-        let y = self.dynamics::<D<NX>, DOF, DIM, NS, NU, NX, NW>(&xd, &wd);
-        let mut fx = SMatrix::<f64, NX, NX>::zeros();
-        let mut fw = SMatrix::<f64, NX, NW>::zeros();
-        for r in 0..NX {
-            if let Some(g) = &y[r].eps.0 {
-                for c in 0..at {
-                    fx[(r, c)] = g[c];
-                }
-                for c in 0..NW {
-                    fw[(r, c)] = g[at + c];
-                }
-            }
+        let mut xd = seeded(x);
+        for d in xd.iter_mut().skip(at) {
+            *d = D::<NX>::from_re(d.re);
         }
+        let wd = seeded_from::<f64, NX, NW>(w, at);
+        let y = self.dynamics::<D<NX>, DOF, DIM, NS, NU, NX, NW>(&xd, &wd);
+        let jac = jacobian_part(&y);
+        let fw = jac.fixed_columns::<NW>(at).into_owned();
+        let mut fx = jac;
+        fx.columns_mut(at, NX - at).fill(0.0);
         (y.map(|d| d.re), fx, fw)
     }
 

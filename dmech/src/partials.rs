@@ -21,9 +21,19 @@ pub fn lift_vec<T: Real, const N: usize, const M: usize>(
 
 /// `x` as vector duals seeded with the unit directions (the input of a gradient).
 pub fn seeded<T: Real, const N: usize>(x: &SVector<T, N>) -> SVector<Dv<T, N>, N> {
+    seeded_from::<T, N, N>(x, 0)
+}
+
+/// `x` as vector duals of width `N`, entry `i` seeded with the unit direction `first + i`:
+/// several inputs of one pass seeded side by side. Panics if `first + M > N`.
+pub fn seeded_from<T: Real, const N: usize, const M: usize>(
+    x: &SVector<T, M>,
+    first: usize,
+) -> SVector<Dv<T, N>, M> {
+    assert!(first + M <= N, "directions {first}..{} of {N}", first + M);
     SVector::from_fn(|i, _| {
         let mut e = SVector::<T, N>::zeros();
-        e[i] = T::one();
+        e[first + i] = T::one();
         DualVec::new(x[i], Derivative::some(e))
     })
 }
