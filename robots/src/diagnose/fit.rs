@@ -356,6 +356,20 @@ impl<'a, P: Plant> Fitter<'a, P> {
         abandon_above: Option<f64>,
         progress: &dyn Fn(&str),
     ) -> Fit {
+        let cap = self.setup.max_iterations;
+        self.fit_capped(cand, theta0, z0, abandon_above, progress, cap)
+    }
+
+    /// [`Fitter::fit`] with at most `max_iterations` iterations.
+    pub fn fit_capped(
+        &self,
+        cand: &Candidate,
+        theta0: &[f64],
+        z0: &[Vec<f64>],
+        abandon_above: Option<f64>,
+        progress: &dyn Fn(&str),
+        max_iterations: usize,
+    ) -> Fit {
         let cat = self.catalogue();
         let dirs = cand.directions(cat);
         let k = dirs.len();
@@ -369,7 +383,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
         let mut lambda = 1e-3;
         let (mut iterations, mut converged, mut abandoned) = (0, false, false);
         let mut cov = DMatrix::from_element(k, k, f64::INFINITY);
-        'outer: for it in 0..self.setup.max_iterations {
+        'outer: for it in 0..max_iterations {
             iterations = it + 1;
             let Some(lins) = self.linearise(&theta, &dirs, &z) else {
                 break;
@@ -433,7 +447,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             }
         }
         let (rss, m) = self.cost(&theta, &z).unwrap_or((f64::INFINITY, 0));
-        let std = param_std(cat, &dirs, &theta, &cov);
+        let std = param_std(cat, &dirs, &theta, &cov, self.log.h);
         Fit {
             candidate: cand.clone(),
             theta,
@@ -461,7 +475,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             Some(l) => parameter_cov(&l, dirs.len()),
             None => DMatrix::from_element(dirs.len(), dirs.len(), f64::INFINITY),
         };
-        fit.std = param_std(cat, &dirs, &fit.theta, &fit.cov);
+        fit.std = param_std(cat, &dirs, &fit.theta, &fit.cov, self.log.h);
     }
 
     /// Screen effects with one linearisation at `theta` (window states `z0`): for each

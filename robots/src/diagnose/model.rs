@@ -31,6 +31,14 @@ pub struct ParamSpec {
     pub systematic: f64,
     /// Fitted in `ln θ` (positive).
     pub log: bool,
+    /// A time threshold that the plant decides at its sample instants: where it ends
+    /// between two samples the log cannot tell, so the standard deviation has the floor
+    /// `h/√12` of a value uniform over one step (added in quadrature).
+    pub sampled_time: bool,
+    /// Where the cost is multimodal in this parameter (a time threshold that switches
+    /// events on and off), the values a fit first tries from `start`: it starts from the
+    /// one with the lowest cost (empty: from `start`).
+    pub start_grid: Vec<f64>,
 }
 
 impl ParamSpec {
@@ -45,6 +53,8 @@ impl ParamSpec {
             plausible: range,
             systematic: 0.0,
             log: false,
+            sampled_time: false,
+            start_grid: Vec::new(),
         }
     }
     /// A positive physical parameter fitted in `ln θ`; `rel_scale` is a typical relative
@@ -59,6 +69,8 @@ impl ParamSpec {
             plausible,
             systematic: 0.0,
             log: true,
+            sampled_time: false,
+            start_grid: Vec::new(),
         }
     }
     pub fn to_internal(&self, theta: f64) -> f64 {

@@ -30,12 +30,14 @@ pub(super) fn direction_scale(cat: &Catalogue, d: &Direction) -> f64 {
 
 /// Standard deviation of every parameter (0 where not free) from the covariance of the
 /// free coordinates, with the systematic floor in quadrature: `Cov x = B Cov β Bᵀ`, and
-/// `σ_θ = θ σ_x` for a parameter fitted in `ln θ`.
+/// `σ_θ = θ σ_x` for a parameter fitted in `ln θ`; a sampled time threshold has the floor
+/// `h/√12` of the sample step `h` as well.
 pub(super) fn param_std(
     cat: &Catalogue,
     dirs: &[Direction],
     theta: &[f64],
     cov: &DMatrix<f64>,
+    h: f64,
 ) -> Vec<f64> {
     let mut var = vec![0.0; cat.params.len()];
     let mut free = vec![false; cat.params.len()];
@@ -62,8 +64,13 @@ pub(super) fn param_std(
             }
             let sx = var[i].max(0.0).sqrt();
             let st = if s.log { theta[i] * sx } else { sx };
+            let quantum = if s.sampled_time {
+                h / 12f64.sqrt()
+            } else {
+                0.0
+            };
             if st.is_finite() {
-                st.hypot(s.systematic)
+                st.hypot(s.systematic).hypot(quantum)
             } else {
                 f64::INFINITY
             }

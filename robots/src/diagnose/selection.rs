@@ -124,6 +124,7 @@ pub fn diagnose<P: Plant>(
         t0,
         m_res: 1.0,
         base_free: 0,
+        grid_chosen: Default::default(),
     };
     let nominal_theta = cat.nominal();
     let z_init = ss.fitter.initial_states();
@@ -157,12 +158,17 @@ pub fn diagnose<P: Plant>(
     } else {
         Some(calibrate(&ss, &calibrated, &nominal)?)
     };
-    ss.base_free = calibration
-        .as_ref()
-        .map_or(0, |c| c.fit.fit.candidate.calibration.len());
-    let base = calibration
-        .as_ref()
-        .map_or_else(|| nominal.clone(), |c| c.fit.clone());
+    // A calibration that ends outside the physical ranges has taken up what a missing
+    // effect does: the effects are judged on the nominal model instead (the joint refit
+    // at the end frees the calibration again).
+    let judged_on = calibration.as_ref().filter(|c| c.fit.nameable());
+    ss.base_free = judged_on.map_or(0, |c| c.fit.fit.candidate.calibration.len());
+    let base = judged_on.map_or_else(|| nominal.clone(), |c| c.fit.clone());
+    if calibration.is_some() && judged_on.is_none() {
+        progress(
+            "  the calibration leaves the physical ranges: effects judged on the nominal model",
+        );
+    }
     let mut candidates = vec![nominal.clone()];
     if let Some(c) = &calibration {
         candidates.push(c.fit.clone());

@@ -13,11 +13,21 @@ use super::noise::{normalised_error, residual_noise};
 use super::Plant;
 use std::time::Instant;
 
+/// An effect whose every parameter lies within this many standard deviations of its
+/// nominal value is absent, not found: naming it would credit it with what the longer fit
+/// of its candidate bought (a null effect adds nothing to the model).
+const ABSENT_SIGMAS: f64 = 3.0;
+
 /// Rounds of `max_iterations` more that a leading fit still descending may take.
 const CONTINUATIONS: usize = 3;
 
 /// Rounds of outlying-window restarts a leading fit may take.
 const RESTARTS: usize = 2;
+
+/// The grid values of a scan ([`Session::grid_start`]) kept after one iteration of the
+/// window states, and the further iterations that decide between them.
+const GRID_FINALISTS: usize = 4;
+const GRID_FINAL_ITERATIONS: usize = 2;
 
 /// One fitted candidate with its score and error.
 #[derive(Clone, Debug)]
@@ -32,8 +42,9 @@ pub struct Scored {
     /// Parameters outside their physical range; such a candidate is never named.
     pub implausible: Vec<String>,
     /// Effect parameters the log does not determine: a standard deviation above
-    /// [`DETERMINED`] of the parameter's plausible range. Such a candidate is not named
-    /// either (its effect is confounded with others, or invisible in this log).
+    /// [`DETERMINED`] of the parameter's plausible range, or an effect at its null value
+    /// ([`ABSENT_SIGMAS`]). Such a candidate is not named either (its effect is confounded
+    /// with others, invisible in this log, or absent).
     pub undetermined: Vec<String>,
 }
 
@@ -58,9 +69,12 @@ fn determined(value: f64, sd: f64, (lo, hi): (f64, f64)) -> bool {
 }
 
 /// The effect parameters of a fit whose standard deviation exceeds [`DETERMINED`] of
-/// their plausible range, in words.
+/// their plausible range, and the effects whose every parameter lies within
+/// [`ABSENT_SIGMAS`] standard deviations of its nominal value (where the effect is absent:
+/// the log determines that it is not there), in words.
 fn undetermined(cat: &Catalogue, fit: &Fit) -> Vec<String> {
-    fit.candidate
+    let mut out: Vec<String> = fit
+        .candidate
         .effect_params(cat)
         .into_iter()
         .filter(|&p| !determined(fit.theta[p], fit.std[p], cat.params[p].plausible))
@@ -71,7 +85,27 @@ fn undetermined(cat: &Catalogue, fit: &Fit) -> Vec<String> {
                 s.name, fit.theta[p], fit.std[p], s.plausible.0, s.plausible.1
             )
         })
-        .collect()
+        .collect();
+    for &e in &fit.candidate.effects {
+        let params = &cat.effects[e].params;
+        let at_null =
+            |p: usize| (fit.theta[p] - cat.params[p].nominal).abs() <= ABSENT_SIGMAS * fit.std[p];
+        if !params.is_empty() && params.iter().all(|&p| at_null(p)) {
+            let values: Vec<String> = params
+                .iter()
+                .map(|&p| {
+                    let s = &cat.params[p];
+                    format!("{} = {:.4e} ± {:.1e}", s.name, fit.theta[p], fit.std[p])
+                })
+                .collect();
+            out.push(format!(
+                "{} absent ({} within {ABSENT_SIGMAS}σ of the values without it)",
+                cat.effects[e].name,
+                values.join(", ")
+            ));
+        }
+    }
+    out
 }
 
 /// What the calibration found.
@@ -97,6 +131,8 @@ pub(super) struct Session<'a, P: Plant> {
     /// Free coordinates of the calibration that effect candidates are built on (their
     /// parameters count in the criterion even while held at the calibrated values).
     pub(super) base_free: usize,
+    /// The grid value each scanned parameter's first scan chose ([`Session::grid_start`]).
+    pub(super) grid_chosen: std::sync::Mutex<Vec<(usize, f64)>>,
 }
 
 impl<P: Plant> Session<'_, P> {
@@ -149,10 +185,80 @@ impl<P: Plant> Session<'_, P> {
         let cat = self.fitter.catalogue();
         let m = self.m_res;
         let bound = best.map(|b| b * (1.0 + cand.n_free(cat) as f64 * m.ln() / m) + 50.0);
-        let f = self.fit_leading(&cand, theta0, z0, bound, best, RESTARTS);
+        let (theta0, z0) = self.grid_start(&cand, theta0, z0);
+        let f = self.fit_leading(&cand, &theta0, &z0, bound, best, RESTARTS);
         let s = self.score(f, true);
         self.say(&cand.name(cat), &s);
         s
+    }
+
+    /// `theta0` with each of the candidate's parameters that sits at its start and has a
+    /// [`ParamSpec::start_grid`](super::model::ParamSpec) moved, one parameter at a time, to
+    /// the grid value of lowest cost, and the window states for it: a Gauss–Newton fit
+    /// cannot cross the jumps of such a parameter's cost. Each grid value's cost is taken
+    /// after one iteration of the window states alone (an unstable plant's open-loop
+    /// prediction from states fitted to another model says nothing), and the
+    /// [`GRID_FINALISTS`] lowest after [`GRID_FINAL_ITERATIONS`] more. The scan runs once
+    /// per parameter and diagnosis; later candidates start from its choice.
+    fn grid_start(
+        &self,
+        cand: &Candidate,
+        theta0: &[f64],
+        z0: &[Vec<f64>],
+    ) -> (Vec<f64>, Vec<Vec<f64>>) {
+        let cat = self.fitter.catalogue();
+        let mut theta = theta0.to_vec();
+        let mut z = z0.to_vec();
+        for p in cand.effect_params(cat) {
+            let spec = &cat.params[p];
+            if spec.start_grid.is_empty() || theta[p] != spec.start {
+                continue;
+            }
+            let chosen = self.grid_chosen.lock().expect("not poisoned");
+            if let Some(&(_, v)) = chosen.iter().find(|(q, _)| *q == p) {
+                // Scanned once already (against the effects chosen then); the fit
+                // refines from there.
+                theta[p] = v;
+                continue;
+            }
+            drop(chosen);
+            // Every grid value after one iteration of the window states; the most promising
+            // few after more (one iteration ranks roughly: the states start far off).
+            let mut scanned: Vec<(f64, f64, Vec<Vec<f64>>)> = spec
+                .start_grid
+                .iter()
+                .map(|&v| {
+                    theta[p] = v;
+                    let f =
+                        self.fitter
+                            .fit_capped(&Candidate::none(), &theta, &z, None, &|_| {}, 1);
+                    (f.rss, v, f.z0)
+                })
+                .collect();
+            scanned.sort_by(|a, b| a.0.total_cmp(&b.0));
+            scanned.truncate(GRID_FINALISTS);
+            let best = scanned
+                .into_iter()
+                .map(|(_, v, zv)| {
+                    theta[p] = v;
+                    let f = self.fitter.fit_capped(
+                        &Candidate::none(),
+                        &theta,
+                        &zv,
+                        None,
+                        &|_| {},
+                        GRID_FINAL_ITERATIONS,
+                    );
+                    (f.rss, v, f.z0)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((_, v, zb)) = best {
+                theta[p] = v;
+                z = zb;
+                self.grid_chosen.lock().expect("not poisoned").push((p, v));
+            }
+        }
+        (theta, z)
     }
 
     /// `Fitter::fit`, continued while the fit is still descending when its iterations run
