@@ -15,7 +15,7 @@ use std::path::PathBuf;
 /// Finds which effect of the catalogue explains the difference between the log
 /// (docs/formats.md) and the model (tilt_offset, floor_slope, input_delay, voltage_gain,
 /// friction, wheel_radius_asymmetry, payload, dead_zone, stick_slip, tilt_filter,
-/// gear_backlash; more together when one is not enough), refits its parameters with their
+/// gear_backlash, reversal_lockout; more together when one is not enough), refits its parameters with their
 /// uncertainty and reports the gain. With --calibrate, the robot's own parameters are
 /// calibrated first (the combinations the log determines). Writes
 /// DIR/diagnosis.json, DIR/params_refit.json (the refitted model as a parameter file that

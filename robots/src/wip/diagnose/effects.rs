@@ -27,10 +27,11 @@ pub enum Effect {
     StickSlip,
     TiltFilter,
     GearBacklash,
+    ReversalLockout,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 11] = [
+    pub const ALL: [Effect; 12] = [
         Effect::TiltOffset,
         Effect::FloorSlope,
         Effect::InputDelay,
@@ -42,6 +43,7 @@ impl Effect {
         Effect::StickSlip,
         Effect::TiltFilter,
         Effect::GearBacklash,
+        Effect::ReversalLockout,
     ];
 
     /// The name used in `diagnosis.json` and by `wip generate --effect`.
@@ -58,6 +60,7 @@ impl Effect {
             Effect::StickSlip => "stick_slip",
             Effect::TiltFilter => "tilt_filter",
             Effect::GearBacklash => "gear_backlash",
+            Effect::ReversalLockout => "reversal_lockout",
         }
     }
 
@@ -79,6 +82,7 @@ impl Effect {
             Effect::StickSlip => &["f_static_Nm", "w_stribeck"],
             Effect::TiltFilter => &["accel_weight"],
             Effect::GearBacklash => &["backlash_rad"],
+            Effect::ReversalLockout => &["lockout_s"],
         }
     }
 
@@ -91,6 +95,13 @@ impl Effect {
         Effect::ALL.iter().position(|&e| e == self).expect("in ALL")
     }
 }
+
+/// The reversal lockout's cost jumps wherever `T` crosses the gap between two reversals
+/// of the command, so its fit first scans `LOCKOUT_START · (1..=LOCKOUT_GRID)`: 10 ms steps
+/// up to 0.25 s, beyond which a balancing robot hardly stays up (a lockout of zero locks
+/// no step, and its derivative vanishes there).
+pub const LOCKOUT_START: f64 = 0.01;
+const LOCKOUT_GRID: usize = 25;
 
 /// The robot's own parameters a calibration may move (keys of the parameter file), and a
 /// typical relative change of each.
@@ -138,6 +149,8 @@ fn own(key: &str, p: &WipParams, plausible: Option<(f64, f64)>) -> ParamSpec {
 ///   0.005–20 rad/s;
 /// - tilt filter: the accelerometer's weight per sample in `[0, 1]` (1: no filter);
 /// - gear backlash: at most 0.2 rad (11°) at the wheel;
+/// - reversal lockout: at most 0.5 s (a balancing robot whose motors may not reverse for
+///   longer falls);
 /// - the other calibrated parameters: within a factor 4 of the file's value (a robot off by
 ///   more is another robot).
 pub fn wip_catalogue(p: &WipParams) -> Catalogue {
@@ -216,6 +229,16 @@ pub fn wip_catalogue(p: &WipParams) -> Catalogue {
                 s.bounds = (0.0, 0.5);
                 vec![s]
             }
+            Effect::ReversalLockout => {
+                let mut s = lin(names[0], 0.0, 0.02, (0.0, 0.5));
+                s.start = LOCKOUT_START;
+                s.sampled_time = true;
+                s.start_grid = (0..LOCKOUT_GRID)
+                    .map(|i| LOCKOUT_START * (1 + i) as f64)
+                    .collect();
+                s.bounds = (0.0, 1.0);
+                vec![s]
+            }
         };
         add(&mut cat, e, specs);
     }
@@ -235,6 +258,7 @@ pub struct Layout {
     stick: [usize; 2],
     accel_weight: usize,
     backlash: usize,
+    lockout: usize,
     /// The file's wheel radius (the radius effect's values are relative to it).
     r_file: f64,
 }
@@ -263,6 +287,7 @@ impl Layout {
             stick: [at("f_static_Nm"), at("w_stribeck")],
             accel_weight: at("accel_weight"),
             backlash: at("backlash_rad"),
+            lockout: at("lockout_s"),
             r_file: p.r,
         }
     }
@@ -288,6 +313,7 @@ impl Layout {
             stick: [theta[self.stick[0]], theta[self.stick[1]]],
             accel_weight: theta[self.accel_weight],
             backlash: theta[self.backlash],
+            lockout: theta[self.lockout],
         }
     }
 
@@ -359,6 +385,9 @@ pub struct ModelExtension<T> {
     pub accel_weight: T,
     /// Lost motion between the motor (encoder) and the wheel, rad at the wheel.
     pub backlash: T,
+    /// The firmware holds a reversed command at zero volts until this long after the last
+    /// accepted reversal (`super::reversal_lockout`; 0: no lockout).
+    pub lockout: T,
 }
 
 impl<T: Real> ModelExtension<T> {
@@ -376,6 +405,7 @@ impl<T: Real> ModelExtension<T> {
             stick: [z, T::from(0.3)],
             accel_weight: T::one(),
             backlash: z,
+            lockout: z,
         }
     }
 

@@ -6,6 +6,7 @@
 use super::effects::{wip_catalogue, Effect, Layout, ModelExtension};
 use super::plant::{Channel, WipPlant};
 use super::prediction::Predictor;
+use super::reversal_lockout::ReversalLockout;
 pub use crate::diagnose::rng::Rng;
 use crate::diagnose::MeasuredLog;
 use crate::wip::{Wip, WipParams};
@@ -90,6 +91,7 @@ pub fn draw_effect(effect: Effect, p: &WipParams, rng: &mut Rng) -> Vec<f64> {
         Effect::StickSlip => vec![p.d_c * rng.range(1.5, 3.0), rng.range(0.1, 0.5)],
         Effect::TiltFilter => vec![rng.range(0.02, 0.2)],
         Effect::GearBacklash => vec![rng.range(0.01, 0.04)],
+        Effect::ReversalLockout => vec![rng.range(0.03, 0.08)],
     }
 }
 
@@ -431,6 +433,10 @@ pub fn generate(
         v: SVector::zeros(),
     };
     let mut cmd_hist: Vec<[f64; 2]> = Vec::with_capacity(pre_roll + n);
+    // The fraction of each step for which the firmware passes the command (its reversal
+    // lockout, when the effect is on).
+    let mut passed_hist: Vec<[f64; 2]> = Vec::with_capacity(pre_roll + n);
+    let mut lockout = [ReversalLockout::default(); 2];
     let mut log = WipPlant::empty_log(h);
     let mut clean = Vec::with_capacity(n);
     let mut states = Vec::with_capacity(n);
@@ -501,6 +507,13 @@ pub fn generate(
             u[1].clamp(-settings.max_voltage, settings.max_voltage),
         ];
         cmd_hist.push(cmd);
+        // The lockout starts with the log (nothing pending at its first row, the state the
+        // prediction assumes: before it the firmware's state is unknown).
+        passed_hist.push(if ext.lockout > 0.0 && k >= pre_roll {
+            [0, 1].map(|m| lockout[m].pass(t, cmd[m], ext.lockout, h))
+        } else {
+            [1.0; 2]
+        });
 
         if k >= pre_roll {
             let mut row = [f64::NAN; 9];
@@ -529,8 +542,8 @@ pub fn generate(
         // Advance the true model over [t_k, t_{k+1}): the driver applies the command of
         // `delay` earlier: u_{k−m−1} until t_k + f, then u_{k−m}.
         let applied = |j: isize| -> [f64; 2] {
-            let c = cmd_hist[j.max(0) as usize];
-            [ext.driver(c[0]), ext.driver(c[1])]
+            let (c, p) = (cmd_hist[j.max(0) as usize], passed_hist[j.max(0) as usize]);
+            [ext.driver(c[0]) * p[0], ext.driver(c[1]) * p[1]]
         };
         let kk = k as isize - m_delay as isize;
         let pieces = [(f_delay, applied(kk - 1)), (h - f_delay, applied(kk))];

@@ -7,5 +7,6 @@ pub mod generate;
 pub mod plant;
 pub mod prediction;
 pub mod refit;
+pub mod reversal_lockout;
 
 pub use plant::{Channel, WipPlant};

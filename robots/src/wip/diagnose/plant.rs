@@ -3,7 +3,8 @@
 //! operating conditions worth testing its residual against.
 
 use super::effects::{wip_catalogue, Layout};
-use super::prediction::{Predictor, Wheel, NZ};
+use super::prediction::{Command, Predictor, Wheel, NZ};
+use super::reversal_lockout::passed_fractions;
 use crate::diagnose::conditions::{above_median, near_zero, positive};
 use crate::diagnose::model::Catalogue;
 use crate::diagnose::{ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant};
@@ -184,9 +185,30 @@ impl Plant for WipPlant {
         let ext = self.layout.extension(&self.params, theta);
         let pred = Predictor::new(ext);
         let h = log.h;
+        let last = log.len() - 1;
+        // The reversal lockout's state depends on every command since the log's first
+        // row; the window reads rows from `history` before its start to its end.
+        let from = start.saturating_sub(self.history(h));
+        let passed: Vec<[T; 2]> = if pred.ext.lockout.re() > 0.0 {
+            let end = (start + len + 1).min(log.len());
+            let per_motor =
+                |m: usize| passed_fractions(|k| log.input(k)[m], from, end, pred.ext.lockout, h);
+            let (r, l) = (per_motor(0), per_motor(1));
+            r.into_iter().zip(l).map(|(r, l)| [r, l]).collect()
+        } else {
+            Vec::new()
+        };
         let cmd = |k: usize| {
-            let u = log.input(k.min(log.len() - 1));
-            [u[0], u[1]]
+            let k = k.min(last);
+            let u = log.input(k);
+            let passed = match k.checked_sub(from).and_then(|i| passed.get(i)) {
+                Some(&p) => p,
+                None => [T::one(); 2],
+            };
+            Command {
+                u: [u[0], u[1]],
+                passed,
+            }
         };
         let mut z = SVector::<T, NZ>::from_column_slice(z0);
         let slip = |w: T| Wheel::Slipping(if w.re() >= 0.0 { 1 } else { -1 });

@@ -36,6 +36,14 @@ pub enum Wheel {
     Slipping(i8),
 }
 
+/// A row's command as the drivers receive it: the command `u` and the fraction of the
+/// step for which the firmware passes it on (1 but where a reversal lockout holds it).
+#[derive(Clone, Copy, Debug)]
+pub struct Command<T> {
+    pub u: [f64; 2],
+    pub passed: [T; 2],
+}
+
 /// The prediction model: a system with its extension.
 pub struct Predictor<T> {
     pub ext: ModelExtension<T>,
@@ -217,7 +225,7 @@ impl<T: FitScalar> Predictor<T> {
     pub fn advance(
         &self,
         z: &SVector<T, NZ>,
-        cmd: &dyn Fn(usize) -> [f64; 2],
+        cmd: &dyn Fn(usize) -> Command<T>,
         k: usize,
         h: f64,
         modes: &mut [Wheel; 2],
@@ -411,13 +419,13 @@ impl<T: FitScalar> Predictor<T> {
     /// `delay = m h + f`, `(f, [κ·dz(u_{k−m−2}), κ·dz(u_{k−m−1}), κ·dz(u_{k−m})])`, the
     /// second switched on at `t_k − h + f`, the third at `t_k + f`. `f` carries the
     /// derivative with respect to the delay.
-    fn delayed(&self, cmd: &dyn Fn(usize) -> [f64; 2], k: isize, h: f64) -> (T, [[T; 2]; 3]) {
+    fn delayed(&self, cmd: &dyn Fn(usize) -> Command<T>, k: isize, h: f64) -> (T, [[T; 2]; 3]) {
         let (m, f) = split_delay(self.ext.delay, h);
         let at = |j: isize| {
             let c = cmd(j.max(0) as usize);
             [
-                self.ext.driver(T::from(c[0])),
-                self.ext.driver(T::from(c[1])),
+                self.ext.driver(T::from(c.u[0])) * c.passed[0],
+                self.ext.driver(T::from(c.u[1])) * c.passed[1],
             ]
         };
         (f, [at(k - m - 2), at(k - m - 1), at(k - m)])
@@ -425,7 +433,7 @@ impl<T: FitScalar> Predictor<T> {
 
     /// The voltage behind the current (the driver's output through the electrical lag) on
     /// `[t_k, t_{k+1})`, as two pieces split at the driver's switch `t_k + f`.
-    fn pieces(&self, cmd: &dyn Fn(usize) -> [f64; 2], k: usize, h: f64) -> [Lagged<T>; 2] {
+    fn pieces(&self, cmd: &dyn Fn(usize) -> Command<T>, k: usize, h: f64) -> [Lagged<T>; 2] {
         let (f, [a2, a1, a0]) = self.delayed(cmd, k as isize, h);
         let tau = self.electrical_lag;
         let relax = |from: [T; 2], to: [T; 2], t: T| {
@@ -453,14 +461,14 @@ impl<T: FitScalar> Predictor<T> {
 
     /// The mean of the voltage behind the current over `[t_k, t_{k+1})` (approximate: the
     /// pieces' targets weighted by their lengths).
-    pub fn mean_applied(&self, cmd: &dyn Fn(usize) -> [f64; 2], k: usize, h: f64) -> [T; 2] {
+    pub fn mean_applied(&self, cmd: &dyn Fn(usize) -> Command<T>, k: usize, h: f64) -> [T; 2] {
         let [p1, p2] = self.pieces(cmd, k, h);
         let w = p1.len / h;
         [0, 1].map(|c| p1.target[c] * w + p2.target[c] * (T::one() - w))
     }
 
     /// The voltage behind the current read at `t_k`.
-    pub fn current_voltage(&self, cmd: &dyn Fn(usize) -> [f64; 2], k: usize, h: f64) -> [T; 2] {
+    pub fn current_voltage(&self, cmd: &dyn Fn(usize) -> Command<T>, k: usize, h: f64) -> [T; 2] {
         self.pieces(cmd, k, h)[0].start
     }
 
