@@ -106,6 +106,18 @@ pub struct Fitter<'a, P: Plant> {
 }
 
 impl<'a, P: Plant> Fitter<'a, P> {
+    /// The same fit over the windows `pick` (indices into `self.windows`) only.
+    pub fn on_windows(&self, pick: &[usize]) -> Self {
+        Fitter {
+            plant: self.plant,
+            log: self.log,
+            setup: self.setup.clone(),
+            windows: pick.iter().map(|&w| self.windows[w]).collect(),
+            reference: self.reference.clone(),
+            dual_states: self.dual_states.clone(),
+        }
+    }
+
     pub fn new(plant: &'a P, log: &'a MeasuredLog, setup: FitSetup) -> Self {
         let windows = setup.windows(log.len());
         let additive: Vec<usize> = plant.additive().iter().map(|&(s, _)| s).collect();

@@ -28,6 +28,9 @@ const RESTARTS: usize = 2;
 /// window states, and the further iterations that decide between them.
 const GRID_FINALISTS: usize = 4;
 const GRID_FINAL_ITERATIONS: usize = 2;
+/// At most this many windows, evenly spread, in a scan: its cost stays that of a
+/// one-minute log however long the log is.
+const GRID_MAX_WINDOWS: usize = 120;
 
 /// One fitted candidate with its score and error.
 #[derive(Clone, Debug)]
@@ -198,8 +201,9 @@ impl<P: Plant> Session<'_, P> {
     /// cannot cross the jumps of such a parameter's cost. Each grid value's cost is taken
     /// after one iteration of the window states alone (an unstable plant's open-loop
     /// prediction from states fitted to another model says nothing), and the
-    /// [`GRID_FINALISTS`] lowest after [`GRID_FINAL_ITERATIONS`] more. The scan runs once
-    /// per parameter and diagnosis; later candidates start from its choice.
+    /// [`GRID_FINALISTS`] lowest after [`GRID_FINAL_ITERATIONS`] more, on at most
+    /// [`GRID_MAX_WINDOWS`] windows. The scan runs once per parameter and diagnosis; later
+    /// candidates start from its choice.
     fn grid_start(
         &self,
         cand: &Candidate,
@@ -222,6 +226,21 @@ impl<P: Plant> Session<'_, P> {
                 continue;
             }
             drop(chosen);
+            // A long log is scanned on evenly spread windows: the scan only ranks.
+            let n = self.fitter.windows.len();
+            let pick: Vec<usize> = if n > GRID_MAX_WINDOWS {
+                (0..GRID_MAX_WINDOWS)
+                    .map(|i| i * n / GRID_MAX_WINDOWS)
+                    .collect()
+            } else {
+                (0..n).collect()
+            };
+            let fitter = self.fitter.on_windows(&pick);
+            let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
+            let states = |theta: &[f64], z: &[Vec<f64>], iterations: usize| {
+                let f = fitter.fit_capped(&Candidate::none(), theta, z, None, &|_| {}, iterations);
+                (f.rss, f.z0)
+            };
             // Every grid value after one iteration of the window states; the most promising
             // few after more (one iteration ranks roughly: the states start far off).
             let mut scanned: Vec<(f64, f64, Vec<Vec<f64>>)> = spec
@@ -229,10 +248,8 @@ impl<P: Plant> Session<'_, P> {
                 .iter()
                 .map(|&v| {
                     theta[p] = v;
-                    let f =
-                        self.fitter
-                            .fit_capped(&Candidate::none(), &theta, &z, None, &|_| {}, 1);
-                    (f.rss, v, f.z0)
+                    let (rss, zv) = states(&theta, &z_pick, 1);
+                    (rss, v, zv)
                 })
                 .collect();
             scanned.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -241,20 +258,15 @@ impl<P: Plant> Session<'_, P> {
                 .into_iter()
                 .map(|(_, v, zv)| {
                     theta[p] = v;
-                    let f = self.fitter.fit_capped(
-                        &Candidate::none(),
-                        &theta,
-                        &zv,
-                        None,
-                        &|_| {},
-                        GRID_FINAL_ITERATIONS,
-                    );
-                    (f.rss, v, f.z0)
+                    let (rss, zv) = states(&theta, &zv, GRID_FINAL_ITERATIONS);
+                    (rss, v, zv)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0));
             if let Some((_, v, zb)) = best {
                 theta[p] = v;
-                z = zb;
+                for (&w, zw) in pick.iter().zip(zb) {
+                    z[w] = zw;
+                }
                 self.grid_chosen.lock().expect("not poisoned").push((p, v));
             }
         }
