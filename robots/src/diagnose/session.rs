@@ -237,8 +237,15 @@ impl<P: Plant> Session<'_, P> {
             };
             let fitter = self.fitter.on_windows(&pick);
             let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
-            let states = |theta: &[f64], z: &[Vec<f64>], iterations: usize| {
-                let f = fitter.fit_capped(&Candidate::none(), theta, z, None, &|_| {}, iterations);
+            let states = |theta: &[f64]| {
+                let f = fitter.fit_capped(
+                    &Candidate::none(),
+                    theta,
+                    &z_pick,
+                    None,
+                    &|_| {},
+                    GRID_STATE_ITERATIONS,
+                );
                 (f.rss, f.z0)
             };
             let best = spec
@@ -246,7 +253,7 @@ impl<P: Plant> Session<'_, P> {
                 .iter()
                 .map(|&v| {
                     theta[p] = v;
-                    let (rss, zv) = states(&theta, &z_pick, GRID_STATE_ITERATIONS);
+                    let (rss, zv) = states(&theta);
                     (rss, v, zv)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0));

@@ -100,7 +100,7 @@ impl Effect {
 /// of the command, so its fit first scans `LOCKOUT_START · (1..=LOCKOUT_GRID)`: 10 ms steps
 /// up to 0.25 s, beyond which a balancing robot hardly stays up (a lockout of zero locks
 /// no step, and its derivative vanishes there).
-pub const LOCKOUT_START: f64 = 0.01;
+const LOCKOUT_START: f64 = 0.01;
 const LOCKOUT_GRID: usize = 25;
 
 /// The robot's own parameters a calibration may move (keys of the parameter file), and a
