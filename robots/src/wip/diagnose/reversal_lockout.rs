@@ -62,8 +62,10 @@ impl ReversalLockout {
 }
 
 /// The passed fractions of the commands `u(k)` at `t_k = k h` for `k = from..n` (one
-/// motor), with the lockout's state run from the log's first row. The rows before `from`
-/// decide on the values alone (the state's decisions do not depend on derivatives).
+/// motor), with the lockout's state as if run from the log's first row. The rows before
+/// `from` decide on the values alone (the state's decisions do not depend on derivatives),
+/// and only from [`resync_row`] on: a window late in a long log costs its own rows, not
+/// the log's.
 pub fn passed_fractions<T: Real>(
     u: impl Fn(usize) -> f64,
     from: usize,
@@ -71,13 +73,47 @@ pub fn passed_fractions<T: Real>(
     lockout: T,
     h: f64,
 ) -> Vec<T> {
+    if from >= n {
+        return Vec::new();
+    }
     let mut state = ReversalLockout::default();
-    for k in 0..from.min(n) {
+    for k in resync_row(&u, from, lockout.re(), h)..from {
         state.pass(k as f64 * h, u(k), lockout.re(), h);
     }
-    (from.min(n)..n)
+    (from..n)
         .map(|k| state.pass(k as f64 * h, u(k), lockout, h))
         .collect()
+}
+
+/// The latest row `s ≤ from` from which the lockout's state, started afresh (nothing
+/// pending), decides every row from `s` on as the state run from row 0 does: the last row
+/// of a same-sign run of more than `2T/h + 1` steps, or 0. Reads rows up to `from`.
+///
+/// Why: within a run of one sign that starts at row `a`, a pending reversal is accepted
+/// by `t_a + T` (the last acceptance lies before `t_a`), so the last acceptance is at most
+/// `t_a + T + h`. Once the run is longer than `2T + h`, the next reversal finds the clock
+/// past `T` and is accepted with the value 1 and no derivative in `T`, which is what a
+/// fresh state gives it; and within the run the commands agree with the direction.
+fn resync_row(u: impl Fn(usize) -> f64, from: usize, lockout: f64, h: f64) -> usize {
+    if from == 0 || lockout <= 0.0 {
+        return from;
+    }
+    // Rows in the run before its last one; a margin of two steps over the bound.
+    let needed = (2.0 * lockout / h).ceil() as usize + 2;
+    let mut top = from;
+    let mut run = 0;
+    for k in (0..from).rev() {
+        if (u(k) >= 0.0) == (u(k + 1) >= 0.0) {
+            run += 1;
+            if run >= needed {
+                return top;
+            }
+        } else {
+            top = k;
+            run = 0;
+        }
+    }
+    0
 }
 
 #[cfg(test)]
@@ -142,6 +178,50 @@ mod tests {
         let all = passed_fractions(|k| u[k], 0, u.len(), 0.047, 0.01);
         let late = passed_fractions(|k| u[k], 25, u.len(), 0.047, 0.01);
         assert_eq!(all[25..], late[..]);
+    }
+
+    /// The resynchronised start gives what the state run from row 0 gives, values and
+    /// derivatives, for random command sequences (runs of a few steps, so that some
+    /// windows resynchronise and some run from row 0), lockouts and window starts.
+    #[test]
+    fn the_resynchronised_start_agrees_with_the_whole_log() {
+        let mut rng = crate::diagnose::rng::Rng::new(23);
+        let mut resynced_cases = 0;
+        let h = 0.01;
+        for case in 0..300 {
+            let n = 200;
+            let mut u = Vec::with_capacity(n);
+            let mut sign = 1.0;
+            while u.len() < n {
+                let run = 1 + (rng.uniform() * 30.0 * rng.uniform()) as usize;
+                u.extend(std::iter::repeat_n(sign * (0.4 + rng.uniform()), run));
+                sign = -sign;
+            }
+            u.truncate(n);
+            let lockout = 0.005 + 0.1 * rng.uniform();
+            let t = Dual64::from_re(lockout).derivative();
+            let from = (rng.uniform() * n as f64) as usize;
+            let mut state = ReversalLockout::default();
+            let whole: Vec<Dual64> = (0..n)
+                .map(|k| state.pass(k as f64 * h, u[k], t, h))
+                .collect();
+            if resync_row(|k| u[k], from, lockout, h) > 0 {
+                resynced_cases += 1;
+            }
+            let resynced = passed_fractions(|k| u[k], from, n, t, h);
+            for (k, (a, b)) in whole[from..].iter().zip(&resynced).enumerate() {
+                assert!(
+                    a.re == b.re && a.eps == b.eps,
+                    "case {case}, row {}: {a:?} against {b:?}",
+                    from + k
+                );
+            }
+        }
+        // Both paths exercised: resynchronised windows and windows run from row 0.
+        assert!(
+            (50..250).contains(&resynced_cases),
+            "{resynced_cases} of 300"
+        );
     }
 
     /// No lockout passes every command.
