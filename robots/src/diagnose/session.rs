@@ -8,7 +8,7 @@ use super::fit::{Fit, Fitter, Screened};
 use super::identify::DETERMINED;
 use super::identify::{identify, Identifiability};
 use super::log::MeasuredLog;
-use super::model::{Candidate, Catalogue, ParamSpec};
+use super::model::{Candidate, Catalogue};
 use super::noise::{normalised_error, residual_noise};
 use super::Plant;
 use std::time::Instant;
@@ -70,32 +70,6 @@ fn determined(value: f64, sd: f64, (lo, hi): (f64, f64)) -> bool {
     } else {
         sd <= DETERMINED * (hi - lo)
     }
-}
-
-/// The values of a sampled time threshold between the scan's best grid value `v` and its
-/// grid neighbours, one per sampling interval of the log (step `h`). A threshold `T` in
-/// `((n − 1) h, n h]` gives the same sample-instant decisions, so the cost is continuous
-/// there and jumps where `T` crosses a whole step: a fit cannot leave the interval it
-/// starts in. A grid coarser than `h` leaves intervals unsampled (a 10-ms grid on a
-/// 5-ms log tries `(65, 70]` and `(75, 80]` but never `(70, 75]`); these are tried at their
-/// right ends `n h`, where the model reproduces the sampled rule exactly. Empty for a
-/// parameter that is not a sampled time or a grid as fine as the log.
-fn sampled_steps_around(spec: &ParamSpec, v: f64, h: f64) -> Vec<f64> {
-    let grid = &spec.start_grid;
-    let spacing = grid
-        .windows(2)
-        .map(|w| (w[1] - w[0]).abs())
-        .fold(f64::INFINITY, f64::min);
-    if !spec.sampled_time || !spacing.is_finite() || spacing <= 1.5 * h || h <= 0.0 {
-        return Vec::new();
-    }
-    let first = ((v - spacing) / h).floor() as i64 + 1;
-    let last = ((v + spacing) / h).ceil() as i64 - 1;
-    (first.max(1)..=last)
-        .map(|n| n as f64 * h)
-        .filter(|&t| t >= spec.bounds.0 && t <= spec.bounds.1)
-        .filter(|&t| grid.iter().all(|&g| (g - t).abs() > 1e-9 * h))
-        .collect()
 }
 
 /// The effect parameters of a fit whose standard deviation exceeds [`DETERMINED`] of
@@ -274,26 +248,15 @@ impl<P: Plant> Session<'_, P> {
                 );
                 (f.rss, f.z0)
             };
-            let mut scored = |values: &[f64]| {
-                values
-                    .iter()
-                    .map(|&v| {
-                        theta[p] = v;
-                        let (rss, zv) = states(&theta);
-                        (rss, v, zv)
-                    })
-                    .min_by(|a, b| a.0.total_cmp(&b.0))
-            };
-            let mut best = scored(&spec.start_grid);
-            let mut scanned = spec.start_grid.len();
-            if let Some((rss, v, zv)) = best.take() {
-                let between = sampled_steps_around(spec, v, self.fitter.log.h);
-                scanned += between.len();
-                best = match scored(&between) {
-                    Some(b) if b.0 < rss => Some(b),
-                    _ => Some((rss, v, zv)),
-                };
-            }
+            let best = spec
+                .start_grid
+                .iter()
+                .map(|&v| {
+                    theta[p] = v;
+                    let (rss, zv) = states(&theta);
+                    (rss, v, zv)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0));
             if let Some((_, v, zb)) = best {
                 theta[p] = v;
                 for (&w, zw) in pick.iter().zip(zb) {
@@ -303,7 +266,7 @@ impl<P: Plant> Session<'_, P> {
                 (self.progress)(&format!(
                     "  scan {:<24} starts at {v:.4e} (best of {} values on {} windows)  ({:.1} s)",
                     spec.name,
-                    scanned,
+                    spec.start_grid.len(),
                     pick.len(),
                     self.t0.elapsed().as_secs_f64()
                 ));
@@ -562,40 +525,5 @@ pub(super) fn screened_only<P: Plant>(
         error: base.error * (rss / base.fit.rss.max(1e-300)).sqrt(),
         fit,
         fitted: false,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn lockout_like(sampled_time: bool) -> ParamSpec {
-        let mut s = ParamSpec::linear("T", 0.0, 0.01, (0.0, 1.0));
-        s.sampled_time = sampled_time;
-        s.start_grid = (1..=25).map(|i| 0.01 * i as f64).collect();
-        s
-    }
-
-    /// One value per sampling interval between the best grid value and its neighbours,
-    /// at the interval's right end, none that the grid already holds.
-    #[test]
-    fn the_unsampled_intervals_around_the_best_grid_value() {
-        let close = |a: &[f64], b: &[f64]| {
-            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
-        };
-        let spec = lockout_like(true);
-        let got = sampled_steps_around(&spec, 0.07, 0.005);
-        assert!(close(&got, &[0.065, 0.075]), "{got:?}");
-        let got = sampled_steps_around(&spec, 0.01, 0.005);
-        assert!(close(&got, &[0.005, 0.015]), "{got:?}");
-        // 1-ms steps: 61..79 ms without 70.
-        let got = sampled_steps_around(&spec, 0.07, 0.001);
-        assert_eq!(got.len(), 18, "{got:?}");
-        assert!(got
-            .iter()
-            .all(|t| (t - 0.07).abs() > 1e-9 && (t - 0.07).abs() < 0.01));
-        // A grid as fine as the log, or a parameter that is not a sampled time: nothing.
-        assert!(sampled_steps_around(&spec, 0.07, 0.01).is_empty());
-        assert!(sampled_steps_around(&lockout_like(false), 0.07, 0.005).is_empty());
     }
 }
