@@ -33,6 +33,22 @@ const GRID_STATE_ITERATIONS: usize = 3;
 /// one-minute log however long the log is.
 const GRID_MAX_WINDOWS: usize = 120;
 
+/// Intervals a fit may step across per sampled time threshold.
+const EDGE_STEPS: usize = 3;
+
+/// The fit that ranks values of a jumping parameter: [`GRID_STATE_ITERATIONS`]
+/// iterations of the window states `z` alone at `theta`.
+fn ranking_fit<P: Plant>(fitter: &Fitter<'_, P>, theta: &[f64], z: &[Vec<f64>]) -> Fit {
+    fitter.fit_capped(
+        &Candidate::none(),
+        theta,
+        z,
+        None,
+        &|_| {},
+        GRID_STATE_ITERATIONS,
+    )
+}
+
 /// One fitted candidate with its score and error.
 #[derive(Clone, Debug)]
 pub struct Scored {
@@ -137,6 +153,9 @@ pub(super) struct Session<'a, P: Plant> {
     pub(super) base_free: usize,
     /// The grid value each scanned parameter's first scan chose ([`Session::grid_start`]).
     pub(super) grid_chosen: std::sync::Mutex<Vec<(usize, f64)>>,
+    /// The sampled time thresholds whose neighbouring intervals a fit has tried
+    /// ([`Session::cross_sampled_edges`]; once per parameter and diagnosis).
+    pub(super) intervals_checked: std::sync::Mutex<Vec<usize>>,
 }
 
 impl<P: Plant> Session<'_, P> {
@@ -191,6 +210,7 @@ impl<P: Plant> Session<'_, P> {
         let bound = best.map(|b| b * (1.0 + cand.n_free(cat) as f64 * m.ln() / m) + 50.0);
         let (theta0, z0) = self.grid_start(&cand, theta0, z0);
         let f = self.fit_leading(&cand, &theta0, &z0, bound, best, RESTARTS);
+        let f = self.cross_sampled_edges(&cand, f, bound, best);
         let s = self.score(f, true);
         self.say(&cand.name(cat), &s);
         s
@@ -227,25 +247,11 @@ impl<P: Plant> Session<'_, P> {
             }
             drop(chosen);
             // A long log is scanned on evenly spread windows: the scan only ranks.
-            let n = self.fitter.windows.len();
-            let pick: Vec<usize> = if n > GRID_MAX_WINDOWS {
-                (0..GRID_MAX_WINDOWS)
-                    .map(|i| i * n / GRID_MAX_WINDOWS)
-                    .collect()
-            } else {
-                (0..n).collect()
-            };
+            let pick = self.scan_windows();
             let fitter = self.fitter.on_windows(&pick);
             let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
             let states = |theta: &[f64]| {
-                let f = fitter.fit_capped(
-                    &Candidate::none(),
-                    theta,
-                    &z_pick,
-                    None,
-                    &|_| {},
-                    GRID_STATE_ITERATIONS,
-                );
+                let f = ranking_fit(&fitter, theta, &z_pick);
                 (f.rss, f.z0)
             };
             let best = spec
@@ -273,6 +279,92 @@ impl<P: Plant> Session<'_, P> {
             }
         }
         (theta, z)
+    }
+
+    /// `fit` moved across the jumps of its sampled time thresholds. Such a threshold `T`
+    /// anywhere in `((n − 1) h, n h]` makes the same sample-instant decisions: the cost is
+    /// continuous inside the interval and jumps at its ends, so a Gauss–Newton fit ends in
+    /// whichever interval its steps happen to land in, and a scan coarser than `h` (10 ms
+    /// on a 5-ms log) does not start in every interval. The first fit of a candidate with
+    /// such a parameter therefore tries the two neighbouring intervals, at their right ends
+    /// `(n ± 1) h` (where the model reproduces the sampled rule exactly): each is ranked
+    /// against the fit's own point by [`GRID_STATE_ITERATIONS`] iterations of the window
+    /// states alone from the fit's states (a neighbouring interval's decisions differ at a
+    /// few rows only); the lower-ranked one, if it ranks below the fit's point, is fitted in
+    /// full and kept if its cost is lower, and later candidates start from it. Up to
+    /// [`EDGE_STEPS`] steps per parameter.
+    fn cross_sampled_edges(
+        &self,
+        cand: &Candidate,
+        mut f: Fit,
+        bound: Option<f64>,
+        best: Option<f64>,
+    ) -> Fit {
+        let cat = self.fitter.catalogue();
+        let h = self.fitter.log.h;
+        let pick = self.scan_windows();
+        let fitter = self.fitter.on_windows(&pick);
+        let states_rss = |theta: &[f64], z: &[Vec<f64>]| {
+            let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
+            ranking_fit(&fitter, theta, &z_pick).rss
+        };
+        for p in cand.effect_params(cat) {
+            let spec = &cat.params[p];
+            if !spec.sampled_time || spec.start_grid.is_empty() || h <= 0.0 {
+                continue;
+            }
+            {
+                let mut checked = self.intervals_checked.lock().expect("not poisoned");
+                if checked.contains(&p) {
+                    continue;
+                }
+                checked.push(p);
+            }
+            // Also after an abandoned fit: one stuck in the wrong interval is abandoned.
+            for _ in 0..EDGE_STEPS {
+                // `T` in `((n − 1) h, n h]`.
+                let n = (f.theta[p] / h - 1e-9).ceil();
+                let here = states_rss(&f.theta, &f.z0);
+                let ranked = [n - 1.0, n + 1.0]
+                    .into_iter()
+                    .map(|m| m * h)
+                    .filter(|&t| t > 0.0 && t >= spec.bounds.0 && t <= spec.bounds.1)
+                    .map(|t| {
+                        let mut theta = f.theta.clone();
+                        theta[p] = t;
+                        (states_rss(&theta, &f.z0), theta)
+                    })
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                let Some((rss, theta)) = ranked else { break };
+                if rss >= here {
+                    break;
+                }
+                let g = self.fit_leading(cand, &theta, &f.z0, bound, best, RESTARTS);
+                if g.rss >= f.rss {
+                    break;
+                }
+                let iterations = f.iterations + g.iterations;
+                f = Fit { iterations, ..g };
+                // Later candidates start in the interval found here, not the scan's.
+                let mut chosen = self.grid_chosen.lock().expect("not poisoned");
+                if let Some(c) = chosen.iter_mut().find(|(q, _)| *q == p) {
+                    c.1 = theta[p];
+                }
+            }
+        }
+        f
+    }
+
+    /// The windows a scan ranks on: all, or [`GRID_MAX_WINDOWS`] evenly spread ones.
+    fn scan_windows(&self) -> Vec<usize> {
+        let n = self.fitter.windows.len();
+        if n > GRID_MAX_WINDOWS {
+            (0..GRID_MAX_WINDOWS)
+                .map(|i| i * n / GRID_MAX_WINDOWS)
+                .collect()
+        } else {
+            (0..n).collect()
+        }
     }
 
     /// `Fitter::fit`, continued while the fit is still descending when its iterations run
