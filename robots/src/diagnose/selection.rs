@@ -125,7 +125,6 @@ pub fn diagnose<P: Plant>(
         m_res: 1.0,
         base_free: 0,
         grid_chosen: Default::default(),
-        intervals_checked: Default::default(),
     };
     let nominal_theta = cat.nominal();
     let z_init = ss.fitter.initial_states();

@@ -153,9 +153,6 @@ pub(super) struct Session<'a, P: Plant> {
     pub(super) base_free: usize,
     /// The grid value each scanned parameter's first scan chose ([`Session::grid_start`]).
     pub(super) grid_chosen: std::sync::Mutex<Vec<(usize, f64)>>,
-    /// The sampled time thresholds whose neighbouring intervals a fit has tried
-    /// ([`Session::cross_sampled_edges`]; once per parameter and diagnosis).
-    pub(super) intervals_checked: std::sync::Mutex<Vec<usize>>,
 }
 
 impl<P: Plant> Session<'_, P> {
@@ -208,9 +205,9 @@ impl<P: Plant> Session<'_, P> {
         let cat = self.fitter.catalogue();
         let m = self.m_res;
         let bound = best.map(|b| b * (1.0 + cand.n_free(cat) as f64 * m.ln() / m) + 50.0);
-        let (theta0, z0) = self.grid_start(&cand, theta0, z0);
+        let (theta0, z0, scanned) = self.grid_start(&cand, theta0, z0);
         let f = self.fit_leading(&cand, &theta0, &z0, bound, best, RESTARTS);
-        let f = self.cross_sampled_edges(&cand, f, bound, best);
+        let f = self.cross_sampled_edges(&cand, f, &scanned, bound, best);
         let s = self.score(f, true);
         self.say(&cand.name(cat), &s);
         s
@@ -223,16 +220,17 @@ impl<P: Plant> Session<'_, P> {
     /// after [`GRID_STATE_ITERATIONS`] iterations of the window states alone (an unstable
     /// plant's open-loop prediction from states fitted to another model says nothing), on
     /// at most [`GRID_MAX_WINDOWS`] windows. The scan runs once per parameter and diagnosis; later
-    /// candidates start from its choice.
+    /// candidates start from its choice. Also returns the parameters scanned by this call.
     fn grid_start(
         &self,
         cand: &Candidate,
         theta0: &[f64],
         z0: &[Vec<f64>],
-    ) -> (Vec<f64>, Vec<Vec<f64>>) {
+    ) -> (Vec<f64>, Vec<Vec<f64>>, Vec<usize>) {
         let cat = self.fitter.catalogue();
         let mut theta = theta0.to_vec();
         let mut z = z0.to_vec();
+        let mut scanned = Vec::new();
         for p in cand.effect_params(cat) {
             let spec = &cat.params[p];
             if spec.start_grid.is_empty() || theta[p] != spec.start {
@@ -269,6 +267,7 @@ impl<P: Plant> Session<'_, P> {
                     z[w] = zw;
                 }
                 self.grid_chosen.lock().expect("not poisoned").push((p, v));
+                scanned.push(p);
                 (self.progress)(&format!(
                     "  scan {:<24} starts at {v:.4e} (best of {} values on {} windows)  ({:.1} s)",
                     spec.name,
@@ -278,16 +277,16 @@ impl<P: Plant> Session<'_, P> {
                 ));
             }
         }
-        (theta, z)
+        (theta, z, scanned)
     }
 
     /// `fit` moved across the jumps of its sampled time thresholds. Such a threshold `T`
     /// anywhere in `((n − 1) h, n h]` makes the same sample-instant decisions: the cost is
     /// continuous inside the interval and jumps at its ends, so a Gauss–Newton fit ends in
     /// whichever interval its steps happen to land in, and a scan coarser than `h` (10 ms
-    /// on a 5-ms log) does not start in every interval. The first fit of a candidate with
-    /// such a parameter therefore tries the two neighbouring intervals, at their right ends
-    /// `(n ± 1) h` (where the model reproduces the sampled rule exactly): each is ranked
+    /// on a 5-ms log) does not start in every interval. The fit whose start was scanned
+    /// (`scanned`: once per parameter and diagnosis) therefore tries the two neighbouring
+    /// intervals, at their right ends `(n ± 1) h` (where the model reproduces the sampled rule exactly): each is ranked
     /// against the fit's own point by [`GRID_STATE_ITERATIONS`] iterations of the window
     /// states alone from the fit's states (a neighbouring interval's decisions differ at a
     /// few rows only); the lower-ranked one, if it ranks below the fit's point, is fitted in
@@ -297,6 +296,7 @@ impl<P: Plant> Session<'_, P> {
         &self,
         cand: &Candidate,
         mut f: Fit,
+        scanned: &[usize],
         bound: Option<f64>,
         best: Option<f64>,
     ) -> Fit {
@@ -308,17 +308,10 @@ impl<P: Plant> Session<'_, P> {
             let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
             ranking_fit(&fitter, theta, &z_pick).rss
         };
-        for p in cand.effect_params(cat) {
+        for &p in scanned {
             let spec = &cat.params[p];
-            if !spec.sampled_time || spec.start_grid.is_empty() || h <= 0.0 {
+            if !spec.sampled_time || h <= 0.0 {
                 continue;
-            }
-            {
-                let mut checked = self.intervals_checked.lock().expect("not poisoned");
-                if checked.contains(&p) {
-                    continue;
-                }
-                checked.push(p);
             }
             // Also after an abandoned fit: one stuck in the wrong interval is abandoned.
             for _ in 0..EDGE_STEPS {

@@ -186,8 +186,8 @@ impl Plant for WipPlant {
         let pred = Predictor::new(ext);
         let h = log.h;
         let last = log.len() - 1;
-        // The reversal lockout's state depends on every command since the log's first
-        // row; the window reads rows from `history` before its start to its end.
+        // The reversal lockout's passed fractions, from `history` rows before the window's
+        // start to its end (`passed_fractions` resynchronises its state before them).
         let from = start.saturating_sub(self.history(h));
         let passed: Vec<[T; 2]> = if pred.ext.lockout.re() > 0.0 {
             let end = (start + len + 1).min(log.len());
