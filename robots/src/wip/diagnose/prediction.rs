@@ -52,6 +52,9 @@ pub struct Predictor<T> {
     frictionless: Wip<T>,
     /// `τ_e = L_m / R_m`.
     pub electrical_lag: T,
+    /// The floor is level and its slope not free: no floor force (half the trigonometry of
+    /// a prediction step otherwise, for a force that is exactly zero).
+    level_floor: bool,
 }
 
 /// The generalised force of a unit friction torque on wheel `j` (opposing `w_j > 0`):
@@ -75,9 +78,20 @@ impl<T: FitScalar> Predictor<T> {
         frictionless.params.d_c = T::zero();
         Predictor {
             electrical_lag: p.L_m / p.R_m,
+            level_floor: ext.slope.iter().all(|s| s.vanishes()),
             sys,
             frictionless,
             ext,
+        }
+    }
+
+    /// The floor slope's generalised force (exactly zero on a level floor whose slope is
+    /// not free, so not computed there).
+    fn floor_force(&self, s: &SVector<T, 5>, theta: T) -> SVector<T, 5> {
+        if self.level_floor {
+            SVector::zeros()
+        } else {
+            self.ext.floor_force(&self.sys, s, theta)
         }
     }
 
@@ -105,7 +119,7 @@ impl<T: FitScalar> Predictor<T> {
         let i = self.current(u, [vr - va, vl - va]);
         let s = Self::shape_of(z);
         let v = SVector::<T, 5>::new(va, vr, vl, i[0], i[1]);
-        let f_ext = self.ext.floor_force(&self.sys, &s, z[2]);
+        let f_ext = self.floor_force(&s, z[2]);
         let a = shape_acceleration(
             &self.sys,
             z[3],
@@ -132,7 +146,7 @@ impl<T: FitScalar> Predictor<T> {
         let i = self.current(u, w);
         let s = Self::shape_of(z);
         let v = SVector::<T, 5>::new(va, vr, vl, i[0], i[1]);
-        let mut f = self.ext.floor_force(&self.sys, &s, z[2]);
+        let mut f = self.floor_force(&s, z[2]);
         for j in 0..2 {
             if let Wheel::Slipping(sign) = modes[j] {
                 let fr = self.ext.slip_friction(w[j], sign as f64);
