@@ -12,9 +12,11 @@ use super::normal_equations::{damped, WindowLin};
 use super::normal_equations::{
     direction_scale, param_std, parameter_cov, predicted_reduction, step,
 };
+use super::window_memo::WindowMemo;
 use super::Plant;
 use nalgebra::{DMatrix, DVector};
-use num_dual::{DualNum, DualSVec64};
+
+mod window_pass;
 
 /// How the log is cut and weighted.
 #[derive(Clone, Debug)]
@@ -103,6 +105,9 @@ pub struct Fitter<'a, P: Plant> {
     pub reference: Vec<f64>,
     /// State components carried by dual directions (the others are additive).
     dual_states: Vec<usize>,
+    /// Window results shared between parameter vectors that predict a window alike
+    /// (only for a scan: [`Fitter::with_window_memo`]).
+    memo: Option<WindowMemo>,
 }
 
 impl<'a, P: Plant> Fitter<'a, P> {
@@ -115,7 +120,17 @@ impl<'a, P: Plant> Fitter<'a, P> {
             windows: pick.iter().map(|&w| self.windows[w]).collect(),
             reference: self.reference.clone(),
             dual_states: self.dual_states.clone(),
+            memo: None,
         }
+    }
+
+    /// The same fit keeping its windows' costs and states-only linearisations for reuse
+    /// under parameters the plant's [`Plant::window_key`] does not tell apart: for a scan
+    /// that runs the same states-only iterations under many values of one parameter. The
+    /// results are those without it, bit for bit.
+    pub fn with_window_memo(mut self) -> Self {
+        self.memo = Some(WindowMemo::new(self.windows.len()));
+        self
     }
 
     pub fn new(plant: &'a P, log: &'a MeasuredLog, setup: FitSetup) -> Self {
@@ -131,6 +146,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             windows,
             reference: plant.catalogue().nominal(),
             dual_states,
+            memo: None,
         }
     }
 
@@ -153,163 +169,6 @@ impl<'a, P: Plant> Fitter<'a, P> {
         } else {
             0.0
         }
-    }
-
-    /// Weighted residual sum of squares and count of one window (f64 pass).
-    pub(crate) fn window_cost(
-        &self,
-        theta: &[f64],
-        (start, len): (usize, usize),
-        z0: &[f64],
-    ) -> Option<(f64, usize)> {
-        let y = self.plant.predict(self.log, start, len, z0, theta)?;
-        let nc = self.log.n_channels;
-        let chans = self.plant.channels();
-        let (mut rss, mut m) = (0.0, 0);
-        for j in 0..len {
-            for (c, spec) in chans.iter().enumerate() {
-                let wgt = self.weight(c);
-                if wgt == 0.0 {
-                    continue;
-                }
-                if let Some(meas) = self.log.value(start + j, c) {
-                    let r = spec.residual(y[j * nc + c], meas) * wgt;
-                    rss += r * r;
-                    m += 1;
-                }
-            }
-        }
-        (rss.is_finite()).then_some((rss, m))
-    }
-
-    /// The window's Gauss–Newton blocks for the free directions `dirs` at internal
-    /// coordinates `x` (one dual pass with `N ≥ dual states + directions`).
-    fn window_lin_n<const N: usize>(
-        &self,
-        x: &[f64],
-        dirs: &[Direction],
-        (start, len): (usize, usize),
-        z0: &[f64],
-    ) -> Option<WindowLin> {
-        type Dn<const N: usize> = DualSVec64<N>;
-        let cat = self.catalogue();
-        let nd = self.dual_states.len();
-        let k = dirs.len();
-        let nz = z0.len();
-        debug_assert!(nd + k <= N);
-        // x_j = x_ref_j + Σ_q B_jq β_q with β_q dual in direction nd + q.
-        let mut xd: Vec<Dn<N>> = x.iter().map(|&v| Dn::<N>::from(v)).collect();
-        for (q, d) in dirs.iter().enumerate() {
-            for &(j, b) in d {
-                xd[j] += Dn::<N>::from(0.0).derivative(nd + q) * b;
-            }
-        }
-        let theta: Vec<Dn<N>> = cat
-            .params
-            .iter()
-            .zip(xd)
-            .map(|(s, v)| if s.log { v.exp() } else { v })
-            .collect();
-        let mut zd: Vec<Dn<N>> = z0.iter().map(|&v| Dn::<N>::from(v)).collect();
-        for (d, &i) in self.dual_states.iter().enumerate() {
-            zd[i] = Dn::<N>::from(z0[i]).derivative(d);
-        }
-        let y = self.plant.predict(self.log, start, len, &zd, &theta)?;
-        let nc = self.log.n_channels;
-        let chans = self.plant.channels();
-        let additive = self.plant.additive();
-        let mut a = vec![0.0; nz * nz];
-        let mut w = vec![0.0; nz * k];
-        let mut v = vec![0.0; k * k];
-        let mut gz = vec![0.0; nz];
-        let mut gp = vec![0.0; k];
-        let mut jz = vec![0.0; nz];
-        let mut jp = vec![0.0; k];
-        let (mut rss, mut m) = (0.0, 0);
-        for j in 0..len {
-            for (c, spec) in chans.iter().enumerate() {
-                let wgt = self.weight(c);
-                if wgt == 0.0 {
-                    continue;
-                }
-                let Some(meas) = self.log.value(start + j, c) else {
-                    continue;
-                };
-                let yc = &y[j * nc + c];
-                let r = spec.residual(yc.re, meas) * wgt;
-                let g = yc
-                    .eps
-                    .unwrap_generic(nalgebra::Const::<N>, nalgebra::Const::<1>);
-                jz.fill(0.0);
-                for (d, &i) in self.dual_states.iter().enumerate() {
-                    jz[i] = g[d] * wgt;
-                }
-                for &(s, ch) in additive {
-                    if ch == c {
-                        jz[s] += wgt;
-                    }
-                }
-                for q in 0..k {
-                    jp[q] = g[nd + q] * wgt;
-                }
-                for p in 0..nz {
-                    if jz[p] == 0.0 {
-                        continue;
-                    }
-                    for q in 0..nz {
-                        a[p * nz + q] += jz[p] * jz[q];
-                    }
-                    for q in 0..k {
-                        w[p * k + q] += jz[p] * jp[q];
-                    }
-                    gz[p] += jz[p] * r;
-                }
-                for p in 0..k {
-                    for q in 0..k {
-                        v[p * k + q] += jp[p] * jp[q];
-                    }
-                    gp[p] += jp[p] * r;
-                }
-                rss += r * r;
-                m += 1;
-            }
-        }
-        let lin = WindowLin {
-            a: DMatrix::from_row_slice(nz, nz, &a),
-            w: DMatrix::from_row_slice(nz, k, &w),
-            v: DMatrix::from_row_slice(k, k, &v),
-            gz: DVector::from_vec(gz),
-            gp: DVector::from_vec(gp),
-            rss,
-            m,
-        };
-        let finite = lin
-            .a
-            .iter()
-            .chain(lin.w.iter())
-            .chain(lin.v.iter())
-            .all(|x| x.is_finite())
-            && rss.is_finite();
-        finite.then_some(lin)
-    }
-
-    pub(crate) fn window_lin(
-        &self,
-        x: &[f64],
-        dirs: &[Direction],
-        win: (usize, usize),
-        z0: &[f64],
-    ) -> Option<WindowLin> {
-        let n = self.dual_states.len() + dirs.len();
-        macro_rules! dispatch {
-            ($($b:literal),*) => {
-                match n {
-                    $(_ if n <= $b => self.window_lin_n::<$b>(x, dirs, win, z0),)*
-                    _ => panic!("{n} dual directions: more than {MAX_DIRECTIONS}"),
-                }
-            };
-        }
-        dispatch!(4, 6, 8, 10, 12, 16, 20, 24, 32, 40)
     }
 
     /// Run `f` over every window, on `threads` threads.
@@ -337,7 +196,17 @@ impl<'a, P: Plant> Fitter<'a, P> {
 
     /// Total weighted cost; `None` if some window's simulation fails.
     pub fn cost(&self, theta: &[f64], z0: &[Vec<f64>]) -> Option<(f64, usize)> {
-        let parts = self.map_windows(|wi| self.window_cost(theta, self.windows[wi], &z0[wi]));
+        let parts = self.map_windows(|wi| {
+            let win = self.windows[wi];
+            let compute = || self.window_cost(theta, win, &z0[wi]);
+            match &self.memo {
+                Some(memo) => {
+                    let key = self.plant.window_key(self.log, win.0, win.1, theta);
+                    memo.cost(wi, &key, &z0[wi], compute)
+                }
+                None => compute(),
+            }
+        });
         parts
             .into_iter()
             .try_fold((0.0, 0), |(r, m), p| p.map(|(a, b)| (r + a, m + b)))
@@ -350,10 +219,28 @@ impl<'a, P: Plant> Fitter<'a, P> {
         dirs: &[Direction],
         z0: &[Vec<f64>],
     ) -> Option<Vec<WindowLin>> {
-        let x = to_internal(self.catalogue(), theta);
-        self.map_windows(|wi| self.window_lin(&x, dirs, self.windows[wi], &z0[wi]))
-            .into_iter()
-            .collect()
+        let cat = self.catalogue();
+        let x = to_internal(cat, theta);
+        // The parameters `window_lin` predicts with (`x` mapped back as it maps it).
+        let used: Vec<f64> = cat
+            .params
+            .iter()
+            .zip(&x)
+            .map(|(s, &v)| if s.log { v.exp() } else { v })
+            .collect();
+        self.map_windows(|wi| {
+            let win = self.windows[wi];
+            let compute = || self.window_lin(&x, dirs, win, &z0[wi]);
+            match &self.memo {
+                Some(memo) if dirs.is_empty() => {
+                    let key = self.plant.window_key(self.log, win.0, win.1, &used);
+                    memo.lin(wi, &key, &z0[wi], compute)
+                }
+                _ => compute(),
+            }
+        })
+        .into_iter()
+        .collect()
     }
 
     /// Levenberg–Marquardt from `(theta0, z0)`, freeing the candidate's directions.

@@ -36,6 +36,7 @@ pub mod rng;
 pub mod selection;
 pub mod session;
 pub mod verdict;
+mod window_memo;
 
 pub use diagnosis::{DiagnoseOptions, Diagnosis};
 pub use error::DiagnoseError;
@@ -116,6 +117,21 @@ pub trait Plant: Sync {
         z0: &[T],
         theta: &[T],
     ) -> Option<Vec<T>>;
+    /// What [`Plant::predict`] over the window `(start, len)` reads of the parameters
+    /// `theta`: parameters with equal keys (bit for bit) predict the window alike, from
+    /// any state and with any dual seeding of the state. The default is `theta` itself; a
+    /// plant whose parameter acts on a window only through a few discrete decisions (a
+    /// sampled time threshold) may return those decisions instead, so that a scan over
+    /// that parameter shares the windows it cannot tell apart (`fit::WindowMemo`).
+    fn window_key(
+        &self,
+        _log: &MeasuredLog,
+        _start: usize,
+        _len: usize,
+        theta: &[f64],
+    ) -> Vec<f64> {
+        theta.to_vec()
+    }
     /// Operating conditions the residual may follow (the diagnosis adds a trend in time).
     fn conditions(&self, log: &MeasuredLog) -> Vec<Indicator>;
 }

@@ -9,6 +9,7 @@ use nalgebra::{DMatrix, DVector};
 
 /// A window's Gauss–Newton blocks: `A = J_zᵀJ_z`, `W = J_zᵀJ_β`, `V = J_βᵀJ_β`, the
 /// gradients `J_zᵀr`, `J_βᵀr`, and the window's weighted RSS and count.
+#[derive(Clone)]
 pub(crate) struct WindowLin {
     pub a: DMatrix<f64>,
     pub w: DMatrix<f64>,

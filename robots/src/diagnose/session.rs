@@ -246,7 +246,7 @@ impl<P: Plant> Session<'_, P> {
             drop(chosen);
             // A long log is scanned on evenly spread windows: the scan only ranks.
             let pick = self.scan_windows();
-            let fitter = self.fitter.on_windows(&pick);
+            let fitter = self.fitter.on_windows(&pick).with_window_memo();
             let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
             let states = |theta: &[f64]| {
                 let f = ranking_fit(&fitter, theta, &z_pick);

@@ -74,3 +74,80 @@ fn prediction_from_the_true_state_follows_the_truth() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// The plant's window key (`Plant::window_key`) with a reversal lockout: wherever two grid
+/// values of `lockout_s` give a window the same key, the window's predictions under them
+/// are the same bit for bit, in values and in dual derivatives with respect to the state
+/// (what the lockout scan shares between them). And the key tells values apart: some
+/// windows have several keys over the grid, and some keys are shared.
+#[test]
+fn windows_with_equal_lockout_keys_predict_alike() {
+    use num_dual::DualSVec64;
+    let p = WipParams::default();
+    let plant = WipPlant::new(p);
+    let cat = plant.catalogue();
+    let layout = Layout::new(cat, &p);
+    let settings = RunSettings {
+        duration: 6.0,
+        ..Default::default()
+    };
+    let truth = vec![(Effect::ReversalLockout, vec![0.0637])];
+    let g = generate(&p, &truth, 11, &settings).expect("the robot stays up");
+    let lockout = cat
+        .params
+        .iter()
+        .position(|s| s.name == "lockout_s")
+        .expect("the catalogue has the lockout");
+    let grid = cat.params[lockout].start_grid.clone();
+    assert!(grid.len() > 2, "the lockout has a scan grid");
+    let h = g.log.h;
+    let window = (0.5 / h).round() as usize;
+    let (mut shared, mut split) = (0usize, 0usize);
+    let mut start = plant.history(h);
+    while start + window <= g.log.len() {
+        let z = &g.states[start];
+        let zd: Vec<DualSVec64<2>> = z
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| match i {
+                3 => DualSVec64::from(v).derivative(0),
+                6 => DualSVec64::from(v).derivative(1),
+                _ => DualSVec64::from(v),
+            })
+            .collect();
+        let mut seen: Vec<(Vec<f64>, Vec<f64>, Vec<DualSVec64<2>>)> = Vec::new();
+        for &t in &grid {
+            let mut theta = layout.theta_with(cat, &[]);
+            theta[lockout] = t;
+            let key = plant.window_key(&g.log, start, window, &theta);
+            let y = plant.predict(&g.log, start, window, z, &theta);
+            let thd: Vec<DualSVec64<2>> = theta.iter().map(|&v| DualSVec64::from(v)).collect();
+            let yd = plant.predict(&g.log, start, window, &zd, &thd);
+            let (y, yd) = (y.expect("predicts"), yd.expect("predicts"));
+            match seen.iter().find(|(k, _, _)| *k == key) {
+                Some((_, y0, yd0)) => {
+                    shared += 1;
+                    assert!(
+                        y0.iter().zip(&y).all(|(a, b)| a.to_bits() == b.to_bits()),
+                        "window at {start}: T = {t} has a shared key and other values"
+                    );
+                    let bits = |d: &DualSVec64<2>| {
+                        let e = d
+                            .eps
+                            .unwrap_generic(nalgebra::Const::<2>, nalgebra::Const::<1>);
+                        [d.re.to_bits(), e[0].to_bits(), e[1].to_bits()]
+                    };
+                    assert!(
+                        yd0.iter().zip(&yd).all(|(a, b)| bits(a) == bits(b)),
+                        "window at {start}: T = {t} has a shared key and other derivatives"
+                    );
+                }
+                None => seen.push((key, y, yd)),
+            }
+        }
+        split += usize::from(seen.len() > 1);
+        start += window;
+    }
+    assert!(shared > 0, "no window shares a key between grid values");
+    assert!(split > 0, "no window tells grid values apart");
+}

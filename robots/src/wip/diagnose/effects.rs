@@ -292,6 +292,11 @@ impl Layout {
         }
     }
 
+    /// Where the reversal lockout's `lockout_s` sits in the parameter vector.
+    pub fn lockout(&self) -> usize {
+        self.lockout
+    }
+
     /// The extension with the parameter vector `theta` on the robot `base`.
     pub fn extension<T: Real>(&self, base: &WipParams, theta: &[T]) -> ModelExtension<T> {
         let mut params = base.map(T::from);

@@ -115,6 +115,27 @@ impl WipPlant {
             .map_err(crate::io::ReadError::Content)
     }
 
+    /// The reversal lockout's passed fractions of both motors, from `history` rows before
+    /// the window's start to its end (`passed_fractions` resynchronises its state before
+    /// them); empty without a lockout.
+    fn passed<T: FitScalar>(
+        &self,
+        log: &MeasuredLog,
+        start: usize,
+        len: usize,
+        lockout: T,
+    ) -> Vec<[T; 2]> {
+        if lockout.re() <= 0.0 {
+            return Vec::new();
+        }
+        let h = log.h;
+        let from = start.saturating_sub(self.history(h));
+        let end = (start + len + 1).min(log.len());
+        let per_motor = |m: usize| passed_fractions(|k| log.input(k)[m], from, end, lockout, h);
+        let (r, l) = (per_motor(0), per_motor(1));
+        r.into_iter().zip(l).map(|(r, l)| [r, l]).collect()
+    }
+
     /// An empty log with the WIP's inputs and channels.
     pub fn empty_log(h: f64) -> MeasuredLog {
         MeasuredLog::empty(h, 2, Channel::ALL.len())
@@ -186,18 +207,8 @@ impl Plant for WipPlant {
         let pred = Predictor::new(ext);
         let h = log.h;
         let last = log.len() - 1;
-        // The reversal lockout's passed fractions, from `history` rows before the window's
-        // start to its end (`passed_fractions` resynchronises its state before them).
         let from = start.saturating_sub(self.history(h));
-        let passed: Vec<[T; 2]> = if pred.ext.lockout.re() > 0.0 {
-            let end = (start + len + 1).min(log.len());
-            let per_motor =
-                |m: usize| passed_fractions(|k| log.input(k)[m], from, end, pred.ext.lockout, h);
-            let (r, l) = (per_motor(0), per_motor(1));
-            r.into_iter().zip(l).map(|(r, l)| [r, l]).collect()
-        } else {
-            Vec::new()
-        };
+        let passed = self.passed(log, start, len, pred.ext.lockout);
         let cmd = |k: usize| {
             let k = k.min(last);
             let u = log.input(k);
@@ -252,6 +263,17 @@ impl Plant for WipPlant {
             }
         }
         Some(out)
+    }
+
+    /// The lockout acts on a window only through its passed fractions: they stand for
+    /// `lockout_s` in the key.
+    fn window_key(&self, log: &MeasuredLog, start: usize, len: usize, theta: &[f64]) -> Vec<f64> {
+        let mut key = theta.to_vec();
+        let t = &mut key[self.layout.lockout()];
+        let lockout = *t;
+        *t = if lockout > 0.0 { 1.0 } else { 0.0 };
+        key.extend(self.passed(log, start, len, lockout).into_iter().flatten());
+        key
     }
 
     fn conditions(&self, log: &MeasuredLog) -> Vec<Indicator> {
