@@ -226,7 +226,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             .params
             .iter()
             .zip(&x)
-            .map(|(s, &v)| if s.log { v.exp() } else { v })
+            .map(|(s, &v)| s.from_internal(v))
             .collect();
         self.map_windows(|wi| {
             let win = self.windows[wi];

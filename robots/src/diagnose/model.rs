@@ -80,7 +80,9 @@ impl ParamSpec {
             theta
         }
     }
-    pub fn from_internal(&self, x: f64) -> f64 {
+    /// `θ` of the internal coordinate `x` (in any scalar: the linearisation maps dual
+    /// coordinates the same way).
+    pub fn from_internal<T: dmech_lie::Real>(&self, x: T) -> T {
         if self.log {
             x.exp()
         } else {

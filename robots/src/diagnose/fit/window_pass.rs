@@ -7,7 +7,7 @@ use crate::diagnose::model::Direction;
 use crate::diagnose::normal_equations::WindowLin;
 use crate::diagnose::Plant;
 use nalgebra::{DMatrix, DVector};
-use num_dual::{DualNum, DualSVec64};
+use num_dual::DualSVec64;
 
 impl<P: Plant> Fitter<'_, P> {
     /// Weighted residual sum of squares and count of one window (f64 pass).
@@ -63,7 +63,7 @@ impl<P: Plant> Fitter<'_, P> {
             .params
             .iter()
             .zip(xd)
-            .map(|(s, v)| if s.log { v.exp() } else { v })
+            .map(|(s, v)| s.from_internal(v))
             .collect();
         let mut zd: Vec<Dn<N>> = z0.iter().map(|&v| Dn::<N>::from(v)).collect();
         for (d, &i) in self.dual_states.iter().enumerate() {
