@@ -303,7 +303,9 @@ impl<P: Plant> Session<'_, P> {
         let cat = self.fitter.catalogue();
         let h = self.fitter.log.h;
         let pick = self.scan_windows();
-        let fitter = self.fitter.on_windows(&pick);
+        // The neighbouring intervals' decisions differ at a few rows: most windows are
+        // ranked once for the three values.
+        let fitter = self.fitter.on_windows(&pick).with_window_memo();
         let states_rss = |theta: &[f64], z: &[Vec<f64>]| {
             let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
             ranking_fit(&fitter, theta, &z_pick).rss

@@ -18,23 +18,35 @@ impl<P: Plant> Fitter<'_, P> {
         z0: &[f64],
     ) -> Option<(f64, usize)> {
         let y = self.plant.predict(self.log, start, len, z0, theta)?;
-        let nc = self.log.n_channels;
         let chans = self.plant.channels();
         let (mut rss, mut m) = (0.0, 0);
-        for j in 0..len {
-            for (c, spec) in chans.iter().enumerate() {
-                let wgt = self.weight(c);
-                if wgt == 0.0 {
-                    continue;
-                }
-                if let Some(meas) = self.log.value(start + j, c) {
-                    let r = spec.residual(y[j * nc + c], meas) * wgt;
-                    rss += r * r;
-                    m += 1;
-                }
-            }
+        for (i, c, wgt, meas) in self.weighted_readings(start, len) {
+            let r = chans[c].residual(y[i], meas) * wgt;
+            rss += r * r;
+            m += 1;
         }
         (rss.is_finite()).then_some((rss, m))
+    }
+
+    /// The readings a window's residual counts, rows then channels: the index of the
+    /// prediction, the channel, its weight and the measured value (channels of weight zero
+    /// and missing readings left out).
+    fn weighted_readings(
+        &self,
+        start: usize,
+        len: usize,
+    ) -> impl Iterator<Item = (usize, usize, f64, f64)> + '_ {
+        let nc = self.log.n_channels;
+        (0..len).flat_map(move |j| {
+            (0..self.plant.channels().len()).filter_map(move |c| {
+                let wgt = self.weight(c);
+                if wgt == 0.0 {
+                    return None;
+                }
+                let meas = self.log.value(start + j, c)?;
+                Some((j * nc + c, c, wgt, meas))
+            })
+        })
     }
 
     /// The window's Gauss–Newton blocks for the free directions `dirs` at internal
@@ -70,7 +82,6 @@ impl<P: Plant> Fitter<'_, P> {
             zd[i] = Dn::<N>::from(z0[i]).derivative(d);
         }
         let y = self.plant.predict(self.log, start, len, &zd, &theta)?;
-        let nc = self.log.n_channels;
         let chans = self.plant.channels();
         let additive = self.plant.additive();
         let mut a = vec![0.0; nz * nz];
@@ -81,53 +92,44 @@ impl<P: Plant> Fitter<'_, P> {
         let mut jz = vec![0.0; nz];
         let mut jp = vec![0.0; k];
         let (mut rss, mut m) = (0.0, 0);
-        for j in 0..len {
-            for (c, spec) in chans.iter().enumerate() {
-                let wgt = self.weight(c);
-                if wgt == 0.0 {
+        for (at, c, wgt, meas) in self.weighted_readings(start, len) {
+            let yc = &y[at];
+            let r = chans[c].residual(yc.re, meas) * wgt;
+            let g = yc
+                .eps
+                .unwrap_generic(nalgebra::Const::<N>, nalgebra::Const::<1>);
+            jz.fill(0.0);
+            for (d, &i) in self.dual_states.iter().enumerate() {
+                jz[i] = g[d] * wgt;
+            }
+            for &(s, ch) in additive {
+                if ch == c {
+                    jz[s] += wgt;
+                }
+            }
+            for q in 0..k {
+                jp[q] = g[nd + q] * wgt;
+            }
+            for p in 0..nz {
+                if jz[p] == 0.0 {
                     continue;
                 }
-                let Some(meas) = self.log.value(start + j, c) else {
-                    continue;
-                };
-                let yc = &y[j * nc + c];
-                let r = spec.residual(yc.re, meas) * wgt;
-                let g = yc
-                    .eps
-                    .unwrap_generic(nalgebra::Const::<N>, nalgebra::Const::<1>);
-                jz.fill(0.0);
-                for (d, &i) in self.dual_states.iter().enumerate() {
-                    jz[i] = g[d] * wgt;
-                }
-                for &(s, ch) in additive {
-                    if ch == c {
-                        jz[s] += wgt;
-                    }
+                for q in 0..nz {
+                    a[p * nz + q] += jz[p] * jz[q];
                 }
                 for q in 0..k {
-                    jp[q] = g[nd + q] * wgt;
+                    w[p * k + q] += jz[p] * jp[q];
                 }
-                for p in 0..nz {
-                    if jz[p] == 0.0 {
-                        continue;
-                    }
-                    for q in 0..nz {
-                        a[p * nz + q] += jz[p] * jz[q];
-                    }
-                    for q in 0..k {
-                        w[p * k + q] += jz[p] * jp[q];
-                    }
-                    gz[p] += jz[p] * r;
-                }
-                for p in 0..k {
-                    for q in 0..k {
-                        v[p * k + q] += jp[p] * jp[q];
-                    }
-                    gp[p] += jp[p] * r;
-                }
-                rss += r * r;
-                m += 1;
+                gz[p] += jz[p] * r;
             }
+            for p in 0..k {
+                for q in 0..k {
+                    v[p * k + q] += jp[p] * jp[q];
+                }
+                gp[p] += jp[p] * r;
+            }
+            rss += r * r;
+            m += 1;
         }
         let lin = WindowLin {
             a: DMatrix::from_row_slice(nz, nz, &a),

@@ -115,25 +115,25 @@ impl WipPlant {
             .map_err(crate::io::ReadError::Content)
     }
 
-    /// The reversal lockout's passed fractions of both motors, from `history` rows before
-    /// the window's start to its end (`passed_fractions` resynchronises its state before
-    /// them); empty without a lockout.
+    /// The reversal lockout's passed fractions of both motors for the window, and the row
+    /// of the first: from `history` rows before the window's start to its end
+    /// (`passed_fractions` resynchronises its state before them); none without a lockout.
     fn passed<T: FitScalar>(
         &self,
         log: &MeasuredLog,
         start: usize,
         len: usize,
         lockout: T,
-    ) -> Vec<[T; 2]> {
-        if lockout.re() <= 0.0 {
-            return Vec::new();
-        }
+    ) -> (usize, Vec<[T; 2]>) {
         let h = log.h;
         let from = start.saturating_sub(self.history(h));
+        if lockout.re() <= 0.0 {
+            return (from, Vec::new());
+        }
         let end = (start + len + 1).min(log.len());
         let per_motor = |m: usize| passed_fractions(|k| log.input(k)[m], from, end, lockout, h);
         let (r, l) = (per_motor(0), per_motor(1));
-        r.into_iter().zip(l).map(|(r, l)| [r, l]).collect()
+        (from, r.into_iter().zip(l).map(|(r, l)| [r, l]).collect())
     }
 
     /// An empty log with the WIP's inputs and channels.
@@ -207,8 +207,7 @@ impl Plant for WipPlant {
         let pred = Predictor::new(ext);
         let h = log.h;
         let last = log.len() - 1;
-        let from = start.saturating_sub(self.history(h));
-        let passed = self.passed(log, start, len, pred.ext.lockout);
+        let (from, passed) = self.passed(log, start, len, pred.ext.lockout);
         let cmd = |k: usize| {
             let k = k.min(last);
             let u = log.input(k);
@@ -272,7 +271,12 @@ impl Plant for WipPlant {
         let t = &mut key[self.layout.lockout()];
         let lockout = *t;
         *t = if lockout > 0.0 { 1.0 } else { 0.0 };
-        key.extend(self.passed(log, start, len, lockout).into_iter().flatten());
+        key.extend(
+            self.passed(log, start, len, lockout)
+                .1
+                .into_iter()
+                .flatten(),
+        );
         key
     }
 
