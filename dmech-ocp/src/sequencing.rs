@@ -42,7 +42,9 @@ where
             .as_ref()
             .map_or_else(|| opts.clone(), |prev| time_left(&opts, prev));
         if j < last {
+            // An intermediate problem has its own end: its tolerance, not the final barrier.
             o.tol = intermediate_tol;
+            o.final_barrier = None;
         }
         if j > 0 {
             o.mu_init = intermediate_tol;
@@ -164,11 +166,10 @@ pub trait SequencedPlan<const NX: usize, const NW: usize, const NE: usize, const
 pub struct SequenceSettings {
     /// The coarsest mesh is the one of step `h·2^L` with the largest `L` at or below this.
     pub coarsest_step: f64,
-    /// The barrier a finer mesh restarts at from the refined coarse solution.
+    /// The barrier a finer mesh restarts at from the refined coarse solution; each coarse
+    /// mesh is solved down to it and no further ([`IpOptions::final_barrier`]): below it
+    /// is work the refinement throws away.
     pub restart_barrier: f64,
-    /// The tolerance of the coarse meshes (solving them below the barrier the next one
-    /// restarts at is work the refinement throws away).
-    pub coarse_tol: f64,
 }
 
 /// Mesh sequencing: `finest` solved on the coarsest mesh of step `h·2^L ≤ coarsest_step`
@@ -204,13 +205,8 @@ where
         }
     }
     let last = meshes.len() - 1;
-    let tol = |j: usize| {
-        if j < last {
-            settings.coarse_tol.max(opts.tol)
-        } else {
-            opts.tol
-        }
-    };
+    // A coarse mesh ends where the next one restarts.
+    let final_barrier = |j: usize| (j < last).then_some(settings.restart_barrier);
     let announce = |j: usize| {
         if last > 0 {
             progress(&format!(
@@ -232,7 +228,7 @@ where
     };
     announce(0);
     let mut o = opts.clone();
-    o.tol = tol(0);
+    o.final_barrier = final_barrier(0);
     let mut r = from_start(&meshes[0], o);
     let final_phase = plan.phases() - 1;
     for j in 1..=last {
@@ -257,7 +253,7 @@ where
             plan.dual_scale(coarse, mesh),
         );
         let mut o = time_left(&opts, &r);
-        o.tol = tol(j);
+        o.final_barrier = final_barrier(j);
         o.mu_init = settings.restart_barrier;
         let s: Solver<NX, NW, NE, NU, NC> = Solver::new(&problem, o);
         r = merge(s.solve(s.warm_iterate(start)), &r);

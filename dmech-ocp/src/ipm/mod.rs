@@ -383,6 +383,11 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
             if t_start.elapsed().as_secs_f64() > o.time_limit {
                 break Status::TimeLimit;
             }
+            if o.final_barrier.is_some_and(|fb| mu <= fb)
+                && self.barrier_error(&it, mu, &kkt) <= KAPPA_EPSILON * mu
+            {
+                break Status::Solved;
+            }
             if self.update_barrier(&it, &mut mu, &kkt) {
                 filter.clear();
             }
@@ -507,23 +512,24 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         (vals, m)
     }
 
+    /// The KKT error of the barrier problem at `μ` (IPOPT's `E_μ`).
+    fn barrier_error(&self, it: &Iterate<NX, NW, NC>, mu: f64, kkt: &KktError) -> f64 {
+        kkt.dual
+            .max(kkt.primal)
+            .max(self.complementarity(it, mu, kkt.s_d))
+    }
+
     /// IPOPT's monotone barrier rule: decrease `μ` while the barrier problem at `μ` is
-    /// solved to `κ_ε μ`. `true` if `μ` changed (the filter is then reset).
+    /// solved to `κ_ε μ`, not below `tol/10` nor below the final barrier (if any).
+    /// `true` if `μ` changed (the filter is then reset).
     fn update_barrier(&self, it: &Iterate<NX, NW, NC>, mu: &mut f64, kkt: &KktError) -> bool {
-        let tol = self.opts.tol;
+        let floor = (self.opts.tol / 10.0).max(self.opts.final_barrier.unwrap_or(0.0));
         let mut changed = false;
-        loop {
-            let e_mu = kkt
-                .dual
-                .max(kkt.primal)
-                .max(self.complementarity(it, *mu, kkt.s_d));
-            if e_mu <= KAPPA_EPSILON * *mu && *mu > tol / 10.0 {
-                *mu = (tol / 10.0).max((KAPPA_MU * *mu).min(mu.powf(THETA_MU)));
-                changed = true;
-            } else {
-                return changed;
-            }
+        while *mu > floor && self.barrier_error(it, *mu, kkt) <= KAPPA_EPSILON * *mu {
+            *mu = floor.max((KAPPA_MU * *mu).min(mu.powf(THETA_MU)));
+            changed = true;
         }
+        changed
     }
 
     /// The accepted trial point with the dual step of length `alpha_dual`, each bound

@@ -35,6 +35,11 @@ pub struct IpOptions {
     /// How the Newton step's linear system is solved (`docs/ocp.md`, "Free waypoint
     /// timing": measured, the Riccati recursion is the faster).
     pub kkt: KktMethod,
+    /// Stop, solved, once the barrier problem at this `μ` is solved (IPOPT's test,
+    /// `E_μ ≤ κ_ε μ`), the barrier never decreased below it; `None`: solve to `tol`. For
+    /// a solve whose iterate seeds another that restarts at this barrier: mesh
+    /// sequencing's coarse meshes (`docs/ocp.md`, "Mesh sequencing").
+    pub final_barrier: Option<f64>,
 }
 
 /// The linear algebra of the Newton step.
@@ -74,6 +79,7 @@ impl Default for IpOptions {
             sr1_skip: 1e-2,
             time_limit: f64::INFINITY,
             kkt: KktMethod::Riccati,
+            final_barrier: None,
         }
     }
 }

@@ -145,6 +145,76 @@ fn threads_do_not_change_the_iterates() {
     }
 }
 
+/// A final barrier ends the solve where the full solve leaves that barrier problem: the
+/// same iterate, bitwise, as the full solve stopped after as many iterations, and fewer
+/// iterations than the full solve. The barrier is one the monotone rule visits from
+/// `μ₀ = 0.1` (`κ_μ μ₀`), so that both solves meet it. A barrier between two of the
+/// rule's values is landed on, not skipped: the solve then ends on it too.
+#[test]
+fn a_final_barrier_stops_where_the_full_solve_leaves_it() {
+    let p = DoubleIntegrator {
+        n: 200,
+        h: 0.05,
+        u_max: 1.0,
+        du_max: 0.05,
+        target: 1.0,
+        nonlinear: true,
+        cost_scale: 1.0,
+        declares_constant_curvature: false,
+    };
+    let solve = |final_barrier: Option<f64>, max_iter: usize| {
+        let o = IpOptions {
+            final_barrier,
+            max_iter,
+            ..Default::default()
+        };
+        let visited = 0.2 * o.mu_init;
+        let s: Solver<3, 1, 0, 1, 2> = Solver::new(&p, o);
+        let start = s.initial_iterate(vec![SVector::zeros(); 201], vec![SVector::zeros(); 200]);
+        (s.solve(start), visited)
+    };
+    let (full, visited) = solve(None, 500);
+    assert_eq!(full.status, Status::Solved);
+    let (stopped, _) = solve(Some(visited), 500);
+    assert_eq!(stopped.status, Status::Solved);
+    assert!(
+        stopped.iterations < full.iterations,
+        "{} against {}",
+        stopped.iterations,
+        full.iterations
+    );
+    let (cut, _) = solve(None, stopped.iterations);
+    assert_eq!(cut.status, Status::MaxIterations);
+    assert_eq!(cut.iterate.x, stopped.iterate.x);
+    assert_eq!(cut.iterate.w, stopped.iterate.w);
+    assert_eq!(cut.iterate.z_lo, stopped.iterate.z_lo);
+    // Between the rule's values (0.02 → 0.0028): still an early end, on that barrier's
+    // central path. The bound multipliers are reported unscaled (times the solver's cost
+    // scale), so the barrier is read off against the full solve's, which ends at
+    // `μ = tol/10`: the mean `t z` of the two stand as the barriers, within a factor 2
+    // (the rule's values on either side of 1e-2 are 3.5 and 2 times away).
+    let between = 1e-2;
+    let (landed, _) = solve(Some(between), 500);
+    assert_eq!(landed.status, Status::Solved);
+    assert!(landed.iterations < full.iterations);
+    let mean_tz = |it: &dmech_ocp::ipm::Iterate<3, 1, 2>| {
+        let pairs = it
+            .t_lo
+            .iter()
+            .zip(&it.z_lo)
+            .chain(it.t_hi.iter().zip(&it.z_hi));
+        let (sum, count) = pairs.fold((0.0, 0.0), |(s, c), (t, z)| (s + t.dot(z), c + 2.0));
+        sum / count
+    };
+    let ratio = mean_tz(&landed.iterate) / mean_tz(&full.iterate);
+    let want = between / (IpOptions::default().tol / 10.0);
+    println!("mean t z against the full solve's: {ratio:.3e} (barriers: {want:.1e})");
+    assert!(
+        ratio > want / 2.0 && ratio < want * 2.0,
+        "mean t z ratio {ratio:.3e}, barriers {want:.1e}"
+    );
+}
+
 /// The solver works on the cost scaled to a mean stage cost of one (`ipm/scaling.rs`), so a
 /// small cost times `a` is the same internal problem up to rounding: the same iterations,
 /// the same primal solution (to rounding amplified by the solve, 1e-9), the objective and

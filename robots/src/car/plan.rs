@@ -360,12 +360,11 @@ pub fn plan(
         bounds,
         disc: discretisation,
     };
-    // The WIP's settings (docs/ocp.md): restart a finer mesh at μ = 1e-4, solve the
-    // coarse ones to that tolerance.
+    // The WIP's settings (docs/ocp.md): restart a finer mesh at μ = 1e-4 (the coarse ones
+    // are solved down to that barrier).
     let settings = SequenceSettings {
         coarsest_step: 0.04,
         restart_barrier: 1e-4,
-        coarse_tol: 1e-4,
     };
     let verbose = opts.verbose;
     let progress = |m: &str| {

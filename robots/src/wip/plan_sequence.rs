@@ -30,7 +30,6 @@ pub(super) fn varint_solve<M: PlanModel<NS>, const NS: usize, const NX: usize, c
     let settings = SequenceSettings {
         coarsest_step: MESH_COARSEST_STEP,
         restart_barrier: MESH_RESTART_BARRIER,
-        coarse_tol: MESH_COARSE_TOL,
     };
     let verbose = opts.verbose;
     let progress = |m: &str| {
@@ -46,16 +45,10 @@ pub(super) fn varint_solve<M: PlanModel<NS>, const NS: usize, const NX: usize, c
 /// in 38 iterations and 0.4 s for the eight).
 const MESH_COARSEST_STEP: f64 = 0.02;
 
-/// The barrier a finer mesh restarts at from the refined coarse solution. Measured on the
-/// eight at 1.25 ms from the 2.5 ms solution (iterations of the fine mesh): 1e-3: 54,
-/// 1e-4: 34–37, 1e-5: 39–40.
+/// The barrier a finer mesh restarts at from the refined coarse solution, and the one
+/// each coarse mesh is solved down to. Measured on the eight at 1.25 ms from the 2.5 ms
+/// solution (iterations of the fine mesh): 1e-3: 54, 1e-4: 34–37, 1e-5: 39–40.
 const MESH_RESTART_BARRIER: f64 = 1e-4;
-
-/// Tolerance of the coarse meshes: the barrier the next mesh restarts at (solving a coarse
-/// mesh below it is work the refinement throws away). Measured (eight 5 ms / eight 1.25 ms /
-/// zigzag 5 ms, seconds): 1e-6: 1.91 / 10.4 / 1.66; 1e-4: 1.72 / 9.7 / 1.44; 1e-3: 1.96 /
-/// 29.3 (one mesh took 272 iterations) / 1.31.
-const MESH_COARSE_TOL: f64 = MESH_RESTART_BARRIER;
 
 /// The WIP's VI plan as a family of meshes for [`dmech_ocp::sequencing::mesh_sequence`]:
 /// the meshes are [`PlanProblem::at_step`], the continuation phases the friction
