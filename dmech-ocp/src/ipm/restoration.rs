@@ -247,6 +247,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                 mu_init: mu_r,
                 max_iter,
                 time_limit,
+                // The restoration problem ends by its own test; an end at the caller's
+                // final barrier would read as a converged restoration, i.e. infeasible.
+                final_barrier: None,
                 ..self.opts.clone()
             },
         );
