@@ -139,7 +139,7 @@ fn an_unreachable_end_state_is_reported_at_its_least_violation() {
 fn assert_reported_at_least_violation(far: &RestToRest, r: dmech_ocp::ipm::SolveResult<2, 1, 1>) {
     let (p_n, v_n) = (r.iterate.x[far.n][0], r.iterate.x[far.n][1]);
     let ours = 0.5 * ((p_n - far.target).powi(2) + v_n.powi(2));
-    let best = least_violation(&far, 1e-10);
+    let best = least_violation(far, 1e-10);
     println!(
         "{:?} after {} iterations ({} restorations); violation ½|r|² = {ours:.10} (least {best:.10}), p_N = {p_n}, v_N = {v_n}",
         r.status, r.iterations, r.timings.restorations
