@@ -19,6 +19,24 @@ struct DoubleIntegrator {
     declares_constant_curvature: bool,
 }
 
+impl DoubleIntegrator {
+    /// `n` steps of `h` from rest to position 1: unit force bound, a rate limit of one
+    /// unit per step (`du_max = h`), the nonlinear variant, cost at scale one, no
+    /// declared constant curvature. The tests vary one field of it.
+    fn to_unit_position(n: usize, h: f64) -> Self {
+        DoubleIntegrator {
+            n,
+            h,
+            u_max: 1.0,
+            du_max: h,
+            target: 1.0,
+            nonlinear: true,
+            cost_scale: 1.0,
+            declares_constant_curvature: false,
+        }
+    }
+}
+
 impl StageProblem<3, 1, 0, 2> for DoubleIntegrator {
     fn horizon(&self) -> usize {
         self.n
@@ -82,14 +100,8 @@ impl StageProblem<3, 1, 0, 2> for DoubleIntegrator {
 fn double_integrator_converges() {
     for nonlinear in [false, true] {
         let p = DoubleIntegrator {
-            n: 100,
-            h: 0.05,
-            u_max: 1.0,
-            du_max: 0.05,
-            target: 1.0,
             nonlinear,
-            cost_scale: 1.0,
-            declares_constant_curvature: false,
+            ..DoubleIntegrator::to_unit_position(100, 0.05)
         };
         let s: Solver<3, 1, 0, 1, 2> = Solver::new(
             &p,
@@ -111,16 +123,7 @@ fn double_integrator_converges() {
 /// chunk (32 stages) and a nonlinear problem, so that chunks finish out of order.
 #[test]
 fn threads_do_not_change_the_iterates() {
-    let p = DoubleIntegrator {
-        n: 1001,
-        h: 0.01,
-        u_max: 1.0,
-        du_max: 0.01,
-        target: 1.0,
-        nonlinear: true,
-        cost_scale: 1.0,
-        declares_constant_curvature: false,
-    };
+    let p = DoubleIntegrator::to_unit_position(1001, 0.01);
     let solve = |threads| {
         let s: Solver<3, 1, 0, 1, 2> = Solver::new(
             &p,
@@ -152,16 +155,7 @@ fn threads_do_not_change_the_iterates() {
 /// rule's values is landed on, not skipped: the solve then ends on it too.
 #[test]
 fn a_final_barrier_stops_where_the_full_solve_leaves_it() {
-    let p = DoubleIntegrator {
-        n: 200,
-        h: 0.05,
-        u_max: 1.0,
-        du_max: 0.05,
-        target: 1.0,
-        nonlinear: true,
-        cost_scale: 1.0,
-        declares_constant_curvature: false,
-    };
+    let p = DoubleIntegrator::to_unit_position(200, 0.05);
     let solve = |final_barrier: Option<f64>, max_iter: usize| {
         let o = IpOptions {
             final_barrier,
@@ -224,14 +218,8 @@ fn a_final_barrier_stops_where_the_full_solve_leaves_it() {
 fn small_objectives_are_solved_scale_invariantly() {
     let solve = |cost_scale: f64| {
         let p = DoubleIntegrator {
-            n: 200,
-            h: 0.05,
-            u_max: 1.0,
-            du_max: 0.05,
-            target: 1.0,
-            nonlinear: true,
             cost_scale,
-            declares_constant_curvature: false,
+            ..DoubleIntegrator::to_unit_position(200, 0.05)
         };
         let s: Solver<3, 1, 0, 1, 2> = Solver::new(&p, IpOptions::default());
         let start = s.initial_iterate(
@@ -276,14 +264,8 @@ fn a_declared_constant_curvature_gives_the_same_iterates() {
     for exact_hessian in [false, true] {
         let solve = |declares_constant_curvature| {
             let p = DoubleIntegrator {
-                n: 150,
-                h: 0.05,
-                u_max: 1.0,
-                du_max: 0.05,
-                target: 1.0,
-                nonlinear: true,
-                cost_scale: 1.0,
                 declares_constant_curvature,
+                ..DoubleIntegrator::to_unit_position(150, 0.05)
             };
             let opts = IpOptions {
                 exact_hessian,
