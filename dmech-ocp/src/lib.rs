@@ -29,6 +29,7 @@
 pub mod derivatives;
 pub mod free_timing;
 pub mod global_riccati;
+mod huge_pages;
 pub mod ipm;
 pub mod kinematic_start;
 pub mod layout;

@@ -116,9 +116,9 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
         self.eye_x = SMatrix::<f64, NX, NX>::identity() * shift;
         self.eye_u = SMatrix::<f64, NU, NU>::identity() * shift;
         let terminal = (q_n + self.eye_x, *q_vec_n);
-        self.cost_to_go.resize(n + 1, terminal);
+        crate::huge_pages::resize(&mut self.cost_to_go, n + 1, terminal);
         self.cost_to_go[n] = terminal;
-        self.gains.resize(n, (SMatrix::zeros(), SVector::zeros()));
+        crate::huge_pages::resize(&mut self.gains, n, (SMatrix::zeros(), SVector::zeros()));
         self.next = n;
     }
 

@@ -13,6 +13,7 @@ pub(super) fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads
 /// fault, while the other thread waited (building them here: the eight 4 % faster).
 pub(super) fn par_vec<R: Send, F: Fn(usize) -> R + Sync>(n: usize, threads: usize, f: F) -> Vec<R> {
     let mut v = Vec::with_capacity(n);
+    crate::huge_pages::advise(v.spare_capacity_mut());
     let written = std::sync::atomic::AtomicUsize::new(0);
     par_update(&mut v.spare_capacity_mut()[..n], threads, |k, slot| {
         slot.write(f(k));
