@@ -61,6 +61,9 @@ pub enum FreeTimingError {
     Bounds(f64, f64),
     /// Only the first-order scheme with right-point forcing has a variable-step form here.
     Discretisation,
+    /// The variable-step stages read every shape position from the state: a layout that
+    /// leaves ignorable ones out is not supported here.
+    IgnoredShape,
 }
 
 impl std::fmt::Display for FreeTimingError {
@@ -74,6 +77,10 @@ impl std::fmt::Display for FreeTimingError {
             FreeTimingError::Discretisation => write!(
                 f,
                 "free timing needs the first-order variational integrator with right-point forcing"
+            ),
+            FreeTimingError::IgnoredShape => write!(
+                f,
+                "free timing needs a state that carries every shape position"
             ),
         }
     }
@@ -113,6 +120,9 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
             || st.quadrature != ForcingQuadrature::Right
         {
             return Err(FreeTimingError::Discretisation);
+        }
+        if st.layout.ignored != 0 {
+            return Err(FreeTimingError::IgnoredShape);
         }
         let (lo, hi) = timing.ratio_bounds;
         if !(0.0 < lo && lo < 1.0 && 1.0 < hi && hi.is_finite()) {
@@ -195,7 +205,10 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
     pub fn trajectory<const NS: usize, const NX: usize, const NW: usize, const NC: usize>(
         &self,
         it: &Iterate<NX, NW, NC>,
-    ) -> (PlannedTrajectory<NP, NS, NU>, Vec<f64>) {
+    ) -> (PlannedTrajectory<NP, NS, NU>, Vec<f64>)
+    where
+        P: PlanningProblem<NP, NS, NU, NC>,
+    {
         (self.plan.trajectory::<NS, NX, NW, NC>(it), self.times(it).1)
     }
 }

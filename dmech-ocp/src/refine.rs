@@ -80,12 +80,18 @@ pub fn match_equality_multipliers(
 
 /// The fine iterate on `n_fine` steps of length `h_fine` from the coarse one (of
 /// `coarse.w.len()` steps), for the layout `layout` (see the module's documentation).
+///
+/// A shape coordinate the layout ignores has no positions in the states; its coarse
+/// positions are rebuilt from its velocities by the dynamics it has, `s_{k+1} = s_k + H v_k`
+/// from zero (`H = h_coarse`; nothing reads their level), and refined as the others.
+#[allow(clippy::too_many_arguments)]
 pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
     layout: Layout,
     coarse: &Iterate<NX, NW, NC>,
     equalities: &EqualityLists,
     n_fine: usize,
     h_fine: f64,
+    h_coarse: f64,
     dual_scale: f64,
 ) -> Iterate<NX, NW, NC> {
     let nc = coarse.w.len();
@@ -96,8 +102,27 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
     layout.check(NX, NW, layout.ns + layout.nu);
     // v_{k−1} and u_{k−1} are adjacent in the state, in w's order (v, u).
     debug_assert_eq!(layout.u_at(), layout.v_at() + layout.ns);
-    let (n_pos, s_at, v_at) = (layout.s_at() + layout.ns, layout.s_at(), layout.v_at());
-    let ns = layout.ns;
+    let (ncoord, ns, v_at) = (layout.nc, layout.ns, layout.v_at());
+    // Positions of every node: the group coordinates, then every shape coordinate.
+    let n_pos = ncoord + ns;
+    let mut coarse_pos: Vec<Vec<f64>> = coarse
+        .x
+        .iter()
+        .map(|x| {
+            (0..n_pos)
+                .map(|i| match i.checked_sub(ncoord) {
+                    None => x[i],
+                    Some(si) => layout.shape_slot(si).map_or(0.0, |at| x[at]),
+                })
+                .collect()
+        })
+        .collect();
+    for si in (0..ns).filter(|&si| layout.is_ignored(si)) {
+        for k in 0..nc {
+            coarse_pos[k + 1][ncoord + si] =
+                coarse_pos[k][ncoord + si] + h_coarse * coarse.w[k][si];
+        }
+    }
     // Coarse index of fine stage j.
     let ratio = n_fine as f64 / nc as f64;
     let kappa = |j: f64| j / ratio;
@@ -106,8 +131,8 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
         let k = (kap.floor().max(0.0) as usize).min(nc - 1);
         (k, kap - k as f64)
     };
-    let node = |k: isize| &coarse.x[k.clamp(0, nc as isize) as usize];
-    let positions = |kap: f64| -> SVector<f64, NX> {
+    let node = |k: isize| &coarse_pos[k.clamp(0, nc as isize) as usize];
+    let positions = |kap: f64| -> Vec<f64> {
         let (k, t) = interval(kap);
         let k = k as isize;
         let (p0, p1, pm, pp) = (node(k), node(k + 1), node(k - 1), node(k + 2));
@@ -119,16 +144,14 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
             -2.0 * t3 + 3.0 * t2,
             t3 - t2,
         );
-        SVector::<f64, NX>::from_fn(|i, _| {
-            if i < n_pos {
+        (0..n_pos)
+            .map(|i| {
                 h00 * p0[i]
                     + h10 * 0.5 * (p1[i] - pm[i])
                     + h01 * p1[i]
                     + h11 * 0.5 * (pp[i] - p0[i])
-            } else {
-                0.0
-            }
-        })
+            })
+            .collect()
     };
     // u_k at time t_{k+1}: fine u_j at coarse index (j + 1)/ratio − 1, from u_{−1} = 0.
     let input = |kap: f64, i: usize| -> f64 {
@@ -146,12 +169,12 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
         v[k] * (1.0 - t) + v[(k + 1).min(nc - 1)] * t
     };
 
-    let pos: Vec<SVector<f64, NX>> = (0..=n_fine).map(|j| positions(kappa(j as f64))).collect();
+    let pos: Vec<Vec<f64>> = (0..=n_fine).map(|j| positions(kappa(j as f64))).collect();
     let w: Vec<SVector<f64, NW>> = (0..n_fine)
         .map(|j| {
             SVector::<f64, NW>::from_fn(|i, _| {
                 if i < ns {
-                    (pos[j + 1][s_at + i] - pos[j][s_at + i]) / h_fine
+                    (pos[j + 1][ncoord + i] - pos[j][ncoord + i]) / h_fine
                 } else {
                     input(kappa(j as f64 + 1.0) - 1.0, i - ns)
                 }
@@ -161,7 +184,17 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
     // The state carries the previous decision: (v_{j−1}, u_{j−1}) of x_j is w_{j−1}.
     let x = (0..=n_fine)
         .map(|j| {
-            let mut x = pos[j];
+            let mut x = SVector::<f64, NX>::zeros();
+            for i in 0..n_pos {
+                match i.checked_sub(ncoord) {
+                    None => x[i] = pos[j][i],
+                    Some(si) => {
+                        if let Some(at) = layout.shape_slot(si) {
+                            x[at] = pos[j][i];
+                        }
+                    }
+                }
+            }
             if j > 0 {
                 x.fixed_rows_mut::<NW>(v_at).copy_from(&w[j - 1]);
             }
@@ -199,11 +232,7 @@ mod tests {
     use super::*;
 
     // One group coordinate, one shape, one input: NX = 1 + 2 + 1, NW = 2, one bound.
-    const L: Layout = Layout {
-        nc: 1,
-        ns: 1,
-        nu: 1,
-    };
+    const L: Layout = Layout::new(1, 1, 1);
 
     /// A coarse iterate sampling `p(t)` (both the group coordinate and the shape), the shape
     /// velocity as the VI's difference, an input ramp `u_k = r (k + 1) H`, constant
@@ -266,7 +295,7 @@ mod tests {
             coarse: &coarse_eqs,
             fine: &fine_eqs,
         };
-        let f = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, h, 4.0);
+        let f = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, h, big_h, 4.0);
         // Positions: exact on the interior intervals [1, nc − 1] of the coarse mesh.
         let tol = 64.0 * f64::EPSILON;
         let mut worst: f64 = 0.0;
@@ -300,7 +329,7 @@ mod tests {
         for k in 5..nc {
             c_jump.lambda[k] = SVector::repeat(1.5);
         }
-        let f_jump = refine_varint_iterate::<4, 2, 1>(L, &c_jump, &lists, nf, h, 4.0);
+        let f_jump = refine_varint_iterate::<4, 2, 1>(L, &c_jump, &lists, nf, h, big_h, 4.0);
         for (j, l) in f_jump.lambda.iter().enumerate() {
             let want = if j < 20 { 2.0 } else { 6.0 };
             assert_eq!(l[0], want, "λ at fine interval {j}");
@@ -329,7 +358,7 @@ mod tests {
         };
         for nf in [2 * nc, 4 * nc] {
             let h = big_h * nc as f64 / nf as f64;
-            let f = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, h, 1.0);
+            let f = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, h, big_h, 1.0);
             for j in 0..nf {
                 let t_mid = (j as f64 + 0.5) * h;
                 let want = if t_mid < 0.5 * big_h {
@@ -361,7 +390,7 @@ mod tests {
                 coarse: &ce,
                 fine: &fe,
             };
-            let f = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, big_h / 4.0, 1.0);
+            let f = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, big_h / 4.0, big_h, 1.0);
             (4..=nf - 4)
                 .map(|j| (f.x[j][1] - p(j as f64 * big_h / 4.0)).abs())
                 .fold(0.0f64, f64::max)

@@ -38,7 +38,7 @@ impl<'a, S> RkStages<'a, S> {
             sys,
             h,
             method,
-            layout: Layout { nc, ns: NS, nu: NU },
+            layout: Layout::new(nc, NS, NU),
         }
     }
 

@@ -250,6 +250,7 @@ where
             &lists,
             plan.steps(mesh),
             plan.step(mesh),
+            plan.step(coarse),
             plan.dual_scale(coarse, mesh),
         );
         let mut o = time_left(&opts, &r);

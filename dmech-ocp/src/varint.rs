@@ -63,7 +63,7 @@ impl<'a, S> VarIntStages<'a, S> {
             h,
             quadrature,
             discretisation: Discretisation::FirstOrder,
-            layout: Layout { nc, ns: NS, nu: NU },
+            layout: Layout::new(nc, NS, NU),
         }
     }
 
@@ -95,7 +95,7 @@ impl<'a, S> VarIntStages<'a, S> {
         let coords: Vec<T> = (0..l.nc).map(|i| x[i]).collect();
         let g =
             <S::Group<T> as LieGroup<DOF, DIM>>::from_coordinates(&coords).expect("layout checked");
-        let s: SVector<T, NS> = segment(x, l.s_at());
+        let s: SVector<T, NS> = l.shape(x);
         let v: SVector<T, NS> = segment(w, 0);
         let u: SVector<T, NU> = segment(w, NS);
         let ht = T::from(self.h);
@@ -111,8 +111,8 @@ impl<'a, S> VarIntStages<'a, S> {
         for (i, c) in g_next.coordinates().into_iter().enumerate() {
             out[i] = c;
         }
+        l.set_shape(&mut out, &s_next);
         for i in 0..NS {
-            out[l.s_at() + i] = s_next[i];
             out[l.v_at() + i] = v[i];
         }
         for i in 0..NU {
@@ -176,7 +176,7 @@ impl<'a, S> VarIntStages<'a, S> {
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
-        let s: SVector<T, NS> = segment(x, l.s_at());
+        let s: SVector<T, NS> = l.shape(x);
         let v_prev: SVector<T, NS> = segment(x, l.v_at());
         let u_prev: SVector<T, NU> = segment(x, l.u_at());
         let v: SVector<T, NS> = segment(w, 0);
@@ -309,7 +309,7 @@ impl<'a, S> VarIntStages<'a, S> {
             "the first-order scheme's partials, with (v_k, u_k) leading the decision"
         );
         let l = self.layout;
-        let s: SVector<f64, NS> = segment(x, l.s_at());
+        let s: SVector<f64, NS> = l.shape(x);
         let v_prev: SVector<f64, NS> = segment(x, l.v_at());
         let u_prev: SVector<f64, NU> = segment(x, l.u_at());
         let v: SVector<f64, NS> = segment(w, 0);
@@ -335,7 +335,7 @@ impl<'a, S> VarIntStages<'a, S> {
             &lift_vec(&v),
             &lift_vec(&u),
         );
-        put_columns(&mut ex, l.s_at(), &r);
+        put_shape_columns(&mut ex, l, &r);
         // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
         let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
             terms(false, true, left),
@@ -404,7 +404,7 @@ impl<'a, S> VarIntStages<'a, S> {
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
-        let s: SVector<f64, NS> = segment(x, l.s_at());
+        let s: SVector<f64, NS> = l.shape(x);
         let v_prev: SVector<f64, NS> = segment(x, l.v_at());
         let u_prev: SVector<f64, NU> = segment(x, l.u_at());
         let v: SVector<f64, NS> = segment(w, 0);
@@ -450,9 +450,9 @@ impl<'a, S> VarIntStages<'a, S> {
             lift_vec(&v),
             lift_vec(&u),
         );
-        put_columns(
+        put_shape_columns(
             &mut ex,
-            l.s_at(),
+            l,
             &terms(true, true, &seeded(&s), &lvp, &lup, &lv, &lu),
         );
         put_columns(
@@ -513,6 +513,23 @@ impl<'a, S> VarIntStages<'a, S> {
 
 /// Writes the gradients of `r` (a pass seeded in `N` variables) into columns
 /// `col .. col + N` of `m`.
+/// The columns of a pass seeded in `s` into the state's carried shape columns (an ignored
+/// coordinate's column, zero for an ignorable one, has no place in the state).
+fn put_shape_columns<const R: usize, const C: usize, const NS: usize>(
+    m: &mut SMatrix<f64, R, C>,
+    l: Layout,
+    r: &SVector<DualSVec64<NS>, R>,
+) {
+    for i in 0..R {
+        let g = grad_part(&r[i]);
+        for j in 0..NS {
+            if let Some(at) = l.shape_slot(j) {
+                m[(i, at)] = g[j];
+            }
+        }
+    }
+}
+
 fn put_columns<const R: usize, const C: usize, const N: usize>(
     m: &mut SMatrix<f64, R, C>,
     col: usize,

@@ -140,6 +140,10 @@ impl<S> VarIntStages<'_, S> {
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
+        assert_eq!(
+            l.ignored, 0,
+            "the curvature blocks assume every shape coordinate in x"
+        );
         let s: SVector<f64, NS> = segment(x, l.s_at());
         // (v_{k−1}, u_{k−1}) are adjacent in the state, in w's order.
         let p: SVector<f64, NW> = segment(x, l.v_at());
@@ -263,7 +267,10 @@ impl<S> VarIntStages<'_, S> {
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
-        if self.discretisation != dmech::Discretisation::FirstOrder {
+        // The blocks are placed for a state that carries all of `s`; with ignored
+        // coordinates the generic path (which differentiates the stage functions
+        // themselves) applies.
+        if self.discretisation != dmech::Discretisation::FirstOrder || self.layout.ignored != 0 {
             return None;
         }
         let part = (

@@ -159,6 +159,16 @@ pub trait PrincipalKinematicSystem<
     /// The local form of the nonholonomic connection `A(s)`, `ξ = −A(s) v_s`.
     fn connection<T: Lift<Self::Param>>(&self, s: &SVector<T, NS>) -> SMatrix<T, DOF, NS>;
 
+    /// The shape coordinates whose positions the equations of motion do not read: the
+    /// connection and the forcing do not depend on them, and the reduced Lagrangian at
+    /// most through a total time derivative (a term `c(s) ṡ_j`-like coupling whose change
+    /// under `s_j → s_j + const` is exact), so that the momentum-matching residual does not
+    /// either. A transcription may leave their positions out of its state
+    /// (`dmech_ocp::layout::Layout::ignoring`). Default: none.
+    fn ignorable_shape(&self) -> &'static [usize] {
+        &[]
+    }
+
     /// Generalised force on the shape coordinates (dissipation and inputs), `F(s, v_s, u)`.
     fn forcing<T: Lift<Self::Param>>(
         &self,

@@ -176,9 +176,19 @@ where
 /// Where each quantity of a stage state sits in the solver's `x_k`: the same for every
 /// transcription (`coords(g)`, `s`, the state's velocity, `u_{k−1}`).
 pub fn state_index(layout: Layout, quantity: Quantity) -> usize {
+    if let Quantity::Shape(i) = quantity {
+        assert!(
+            i < layout.ns,
+            "{quantity:?} is out of range for the system ({} components)",
+            layout.ns
+        );
+        return layout.shape_slot(i).unwrap_or_else(|| {
+            panic!("{quantity:?} is ignored by the layout: no condition can hold it")
+        });
+    }
     let (offset, i, n) = match quantity {
         Quantity::Pose(i) => (0, i, layout.nc),
-        Quantity::Shape(i) => (layout.s_at(), i, layout.ns),
+        Quantity::Shape(_) => unreachable!("handled above"),
         Quantity::Velocity(i) => (layout.v_at(), i, layout.ns),
         Quantity::PreviousInput(i) => (layout.u_at(), i, layout.nu),
     };
@@ -208,8 +218,7 @@ pub(crate) fn initial_state<const NP: usize, const NS: usize, const NU: usize, c
 ) -> SVector<f64, NX> {
     let mut x = SVector::<f64, NX>::zeros();
     x.fixed_rows_mut::<NP>(0).copy_from(&start.pose);
-    x.fixed_rows_mut::<NS>(layout.s_at())
-        .copy_from(&start.shape);
+    layout.set_shape(&mut x, &start.shape);
     x.fixed_rows_mut::<NS>(layout.v_at())
         .copy_from(&start.velocity);
     x.fixed_rows_mut::<NU>(layout.u_at())

@@ -58,6 +58,13 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
         }
     }
 
+    /// The same transcription with the shape coordinates `ignored` left out of the state
+    /// (`Layout::ignoring`): they must be ones the stage functions do not read.
+    pub fn with_ignored_shape(mut self, ignored: &[usize]) -> Self {
+        self.stages.layout = self.stages.layout.ignoring(ignored);
+        self
+    }
+
     /// The typed view of `(x_k, w_k)`.
     pub fn stage<T: Real, const NS: usize, const NX: usize, const NW: usize>(
         &self,
@@ -67,7 +74,7 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
         let l = self.stages.layout;
         Stage {
             pose: segment(x, 0),
-            shape: segment(x, l.s_at()),
+            shape: l.shape(x),
             velocity: segment(w, 0),
             input: segment(w, NS),
             previous_input: segment(x, l.u_at()),
@@ -78,7 +85,10 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
     pub fn trajectory<const NS: usize, const NX: usize, const NW: usize, const NC: usize>(
         &self,
         it: &Iterate<NX, NW, NC>,
-    ) -> PlannedTrajectory<NP, NS, NU> {
+    ) -> PlannedTrajectory<NP, NS, NU>
+    where
+        P: PlanningProblem<NP, NS, NU, NC>,
+    {
         let n = it.w.len();
         let l = self.stages.layout;
         let mut stages: Vec<_> = (0..n)
@@ -87,11 +97,20 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
         let x = &it.x[n];
         stages.push(Stage {
             pose: segment(x, 0),
-            shape: segment(x, l.s_at()),
+            shape: l.shape(x),
             velocity: segment(x, l.v_at()),
             input: segment(&it.w[n - 1], NS),
             previous_input: segment(x, l.u_at()),
         });
+        // The ignored positions, which the state does not carry, by the dynamics they
+        // have: `s_{k+1} = s_k + h v_k` from the start's.
+        let start = self.problem.start();
+        for i in (0..NS).filter(|&i| l.is_ignored(i)) {
+            stages[0].shape[i] = start.shape[i];
+            for k in 0..n {
+                stages[k + 1].shape[i] = stages[k].shape[i] + self.stages.h * stages[k].velocity[i];
+            }
+        }
         PlannedTrajectory {
             h: self.stages.h,
             stages,

@@ -332,11 +332,7 @@ impl<'p> SequencedPlan<NX, NW, NS, NC> for CarSequence<'p> {
         })
     }
     fn layout(&self) -> Layout {
-        Layout {
-            nc: 3,
-            ns: NS,
-            nu: NU,
-        }
+        Layout::new(3, NS, NU)
     }
 }
 

@@ -59,6 +59,11 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 3, 2> for WipAlgebraicCurrent<P> {
             .reduced_lagrangian(&with_zero_charges(s), &with_zero_charges(v), xi)
     }
 
+    /// The wheel angles, as in the full model.
+    fn ignorable_shape(&self) -> &'static [usize] {
+        &[1, 2]
+    }
+
     fn connection<T: Lift<P>>(&self, s: &SVector<T, 3>) -> SMatrix<T, 3, 3> {
         self.wip
             .connection(&with_zero_charges(s))

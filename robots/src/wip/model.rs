@@ -148,6 +148,13 @@ impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
         l - (0.5 * Param(self.quasi_static_inertia)) * (wr_rel * wr_rel + wl_rel * wl_rel)
     }
 
+    /// The wheel angles (nothing reads them) and the charges (`ℓ` reads them only in the
+    /// back-EMF term `k_e n_wm (φ̇ − α̇) q`, which a constant added to `q` changes by a
+    /// total time derivative). Checked in `tests/model/plan_derivatives.rs`.
+    fn ignorable_shape(&self) -> &'static [usize] {
+        &[1, 2, 3, 4]
+    }
+
     fn connection<T: Lift<P>>(&self, _s: &SVector<T, 5>) -> SMatrix<T, 3, 5> {
         let p = self.params.map(Param);
         let z = T::zero();

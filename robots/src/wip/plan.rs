@@ -7,8 +7,8 @@
 use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::PlanProblem;
 pub use super::plan_problem::{
-    rk_plan, varint_plan, PlanBounds, PlanModel, RkPlan, VarIntPlan, WipPlan, NC, NX, NX_ALGEBRAIC,
-    SMOOTH_FRICTION_SLOPE,
+    rk_plan, varint_layout, varint_plan, varint_plan_sized, PlanBounds, PlanModel, RkPlan,
+    VarIntPlan, WipPlan, NC, NX, NX_ALGEBRAIC, NX_VI, NX_VI_ALGEBRAIC, SMOOTH_FRICTION_SLOPE,
 };
 use super::plan_sequence::{friction_continuation, varint_solve};
 pub use super::plan_start::{polyline_start, rk_start, varint_start};
@@ -168,9 +168,9 @@ pub fn plan(
 ) -> PlanOutcome {
     match current {
         CurrentModel::Dynamic => {
-            plan_model::<Wip, 5, NX, 7>(wip, problem, bounds, transcription, opts)
+            plan_model::<Wip, 5, NX, NX_VI, 7>(wip, problem, bounds, transcription, opts)
         }
-        CurrentModel::Algebraic => plan_model::<_, 3, NX_ALGEBRAIC, 5>(
+        CurrentModel::Algebraic => plan_model::<_, 3, NX_ALGEBRAIC, NX_VI_ALGEBRAIC, 5>(
             &WipAlgebraicCurrent::new(*wip),
             problem,
             bounds,
@@ -180,8 +180,15 @@ pub fn plan(
     }
 }
 
-/// [`plan`] for one model; `NW = NS + 2` is the VI's decision size.
-fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
+/// [`plan`] for one model; `NX` is the RK state size, `NXV` the VI's (without the
+/// ignorable shape positions), `NW = NS + 2` the VI's decision size.
+fn plan_model<
+    M: PlanModel<NS>,
+    const NS: usize,
+    const NX: usize,
+    const NXV: usize,
+    const NW: usize,
+>(
     model: &M,
     problem: &PlanProblem,
     bounds: PlanBounds,
@@ -192,10 +199,10 @@ fn plan_model<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usiz
     let models = friction_continuation(model, stiff_explicit && M::CURRENT_DYNAMICS);
     match transcription {
         Transcription::VarInt(disc) => {
-            let r = varint_solve::<M, NS, NX, NW>(model, models, problem, bounds, disc, opts);
-            let traj = varint_plan::<M, NS>(model, problem, bounds, disc)
-                .trajectory::<NS, NX, NW, NC>(&r.iterate);
-            outcome::<M, NS, NX, NW>(model, r, traj, true)
+            let r = varint_solve::<M, NS, NXV, NW>(model, models, problem, bounds, disc, opts);
+            let traj = varint_plan_sized::<M, NS, NXV>(model, problem, bounds, disc)
+                .trajectory::<NS, NXV, NW, NC>(&r.iterate);
+            outcome::<M, NS, NXV, NW>(model, r, traj, true)
         }
         Transcription::Rk(rk) => {
             let (xs, ws) = rk_start::<M, NS, NX>(model, problem);

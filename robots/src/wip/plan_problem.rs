@@ -13,6 +13,7 @@ use super::benchmarks::PlanProblem;
 use super::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
+use dmech_ocp::layout::Layout;
 use dmech_ocp::transcription::{
     Condition, PlanningProblem, Quantity, RkTranscription, Stage, StartState, VarIntTranscription,
 };
@@ -22,6 +23,12 @@ use nalgebra::SVector;
 pub const NX: usize = 15;
 /// Stage state size of the algebraic-current model (`NS = 3`).
 pub const NX_ALGEBRAIC: usize = 11;
+/// The VI plans' state size of the full model: without the positions of the wheel
+/// angles and the charges, which its equations of motion do not read
+/// ([`PrincipalKinematicSystem::ignorable_shape`]; `docs/ocp.md`).
+pub const NX_VI: usize = 11;
+/// The same for the algebraic-current model: without the wheel angles.
+pub const NX_VI_ALGEBRAIC: usize = 9;
 /// Inequalities per stage: uR, uL, the rates (uR_k − uR_{k−1})/h and (uL_k − uL_{k−1})/h, iR, iL, α, v_θ.
 pub const NC: usize = 8;
 
@@ -278,6 +285,39 @@ pub fn varint_plan<'a, M: PlanModel<NS>, const NS: usize>(
         bounds,
     };
     VarIntTranscription::new::<NS>(model, plan, problem.h, discretisation)
+}
+
+/// The VI stage layout for state size `NX`: every shape position (`NX = 2 NS + 5`), or
+/// without the model's ignorable ones.
+pub fn varint_layout<M: PlanModel<NS>, const NS: usize, const NX: usize>(model: &M) -> Layout {
+    let full = Layout::new(3, NS, 2);
+    if NX == full.nx() {
+        return full;
+    }
+    let reduced = full.ignoring(model.ignorable_shape());
+    assert_eq!(
+        NX,
+        reduced.nx(),
+        "a VI state of the model has {} or {} entries",
+        full.nx(),
+        reduced.nx()
+    );
+    reduced
+}
+
+/// [`varint_plan`] with the state of size `NX` ([`varint_layout`]).
+pub fn varint_plan_sized<'a, M: PlanModel<NS>, const NS: usize, const NX: usize>(
+    model: &'a M,
+    problem: &'a PlanProblem,
+    bounds: PlanBounds,
+    discretisation: Discretisation,
+) -> VarIntPlan<'a, M> {
+    let plan = varint_plan::<M, NS>(model, problem, bounds, discretisation);
+    let layout = varint_layout::<M, NS, NX>(model);
+    if layout.ignored == 0 {
+        return plan;
+    }
+    plan.with_ignored_shape(model.ignorable_shape())
 }
 
 /// The RK plan of `problem` for `model`.

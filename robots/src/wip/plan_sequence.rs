@@ -3,7 +3,7 @@
 
 use super::benchmarks::PlanProblem;
 use super::plan_problem::{
-    varint_plan, PlanBounds, PlanModel, VarIntPlan, NC, SMOOTH_FRICTION_SLOPE,
+    varint_layout, varint_plan_sized, PlanBounds, PlanModel, VarIntPlan, NC, SMOOTH_FRICTION_SLOPE,
 };
 use super::plan_start::varint_start;
 use dmech::Discretisation;
@@ -88,7 +88,7 @@ where
         mesh.at_step(mesh.h * 2.0)
     }
     fn problem<'a>(&'a self, mesh: &'a PlanProblem, phase: usize) -> VarIntPlan<'a, M> {
-        varint_plan::<M, NS>(&self.models[phase], mesh, self.bounds, self.disc)
+        varint_plan_sized::<M, NS, NX>(&self.models[phase], mesh, self.bounds, self.disc)
     }
     fn phases(&self) -> usize {
         self.models.len()
@@ -97,11 +97,7 @@ where
         varint_start::<M, NS, NX, NW>(self.model, mesh)
     }
     fn layout(&self) -> Layout {
-        Layout {
-            nc: 3,
-            ns: NS,
-            nu: 2,
-        }
+        varint_layout::<M, NS, NX>(self.model)
     }
 }
 

@@ -2,8 +2,9 @@
 //! laid out for the variational and the Runge–Kutta transcriptions.
 
 use super::benchmarks::{arc_lengths, PlanProblem};
-use super::plan_problem::PlanModel;
+use super::plan_problem::{varint_layout, PlanModel};
 use super::Wip;
+use dmech_ocp::layout::Layout;
 use nalgebra::SVector;
 
 /// A start along the waypoint polyline: the arc length is a monotone cubic in time through
@@ -130,6 +131,7 @@ fn start_states<M: PlanModel<NS>, const NS: usize, const NX: usize>(
     model: &M,
     p: &PlanProblem,
     lag: usize,
+    layout: Layout,
 ) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NS>>) {
     let path = polyline_start(model.wip(), p);
     let n = p.n;
@@ -139,9 +141,10 @@ fn start_states<M: PlanModel<NS>, const NS: usize, const NX: usize>(
         .map(|k| {
             let mut x = SVector::<f64, NX>::zeros();
             x.fixed_rows_mut::<3>(0).copy_from(&path[k].0);
-            x.fixed_rows_mut::<NS>(3).copy_from(&shape(k));
+            layout.set_shape(&mut x, &shape(k));
             if k > 0 && k < n {
-                x.fixed_rows_mut::<NS>(3 + NS).copy_from(&vel[k - lag]);
+                x.fixed_rows_mut::<NS>(layout.v_at())
+                    .copy_from(&vel[k - lag]);
             }
             x
         })
@@ -154,7 +157,7 @@ pub fn varint_start<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW
     model: &M,
     p: &PlanProblem,
 ) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
-    let (xs, vel) = start_states::<M, NS, NX>(model, p, 1);
+    let (xs, vel) = start_states::<M, NS, NX>(model, p, 1, varint_layout::<M, NS, NX>(model));
     let ws = vel
         .iter()
         .map(|v| {
@@ -171,7 +174,7 @@ pub fn rk_start<M: PlanModel<NS>, const NS: usize, const NX: usize>(
     model: &M,
     p: &PlanProblem,
 ) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, 2>>) {
-    let (mut xs, _) = start_states::<M, NS, NX>(model, p, 0);
+    let (mut xs, _) = start_states::<M, NS, NX>(model, p, 0, Layout::new(3, NS, 2));
     // The currents on their slow manifold for u = 0 (steady state). The current is stiff
     // (h R_m/L_m = 18.75 at h = 5 ms): an explicit step from i = 0 amplifies the mismatch by
     // |R(−hR/L)| (4,200 for RK4), which left RK4 a start violation of 1e4.

@@ -388,3 +388,135 @@ fn rk_cost_curvature_equals_generic() {
     eprintln!("dynamic current {e_dyn:.3e}, algebraic current {e_alg:.3e}");
     assert!(e_dyn <= ROUND_OFF && e_alg <= ROUND_OFF);
 }
+
+/// The largest change of the VI residual when one ignorable shape position is shifted,
+/// over random stages, for each ignorable coordinate of `sys`; and the bound it is held
+/// to: round-off of the momentum terms the residual is a difference of, `|p|/h`, with `p`
+/// of the size of the stage vectors' entries.
+fn ignorable_shift_effect<S, const NS: usize, const NX: usize, const NW: usize>(
+    sys: &S,
+) -> Vec<(usize, f64, f64)>
+where
+    S: dmech::PrincipalKinematicSystem<3, 2, NS, 2, Param = f64>,
+{
+    let h = 0.005;
+    let st = VarIntStages::new::<3, 2, NS, 2>(sys, h, ForcingQuadrature::Right);
+    let mut rand = lcg(4242);
+    sys.ignorable_shape()
+        .iter()
+        .map(|&j| {
+            let (mut worst, mut bound) = (0.0f64, 0.0f64);
+            for _ in 0..200 {
+                let x: SVector<f64, NX> = SVector::from_fn(|_, _| rand());
+                let w: SVector<f64, NW> = SVector::from_fn(|_, _| rand());
+                let e0 = st.equality::<f64, 3, 2, NS, 2, NX, NW>(&x, &w);
+                let mut xs = x;
+                xs[3 + j] += 0.37 + rand();
+                let e1 = st.equality::<f64, 3, 2, NS, 2, NX, NW>(&xs, &w);
+                worst = worst.max((e1 - e0).amax());
+                let size = 1.0 + x.amax().max(xs.amax()).max(w.amax());
+                bound = bound.max(64.0 * f64::EPSILON * size / h);
+            }
+            (j, worst, bound)
+        })
+        .collect()
+}
+
+/// What `ignorable_shape` declares: shifting the wheel angles leaves the residual exactly
+/// as it was (nothing reads them), shifting the charges moves it by round-off only (their
+/// back-EMF term changes by a total time derivative, which cancels between the two
+/// momenta of a node), and the tilt, which is not declared, moves it.
+#[test]
+fn the_wip_residual_does_not_read_its_ignorable_shape_positions() {
+    let wip = Wip::default();
+    let alg = WipAlgebraicCurrent::new(wip);
+    let full = ignorable_shift_effect::<_, 5, 15, 7>(&wip);
+    let algebraic = ignorable_shift_effect::<_, 3, 11, 5>(&alg);
+    eprintln!("dynamic current {full:?}, algebraic current {algebraic:?}");
+    assert_eq!(full.iter().map(|r| r.0).collect::<Vec<_>>(), [1, 2, 3, 4]);
+    assert_eq!(algebraic.iter().map(|r| r.0).collect::<Vec<_>>(), [1, 2]);
+    for &(j, worst, bound) in full.iter().chain(&algebraic) {
+        if j <= 2 {
+            assert_eq!(worst, 0.0, "wheel angle s_{j}");
+        } else {
+            assert!(worst <= bound, "charge s_{j}: {worst:e} > {bound:e}");
+        }
+    }
+    // The check can fail: the tilt is read.
+    let st = VarIntStages::new::<3, 2, 5, 2>(&wip, 0.005, ForcingQuadrature::Right);
+    let (x, w) = (
+        SVector::<f64, 15>::repeat(0.1),
+        SVector::<f64, 7>::repeat(0.2),
+    );
+    let mut xs = x;
+    xs[3] += 0.37;
+    let moved = st.equality::<f64, 3, 2, 5, 2, 15, 7>(&xs, &w)
+        - st.equality::<f64, 3, 2, 5, 2, 15, 7>(&x, &w);
+    assert!(
+        moved.amax() > 1e-3,
+        "the tilt moves the residual by {:e}",
+        moved.amax()
+    );
+}
+
+/// The VI transcription without the ignorable positions in its state is the full one with
+/// their rows and columns left out: the same values and the same derivatives, on the
+/// eight's start and at perturbed points.
+#[test]
+fn the_reduced_vi_state_is_the_full_one_without_the_ignorable_positions() {
+    use robots::wip::plan::{varint_plan_sized, NX_VI};
+    let wip = Wip::default();
+    let p = eight(0.005);
+    let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
+    let full = varint_plan::<Wip, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
+    let reduced = varint_plan_sized::<Wip, 5, NX_VI>(
+        &wip,
+        &p,
+        PlanBounds::default(),
+        Discretisation::FirstOrder,
+    );
+    // x = (x, y, θ, α, φR, φL, qR, qL, v(5), u(2)): the reduced state keeps 0–3 and 8–14.
+    let kept: Vec<usize> = (0..15).filter(|i| !(4..8).contains(i)).collect();
+    let zeta = SVector::<f64, NC>::repeat(0.1);
+    let mut rand = lcg(777);
+    let mut worst = 0.0f64;
+    for k in [0, 1, 700, 2100, 4234] {
+        for perturb in [0.0, 0.3] {
+            // The full state with the ignorable positions at zero, as the reduced one reads them.
+            let mut x: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
+            x.fixed_rows_mut::<4>(4).fill(0.0);
+            let w: SVector<f64, 7> = ws[k].map(|v| v + perturb * rand());
+            let xr = SVector::<f64, NX_VI>::from_fn(|i, _| x[kept[i]]);
+            let df = dmech_ocp::derivatives::stage_derivatives(&full, k, &x, &w, &zeta, None);
+            let dr = dmech_ocp::derivatives::stage_derivatives(&reduced, k, &xr, &w, &zeta, None);
+            let pick = |m: &SMatrix<f64, 15, 15>| {
+                SMatrix::<f64, NX_VI, NX_VI>::from_fn(|i, j| m[(kept[i], kept[j])])
+            };
+            let rows = |v: &SVector<f64, 15>| SVector::<f64, NX_VI>::from_fn(|i, _| v[kept[i]]);
+            let cols =
+                |m: &SMatrix<f64, 5, 15>| SMatrix::<f64, 5, NX_VI>::from_fn(|i, j| m[(i, kept[j])]);
+            let fw = SMatrix::<f64, NX_VI, 7>::from_fn(|i, j| df.fw[(kept[i], j)]);
+            let cx = SMatrix::<f64, NC, NX_VI>::from_fn(|i, j| df.cx[(i, kept[j])]);
+            // The dropped rows of f are the ignorable positions' own update; the dropped
+            // columns of every Jacobian are zero (wheel angles) or round-off (charges).
+            for (a, b) in [
+                ((rows(&df.f) - dr.f).amax(), 1.0),
+                ((pick(&df.fx) - dr.fx).amax(), df.fx.amax()),
+                ((fw - dr.fw).amax(), df.fw.amax()),
+                ((df.e - dr.e).amax(), 1.0),
+                ((cols(&df.ex) - dr.ex).amax(), df.ex.amax()),
+                ((df.ew - dr.ew).amax(), df.ew.amax()),
+                ((cx - dr.cx).amax(), 1.0),
+                ((df.cw - dr.cw).amax(), 1.0),
+                ((rows(&df.gx) - dr.gx).amax(), 1.0),
+                ((df.gw - dr.gw).amax(), 1.0),
+                ((df.c - dr.c).amax(), 1.0),
+                ((df.cost - dr.cost).abs(), 1.0),
+            ] {
+                worst = worst.max(a / b.max(1.0));
+            }
+        }
+    }
+    eprintln!("largest difference, relative to each block: {worst:.3e}");
+    assert!(worst <= ROUND_OFF, "{worst:e}");
+}
