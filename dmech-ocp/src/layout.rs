@@ -35,7 +35,11 @@ impl Layout {
     pub fn ignoring(self, ignored: &[usize]) -> Self {
         let mut mask = 0u32;
         for &i in ignored {
-            assert!(i < self.ns, "ignorable shape coordinate {i} of {}", self.ns);
+            assert!(
+                i < self.ns && i < 32,
+                "ignorable shape coordinate {i} of {} (at most 32 shape coordinates)",
+                self.ns
+            );
             mask |= 1 << i;
         }
         Layout {

@@ -403,4 +403,50 @@ mod tests {
             "order {order} ({e1:e} → {e2:e})"
         );
     }
+
+    /// An ignored shape coordinate is refined from the positions its velocities integrate
+    /// to: the fine velocities and every carried entry are the full layout's (the
+    /// positions differ by the constant `p(0)`, which the cubic and the differences carry
+    /// through to round-off).
+    #[test]
+    fn an_ignored_shape_coordinate_refines_as_a_carried_one() {
+        let (nc, big_h) = (10, 0.04);
+        let p = |t: f64| (3.0 * t).sin() + 0.5;
+        let c = coarse(nc, big_h, p, 1.25);
+        // The same iterate without the shape position: x = (g, v_{k−1}, u_{k−1}).
+        let ignoring = L.ignoring(&[0]);
+        let drop_s = |x: &SVector<f64, 4>| SVector::<f64, 3>::from([x[0], x[2], x[3]]);
+        let c_ign = Iterate::<3, 2, 1> {
+            x: c.x.iter().map(drop_s).collect(),
+            w: c.w.clone(),
+            lambda: c.lambda.iter().map(drop_s).collect(),
+            t_lo: c.t_lo.clone(),
+            t_hi: c.t_hi.clone(),
+            z_lo: c.z_lo.clone(),
+            z_hi: c.z_hi.clone(),
+            y: c.y.clone(),
+            globals: Default::default(),
+        };
+        let eqs: Vec<StateEquality> = Vec::new();
+        let lists = EqualityLists {
+            coarse: &eqs,
+            fine: &eqs,
+        };
+        let nf = 4 * nc;
+        let h = big_h / 4.0;
+        let full = refine_varint_iterate::<4, 2, 1>(L, &c, &lists, nf, h, big_h, 1.0);
+        let ign = refine_varint_iterate::<3, 2, 1>(ignoring, &c_ign, &lists, nf, h, big_h, 1.0);
+        // Differences of positions of size 1 divided by h: round-off of a few ε/h.
+        let tol = 64.0 * f64::EPSILON / h;
+        let mut worst: f64 = 0.0;
+        for j in 0..nf {
+            worst = worst.max((full.w[j] - ign.w[j]).amax());
+        }
+        for j in 0..=nf {
+            worst = worst.max((drop_s(&full.x[j]) - ign.x[j]).amax());
+        }
+        assert!(worst <= tol, "{worst:e} > {tol:e}");
+        // The velocity is not trivially the same: the shape moves.
+        assert!(full.w[nf / 2][0].abs() > 0.1);
+    }
 }

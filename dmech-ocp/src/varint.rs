@@ -511,8 +511,32 @@ impl<'a, S> VarIntStages<'a, S> {
     }
 }
 
-/// Writes the gradients of `r` (a pass seeded in `N` variables) into columns
-/// `col .. col + N` of `m`.
+/// Writes the gradients of `r` (a pass seeded in `N` variables) into the columns
+/// `slot(j)` of `m` (`None`: variable `j` has no column).
+fn put_columns_by<const R: usize, const C: usize, const N: usize>(
+    m: &mut SMatrix<f64, R, C>,
+    r: &SVector<DualSVec64<N>, R>,
+    slot: impl Fn(usize) -> Option<usize>,
+) {
+    for i in 0..R {
+        let g = grad_part(&r[i]);
+        for j in 0..N {
+            if let Some(at) = slot(j) {
+                m[(i, at)] = g[j];
+            }
+        }
+    }
+}
+
+/// Columns `col .. col + N` of `m` from a pass seeded in `N` variables.
+fn put_columns<const R: usize, const C: usize, const N: usize>(
+    m: &mut SMatrix<f64, R, C>,
+    col: usize,
+    r: &SVector<DualSVec64<N>, R>,
+) {
+    put_columns_by(m, r, |j| Some(col + j));
+}
+
 /// The columns of a pass seeded in `s` into the state's carried shape columns (an ignored
 /// coordinate's column, zero for an ignorable one, has no place in the state).
 fn put_shape_columns<const R: usize, const C: usize, const NS: usize>(
@@ -520,25 +544,5 @@ fn put_shape_columns<const R: usize, const C: usize, const NS: usize>(
     l: Layout,
     r: &SVector<DualSVec64<NS>, R>,
 ) {
-    for i in 0..R {
-        let g = grad_part(&r[i]);
-        for j in 0..NS {
-            if let Some(at) = l.shape_slot(j) {
-                m[(i, at)] = g[j];
-            }
-        }
-    }
-}
-
-fn put_columns<const R: usize, const C: usize, const N: usize>(
-    m: &mut SMatrix<f64, R, C>,
-    col: usize,
-    r: &SVector<DualSVec64<N>, R>,
-) {
-    for i in 0..R {
-        let g = grad_part(&r[i]);
-        for j in 0..N {
-            m[(i, col + j)] = g[j];
-        }
-    }
+    put_columns_by(m, r, |j| l.shape_slot(j));
 }

@@ -6,7 +6,9 @@
 //! follow from `v` and `u`). Stage layout of both transcriptions, `NX = 2 NS + 5`:
 //! `x = (x, y, θ, s(NS), v(NS), u_prev(2))`, where `v` is `v_{k−1}` for the variational
 //! integrator and `v_k` for Runge–Kutta. The VI decides `w = (v_k, u_k)`, RK decides
-//! `w = u_k`.
+//! `w = u_k`. The VI plans leave the positions of the ignorable shape coordinates out of
+//! `s` (the wheel angles, and the charges of the full model): `NX_VI = 11`,
+//! `NX_VI_ALGEBRAIC = 9` ([`varint_layout`]).
 
 use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::PlanProblem;
