@@ -140,11 +140,7 @@ impl<S> VarIntStages<'_, S> {
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
-        assert_eq!(
-            l.ignored, 0,
-            "the curvature blocks assume every shape coordinate in x"
-        );
-        let s: SVector<f64, NS> = segment(x, l.s_at());
+        let s: SVector<f64, NS> = l.shape(x);
         // (v_{k−1}, u_{k−1}) are adjacent in the state, in w's order.
         let p: SVector<f64, NW> = segment(x, l.v_at());
         let q = *w;
@@ -229,15 +225,25 @@ impl<S> VarIntStages<'_, S> {
         } else {
             SMatrix::zeros()
         };
-        let (sa, pa) = (l.s_at(), l.v_at());
+        let pa = l.v_at();
         let mut hxx = SMatrix::<f64, NX, NX>::zeros();
         let mut hxw = SMatrix::<f64, NX, NW>::zeros();
-        hxx.fixed_view_mut::<NS, NS>(sa, sa).copy_from(&hss);
         hxx.fixed_view_mut::<NW, NW>(pa, pa).copy_from(&hpp);
-        hxx.fixed_view_mut::<NS, NW>(sa, pa).copy_from(&hsp);
-        hxx.fixed_view_mut::<NW, NS>(pa, sa)
-            .copy_from(&hsp.transpose());
-        hxw.fixed_view_mut::<NS, NW>(sa, 0).copy_from(&hsq);
+        // The shape's rows and columns where the state carries them (an ignored
+        // coordinate's, zero for an ignorable one, have no place).
+        for i in 0..NS {
+            let Some(a) = l.shape_slot(i) else { continue };
+            for j in 0..NS {
+                if let Some(b) = l.shape_slot(j) {
+                    hxx[(a, b)] = hss[(i, j)];
+                }
+            }
+            for j in 0..NW {
+                hxx[(a, pa + j)] = hsp[(i, j)];
+                hxx[(pa + j, a)] = hsp[(i, j)];
+                hxw[(a, j)] = hsq[(i, j)];
+            }
+        }
         hxw.fixed_view_mut::<NW, NW>(pa, 0).copy_from(&hpq);
         (hxx, hxw, hqq)
     }
@@ -267,10 +273,7 @@ impl<S> VarIntStages<'_, S> {
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
-        // The blocks are placed for a state that carries all of `s`; with ignored
-        // coordinates the generic path (which differentiates the stage functions
-        // themselves) applies.
-        if self.discretisation != dmech::Discretisation::FirstOrder || self.layout.ignored != 0 {
+        if self.discretisation != dmech::Discretisation::FirstOrder {
             return None;
         }
         let part = (

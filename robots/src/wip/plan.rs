@@ -180,24 +180,8 @@ pub fn plan(
     }
 }
 
-/// The VI plan on a state of size `NX` ([`varint_layout`]) and its outcome.
-fn varint_outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
-    model: &M,
-    models: Vec<M>,
-    problem: &PlanProblem,
-    bounds: PlanBounds,
-    disc: Discretisation,
-    opts: IpOptions,
-) -> PlanOutcome {
-    let r = varint_solve::<M, NS, NX, NW>(model, models, problem, bounds, disc, opts);
-    let traj = varint_plan_sized::<M, NS, NX>(model, problem, bounds, disc)
-        .trajectory::<NS, NX, NW, NC>(&r.iterate);
-    outcome::<M, NS, NX, NW>(model, r, traj, true)
-}
-
-/// [`plan`] for one model; `NX` is the RK state size (and the VI's with the exact
-/// curvature), `NXV` the VI's (without the ignorable shape positions), `NW = NS + 2` the
-/// VI's decision size.
+/// [`plan`] for one model; `NX` is the RK state size, `NXV` the VI's (without the
+/// ignorable shape positions), `NW = NS + 2` the VI's decision size.
 fn plan_model<
     M: PlanModel<NS>,
     const NS: usize,
@@ -214,13 +198,11 @@ fn plan_model<
     let stiff_explicit = matches!(transcription, Transcription::Rk(RungeKutta::Rk4));
     let models = friction_continuation(model, stiff_explicit && M::CURRENT_DYNAMICS);
     match transcription {
-        // The exact curvature by blocks is placed for the full state (with ignored
-        // positions it would take the generic path, 7× its cost per stage).
-        Transcription::VarInt(disc) if opts.exact_hessian => {
-            varint_outcome::<M, NS, NX, NW>(model, models, problem, bounds, disc, opts)
-        }
         Transcription::VarInt(disc) => {
-            varint_outcome::<M, NS, NXV, NW>(model, models, problem, bounds, disc, opts)
+            let r = varint_solve::<M, NS, NXV, NW>(model, models, problem, bounds, disc, opts);
+            let traj = varint_plan_sized::<M, NS, NXV>(model, problem, bounds, disc)
+                .trajectory::<NS, NXV, NW, NC>(&r.iterate);
+            outcome::<M, NS, NXV, NW>(model, r, traj, true)
         }
         Transcription::Rk(rk) => {
             let (xs, ws) = rk_start::<M, NS, NX>(model, problem);

@@ -460,8 +460,8 @@ fn the_wip_residual_does_not_read_its_ignorable_shape_positions() {
 }
 
 /// The VI transcription without the ignorable positions in its state is the full one with
-/// their rows and columns left out: the same values and the same derivatives, on the
-/// eight's start and at perturbed points.
+/// their rows and columns left out: the same values, the same derivatives and the same
+/// exact curvature (by blocks), on the eight's start and at perturbed points.
 #[test]
 fn the_reduced_vi_state_is_the_full_one_without_the_ignorable_positions() {
     use robots::wip::plan::{varint_plan_sized, NX_VI};
@@ -515,6 +515,31 @@ fn the_reduced_vi_state_is_the_full_one_without_the_ignorable_positions() {
             ] {
                 worst = worst.max(a / b.max(1.0));
             }
+            // The exact curvature (the cost's and the constraints' by blocks): the full
+            // Hessian's rows and columns of the carried entries. The dynamics' multipliers
+            // of the ignored positions' rows are zero, as at any optimum (those rows of
+            // every cost-to-go vanish); random ones would move ν through `F_vᵀλ`.
+            let mut lam = SVector::<f64, 15>::from_fn(|_, _| rand());
+            lam.fixed_rows_mut::<4>(4).fill(0.0);
+            let hf = dmech_ocp::derivatives::stage_derivatives(&full, k, &x, &w, &zeta, Some(&lam));
+            let lam_r = rows(&lam);
+            let hr = dmech_ocp::derivatives::stage_derivatives(
+                &reduced,
+                k,
+                &xr,
+                &w,
+                &zeta,
+                Some(&lam_r),
+            );
+            let hxw = SMatrix::<f64, NX_VI, 7>::from_fn(|i, j| hf.hxw[(kept[i], j)]);
+            for (a, b) in [
+                ((pick(&hf.hxx) - hr.hxx).amax(), hf.hxx.amax()),
+                ((hxw - hr.hxw).amax(), hf.hxw.amax()),
+                ((hf.hww - hr.hww).amax(), hf.hww.amax()),
+            ] {
+                worst = worst.max(a / b.max(1.0));
+            }
+            assert!(hr.hxx.amax() > 0.0, "the exact curvature is not empty");
         }
     }
     eprintln!("largest difference, relative to each block: {worst:.3e}");
