@@ -356,6 +356,18 @@ where
     block_hessian(&part, x, w, true)
 }
 
+/// What a caller of [`stage_derivatives_into`] has computed already for stage `k`.
+#[derive(Clone, Copy, Default)]
+pub struct Precomputed<'a, const NX: usize, const NW: usize, const NE: usize, const NC: usize> {
+    /// What the solver computed once for a problem that declares its cost curvature
+    /// constant ([`StageConstants`]).
+    pub constants: Option<&'a StageConstants<NX, NW, NC>>,
+    /// The stage equality's value `e(x, w)`, as [`StageProblem::equality`] gives it to the
+    /// bit (the solver's line search measured it at the point it accepted): only its
+    /// partials are then computed ([`StageProblem::equality_partials`]).
+    pub equality: Option<&'a SVector<f64, NE>>,
+}
+
 /// All derivatives of stage `k` at `(x, w)`, with inequality multipliers `ζ = z_hi − z_lo`.
 pub fn stage_derivatives<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
     p: &P,
@@ -369,16 +381,16 @@ where
     P: StageProblem<NX, NW, NE, NC>,
 {
     let mut d = StageDerivatives::zeros();
-    stage_derivatives_into(&mut d, p, k, x, w, zeta, lambda, None);
+    stage_derivatives_into(&mut d, p, k, x, w, zeta, lambda, Precomputed::default());
     d
 }
 
 /// [`stage_derivatives`] written into `d` field by field (every field is overwritten,
 /// `nu` set to `None`). The solver keeps one `d` per stage across iterations: building
 /// the 8 kB struct and moving it into place cost several copies per stage.
-/// `constants` are what the solver computed once for a problem that declares its cost
-/// curvature constant ([`StageConstants`]); `None` computes everything here.
-#[allow(clippy::too_many_arguments)] // the stage, its point and multipliers, and two options
+/// `known` is what the caller has computed already ([`Precomputed`]); the default computes
+/// everything here.
+#[allow(clippy::too_many_arguments)] // the stage, its point and multipliers, and the known
 pub fn stage_derivatives_into<
     P,
     const NX: usize,
@@ -393,15 +405,15 @@ pub fn stage_derivatives_into<
     w: &SVector<f64, NW>,
     zeta: &SVector<f64, NC>,
     lambda: Option<&SVector<f64, NX>>,
-    constants: Option<&StageConstants<NX, NW, NC>>,
+    known: Precomputed<'_, NX, NW, NE, NC>,
 ) where
     P: StageProblem<NX, NW, NE, NC>,
 {
-    stage_first_derivatives_into(d, p, k, x, w, constants);
+    stage_first_derivatives_into(d, p, k, x, w, known);
     // Second order of `ℓ + ζᵀc` (only its `ww` block when the problem declares itself affine
     // in the state; the solver's copy when it declares it constant), plus the constraints'
     // curvature when the exact Hessian is asked for.
-    (d.hxx, d.hxw, d.hww) = match constants {
+    (d.hxx, d.hxw, d.hww) = match known.constants {
         Some(c) => c.curvature,
         None => p.cost_curvature(k, x, w, 1.0, zeta),
     };
@@ -432,19 +444,25 @@ pub fn stage_first_derivatives_into<
     k: usize,
     x: &SVector<f64, NX>,
     w: &SVector<f64, NW>,
-    constants: Option<&StageConstants<NX, NW, NC>>,
+    known: Precomputed<'_, NX, NW, NE, NC>,
 ) where
     P: StageProblem<NX, NW, NE, NC>,
 {
     (d.f, d.fx, d.fw) = p.dynamics_jacobian(k, x, w);
-    (d.e, d.ex, d.ew) = p.equality_jacobian(k, x, w);
+    match known.equality {
+        Some(e) => {
+            d.e = *e;
+            (d.ex, d.ew) = p.equality_partials(k, x, w);
+        }
+        None => (d.e, d.ex, d.ew) = p.equality_jacobian(k, x, w),
+    }
     // Cost and inequalities: a pass seeded in w, and one in x unless its gradients are
     // the solver's constants (the values are the same real arithmetic in either pass).
     let xc = x.map(DualSVec64::<NW>::from_re);
     let wd = seed(w);
     let l_w = p.cost(k, &xc, &wd);
     let c_w = p.constraints(k, &xc, &wd);
-    match constants.and_then(|c| c.state_gradients.as_ref()) {
+    match known.constants.and_then(|c| c.state_gradients.as_ref()) {
         Some((gx, cx)) => {
             d.c = c_w.map(|v| v.re);
             d.cx = *cx;

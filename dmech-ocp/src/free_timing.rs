@@ -313,10 +313,19 @@ where
     ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
         // The value as the line search measures it (see `VarIntStages::equality_jacobian`).
         let e = self.equality(k, x, w);
+        let (ex, ew) = self.equality_partials(k, x, w);
+        (e, ex, ew)
+    }
+    fn equality_partials(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
         let (sigma_prev, sigma) = (w[NW - 2], w[NW - 1]);
         if sigma_prev != sigma {
             let (_, ex, ew) = generic_equality_jacobian::<Self, NX, NW, NS, NC>(self, k, x, w);
-            return (e, ex, ew);
+            return (ex, ew);
         }
         let st = &self.plan.stages;
         let at_step = VarIntStages {
@@ -337,7 +346,7 @@ where
         let r = self.equality(k, &lift_vec::<f64, 2, NX>(x), &ratios_seeded);
         let dr = jacobian_part(&r);
         ew.fixed_columns_mut::<2>(NW - 2).copy_from(&dr);
-        (e, ex, ew)
+        (ex, ew)
     }
     /// When the robot's problem is affine in its configuration and previous input, and
     /// those multiply neither velocity nor input ([`PlanningProblem::affine_in_configuration`];

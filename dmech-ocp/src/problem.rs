@@ -236,4 +236,21 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     {
         crate::derivatives::generic_equality_jacobian::<Self, NX, NW, NE, NC>(self, k, x, w)
     }
+    /// `(E_x, E_w)` alone, for a caller that has the value already (the solver measured
+    /// `e` at this point in its line search). The default drops the value of
+    /// [`StageProblem::equality_jacobian`]; a problem whose value is a pass of its own
+    /// (e.g. [`crate::varint::VarIntStages::first_order_equality_partials`]) overrides it.
+    #[allow(clippy::type_complexity)]
+    fn equality_partials(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>)
+    where
+        Self: Sized,
+    {
+        let (_, ex, ew) = self.equality_jacobian(k, x, w);
+        (ex, ew)
+    }
 }

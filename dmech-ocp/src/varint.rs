@@ -284,6 +284,32 @@ impl<'a, S> VarIntStages<'a, S> {
         (e, ex, ew)
     }
 
+    /// [`VarIntStages::equality_jacobian`] without the value, for a caller that has it
+    /// (the residual in `f64` is a third of the first-order scheme's Jacobian).
+    #[allow(clippy::type_complexity)]
+    pub fn equality_partials<
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    >(
+        &self,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>)
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        if self.discretisation == Discretisation::Midpoint {
+            let (_, ex, ew) = self.midpoint_equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w);
+            return (ex, ew);
+        }
+        self.layout.check(NX, NW, NS + NU);
+        self.first_order_equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w)
+    }
+
     /// `(E_x, E_w)` of the first-order scheme's residual at this step, each block of
     /// `(s_k, v_{k−1}, u_{k−1}, v_k, u_k)` seeded alone. `w` starts with `(v_k, u_k)` and may
     /// carry more entries (a free-timing stage's step ratios), whose columns stay zero: the

@@ -67,10 +67,13 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
 {
     /// Every stage's derivatives at `it`, with, while they are in cache, its SR1 update, its
     /// part of the KKT error and its values (reading the 36 MB of derivatives again for
-    /// these was 5–7 % of a plan).
+    /// these was 5–7 % of a plan). `vals` are the stage values at `it` (the line search's
+    /// at the point it accepted): the stage equality's value is taken from them, not
+    /// evaluated again (that evaluation was a fifth of the pass).
     pub(super) fn derivative_pass(
         &self,
         it: &Iterate<NX, NW, NC>,
+        vals: &[StageValues<NX, NE, NC>],
         ws: &mut Workspace<NX, NW, NE, NU, NC>,
         tm: &mut Timings,
     ) {
@@ -80,14 +83,17 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         let derivatives = |k: usize, d: &mut StageDerivatives<NX, NW, NE, NC>| {
             let zeta = it.z_hi[k] - it.z_lo[k];
             let lam = &it.lambda[k];
-            let (x, w, constants) = (&it.x[k], &it.w[k], ws_constants.get(k));
+            let (x, w) = (&it.x[k], &it.w[k]);
+            let known = Precomputed {
+                constants: ws_constants.get(k),
+                equality: Some(&vals[k].e),
+            };
             if self.table_curvature(k, ws_constants).is_some() {
                 // The condensing reads the curvature from the table.
-                self.p.first_derivatives_into(d, k, x, w, constants);
+                self.p.first_derivatives_into(d, k, x, w, known);
             } else {
                 let lam_exact = o.exact_hessian.then_some(lam);
-                self.p
-                    .derivatives_into(d, k, x, w, &zeta, lam_exact, constants);
+                self.p.derivatives_into(d, k, x, w, &zeta, lam_exact, known);
             }
             d.nu = d.equality_multiplier(lam, &zeta);
         };

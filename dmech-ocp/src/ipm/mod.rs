@@ -16,7 +16,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::derivatives::{
-    ConstantsTable, HessianBlocks, StageConstants, StageDerivatives, StageValues,
+    ConstantsTable, HessianBlocks, Precomputed, StageConstants, StageDerivatives, StageValues,
     TerminalDerivatives,
 };
 use crate::problem::{StageProblem, StateEquality};
@@ -370,7 +370,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                     }
                 }
             }
-            self.derivative_pass(&it, &mut ws, &mut tm);
+            self.derivative_pass(&it, &vals, &mut ws, &mut tm);
             let kkt = self.kkt_error(&it, &ws.terminal, &ws.ders, ws.aux.iter().map(|a| a.kkt));
             let compl0 = self.complementarity(&it, 0.0, kkt.s_d);
             self.print_row(iter, &m, &kkt, mu, last_shift, &last, t_start);

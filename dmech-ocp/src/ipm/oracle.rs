@@ -16,7 +16,7 @@ use super::restoration::Restoration;
 use super::scaling::ScaledCost;
 use crate::derivatives::{
     stage_derivatives_into, stage_first_derivatives_into, state_curvature, state_pass,
-    terminal_derivatives, HessianBlocks, StageConstants, StageDerivatives, StageValues,
+    terminal_derivatives, HessianBlocks, Precomputed, StageDerivatives, StageValues,
     TerminalDerivatives,
 };
 use crate::problem::{Globals, StageProblem, StateEquality};
@@ -76,7 +76,7 @@ pub(super) trait StageOracle<const NX: usize, const NW: usize, const NE: usize, 
         w: &SVector<f64, NW>,
         zeta: &SVector<f64, NC>,
         lambda: Option<&SVector<f64, NX>>,
-        constants: Option<&StageConstants<NX, NW, NC>>,
+        known: Precomputed<'_, NX, NW, NE, NC>,
     );
     /// [`stage_first_derivatives_into`].
     fn first_derivatives_into(
@@ -85,7 +85,7 @@ pub(super) trait StageOracle<const NX: usize, const NW: usize, const NE: usize, 
         k: usize,
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
-        constants: Option<&StageConstants<NX, NW, NC>>,
+        known: Precomputed<'_, NX, NW, NE, NC>,
     );
     fn terminal_derivatives(&self, x: &SVector<f64, NX>) -> TerminalDerivatives<NX>;
 }
@@ -217,9 +217,9 @@ where
         w: &SVector<f64, NW>,
         zeta: &SVector<f64, NC>,
         lambda: Option<&SVector<f64, NX>>,
-        constants: Option<&StageConstants<NX, NW, NC>>,
+        known: Precomputed<'_, NX, NW, NE, NC>,
     ) {
-        stage_derivatives_into(d, self, k, x, w, zeta, lambda, constants);
+        stage_derivatives_into(d, self, k, x, w, zeta, lambda, known);
     }
     fn first_derivatives_into(
         &self,
@@ -227,9 +227,9 @@ where
         k: usize,
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
-        constants: Option<&StageConstants<NX, NW, NC>>,
+        known: Precomputed<'_, NX, NW, NE, NC>,
     ) {
-        stage_first_derivatives_into(d, self, k, x, w, constants);
+        stage_first_derivatives_into(d, self, k, x, w, known);
     }
     fn terminal_derivatives(&self, x: &SVector<f64, NX>) -> TerminalDerivatives<NX> {
         terminal_derivatives(self, x)

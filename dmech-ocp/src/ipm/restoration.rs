@@ -160,6 +160,14 @@ where
     ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
         self.p.equality_jacobian(k, x, w)
     }
+    fn equality_partials(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
+        self.p.equality_partials(k, x, w)
+    }
     fn constraint_curvature(
         &self,
         k: usize,

@@ -103,6 +103,14 @@ where
     ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
         self.p.equality_jacobian(k, x, w)
     }
+    fn equality_partials(
+        &self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
+        self.p.equality_partials(k, x, w)
+    }
     /// The problem's own curvature with the cost's scale passed down (its override, if it
     /// has one, serves the scaled problem).
     fn cost_curvature(

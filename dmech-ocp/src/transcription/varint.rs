@@ -175,6 +175,15 @@ where
         self.stages
             .equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w)
     }
+    fn equality_partials(
+        &self,
+        _k: usize,
+        x: &SVector<f64, NX>,
+        w: &SVector<f64, NW>,
+    ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
+        self.stages
+            .equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w)
+    }
     fn constraint_curvature(
         &self,
         k: usize,
