@@ -352,16 +352,27 @@ impl<'a, S> VarIntStages<'a, S> {
             incoming,
             force,
         };
-        // s_k: every term.
-        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
-            terms(true, true, true),
-            &seeded(&s),
-            &lift_vec(&v_prev),
-            &lift_vec(&u_prev),
-            &lift_vec(&v),
-            &lift_vec(&u),
-        );
-        put_shape_columns(&mut ex, l, &r);
+        // s_k: every term, seeded in the carried coordinates only (an ignored one's column
+        // has no place in the state; the WIP carries one of five). The lanes are
+        // independent, so fewer of them change no bit of the kept columns.
+        let shape_args = (&s, &v_prev, &u_prev, &v, &u);
+        match l.ns_kept() {
+            0 => {}
+            1 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 1>(shape_args, &mut ex),
+            2 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 2>(shape_args, &mut ex),
+            3 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 3>(shape_args, &mut ex),
+            _ => {
+                let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
+                    terms(true, true, true),
+                    &seeded(&s),
+                    &lift_vec(&v_prev),
+                    &lift_vec(&u_prev),
+                    &lift_vec(&v),
+                    &lift_vec(&u),
+                );
+                put_shape_columns(&mut ex, l, &r);
+            }
+        }
         // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
         let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
             terms(false, true, left),
@@ -406,6 +417,56 @@ impl<'a, S> VarIntStages<'a, S> {
             put_columns(&mut ew, NS, &r);
         }
         (ex, ew)
+    }
+
+    /// The shape columns of `E_x`: every term of the residual in one pass seeded in the
+    /// `K` carried shape coordinates (`K` = [`Layout::ns_kept`]), the ignored ones constant.
+    #[allow(clippy::type_complexity)]
+    fn carried_shape_pass<
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const K: usize,
+    >(
+        &self,
+        (s, v_prev, u_prev, v, u): (
+            &SVector<f64, NS>,
+            &SVector<f64, NS>,
+            &SVector<f64, NU>,
+            &SVector<f64, NS>,
+            &SVector<f64, NU>,
+        ),
+        ex: &mut SMatrix<f64, NS, NX>,
+    ) where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let l = self.layout;
+        assert_eq!(l.ns_kept(), K, "one lane per carried shape coordinate");
+        let s_at = l.s_at();
+        let sd = SVector::<D<K>, NS>::from_fn(|i, _| match l.shape_slot(i) {
+            Some(at) => {
+                let mut e = SVector::<f64, K>::zeros();
+                e[at - s_at] = 1.0;
+                D::<K>::new(s[i], num_dual::Derivative::some(e))
+            }
+            None => D::<K>::from_re(s[i]),
+        });
+        let all = Terms {
+            outgoing: true,
+            incoming: true,
+            force: true,
+        };
+        let r = self.equality_terms::<DOF, DIM, NS, NU, K>(
+            all,
+            &sd,
+            &lift_vec(v_prev),
+            &lift_vec(u_prev),
+            &lift_vec(v),
+            &lift_vec(u),
+        );
+        put_columns(ex, s_at, &r);
     }
 
     /// [`VarIntStages::equality_jacobian`] of the midpoint scheme: each block of

@@ -1,0 +1,78 @@
+//! The VI transcription's Jacobians on a state that leaves shape coordinates out
+//! (`Layout::ignoring`): the carried columns are the full state's, to the bit, with the
+//! ignored positions at zero (as the reduced state reads them). The shape pass then seeds
+//! one dual lane per carried coordinate instead of one per shape coordinate; lanes are
+//! computed independently, so the count must not change a bit. Random systems read every
+//! shape coordinate, so the check covers every carried count the pass dispatches on.
+
+use dmech::variational::ForcingQuadrature;
+use dmech_ocp::varint::VarIntStages;
+use dmech_tests::random_system::{
+    random_stage_state, Lcg, RandomSystem, RandomSystemSpec, Se2Family,
+};
+use nalgebra::SVector;
+
+/// `NS = 4` on SE(2): the full state has `NX = 3 + 3·4 = 15`; `NXR = 15 − ignored.len()`.
+fn carried_columns_match<const NXR: usize>(seed: u64, ignored: &[usize]) {
+    const NS: usize = 4;
+    const NX: usize = 15;
+    const NW: usize = 8;
+    let spec = RandomSystemSpec {
+        damping: 0.3,
+        cyclic_first: false,
+        shape_dependence: 0.5,
+    };
+    let sys = RandomSystem::<Se2Family, 3, 2, NS>::draw(seed, spec);
+    let mut rng = Lcg(seed ^ 0xC0FFEE);
+    let (mut x, nc) = random_stage_state::<Se2Family, 3, 2, NX>(&mut rng);
+    for &i in ignored {
+        x[nc + i] = 0.0;
+    }
+    let w = SVector::<f64, NW>::from_fn(|_, _| rng.uniform());
+    // The full state's entries the reduced one keeps.
+    let kept: Vec<usize> = (0..NX)
+        .filter(|&j| !ignored.iter().any(|&i| j == nc + i))
+        .collect();
+    assert_eq!(kept.len(), NXR);
+    let xr = SVector::<f64, NXR>::from_fn(|j, _| x[kept[j]]);
+    for quadrature in [
+        ForcingQuadrature::Left,
+        ForcingQuadrature::Right,
+        ForcingQuadrature::Midpoint,
+    ] {
+        let full = VarIntStages::new::<3, 2, NS, NS>(&sys, 0.05, quadrature);
+        let reduced = VarIntStages {
+            layout: full.layout.ignoring(ignored),
+            ..full
+        };
+        let (e, ex, ew) = full.equality_jacobian::<3, 2, NS, NS, NX, NW>(&x, &w);
+        let (er, exr, ewr) = reduced.equality_jacobian::<3, 2, NS, NS, NXR, NW>(&xr, &w);
+        let (exp, ewp) = reduced.equality_partials::<3, 2, NS, NS, NXR, NW>(&xr, &w);
+        assert_eq!(e, er, "{ignored:?} {quadrature:?}: the residual");
+        assert_eq!(ew, ewr, "{ignored:?} {quadrature:?}: E_w");
+        assert_eq!((exr, ewr), (exp, ewp), "{ignored:?}: the partials alone");
+        for (jr, &j) in kept.iter().enumerate() {
+            assert_eq!(
+                ex.column(j),
+                exr.column(jr),
+                "{ignored:?} {quadrature:?}: column {j} of E_x"
+            );
+        }
+        // The ignored columns are the system's own dependence on those positions: not zero
+        // for a random system, so the reduced state really leaves something out.
+        for &i in ignored {
+            assert!(ex.column(nc + i).amax() > 0.0, "{ignored:?}: s_{i} is read");
+        }
+    }
+}
+
+#[test]
+fn a_reduced_state_has_the_full_states_carried_columns_to_the_bit() {
+    for seed in 0..3 {
+        carried_columns_match::<15>(seed, &[]);
+        carried_columns_match::<14>(seed, &[2]);
+        carried_columns_match::<13>(seed, &[0, 3]);
+        carried_columns_match::<12>(seed, &[0, 1, 3]);
+        carried_columns_match::<11>(seed, &[0, 1, 2, 3]);
+    }
+}
