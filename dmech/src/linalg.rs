@@ -72,13 +72,34 @@ impl<T: Real, const N: usize> Lu<T, N> {
         x
     }
 
-    /// Solve `M X = B` for a matrix of right-hand sides, column by column.
+    /// Solve `M X = B` for a matrix of right-hand sides. Each column sees exactly the
+    /// operations of [`Lu::solve`] in the same order (so the same bits), applied row by row
+    /// to all columns at once: a column at a time was a tenth of the KKT condensing.
     pub fn solve_columns<const C: usize>(&self, b: &SMatrix<T, N, C>) -> SMatrix<T, N, C> {
-        let mut out = SMatrix::<T, N, C>::zeros();
-        for j in 0..C {
-            out.set_column(j, &self.solve(&b.column(j).into_owned()));
+        let mut x = SMatrix::<T, N, C>::from_fn(|i, j| b[(self.perm[i], j)]);
+        for r in 0..N {
+            for c in 0..r {
+                let l = self.lu[(r, c)];
+                for j in 0..C {
+                    let v = l * x[(c, j)];
+                    x[(r, j)] -= v;
+                }
+            }
         }
-        out
+        for r in (0..N).rev() {
+            for c in r + 1..N {
+                let u = self.lu[(r, c)];
+                for j in 0..C {
+                    let v = u * x[(c, j)];
+                    x[(r, j)] -= v;
+                }
+            }
+            let d = self.lu[(r, r)];
+            for j in 0..C {
+                x[(r, j)] /= d;
+            }
+        }
+        x
     }
 }
 
@@ -101,5 +122,16 @@ mod tests {
         assert!(Lu::new(&Matrix4::<f64>::zeros()).is_none());
         let cols = Lu::new(&m).unwrap().solve_columns(&Matrix4::identity());
         assert!((cols - m.try_inverse().unwrap()).amax() < 1e-14);
+        // All columns at once: each one bitwise the single-column solve.
+        let b = nalgebra::Matrix4x3::from_fn(|i, j| (i as f64 + 1.0).sin() * (j as f64 - 0.7));
+        let lu = Lu::new(&m).unwrap();
+        let x = lu.solve_columns(&b);
+        for j in 0..3 {
+            assert_eq!(
+                x.column(j),
+                lu.solve(&b.column(j).into_owned()),
+                "column {j}"
+            );
+        }
     }
 }

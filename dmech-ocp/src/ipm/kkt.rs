@@ -91,48 +91,56 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         lq: &mut LqStage<NX, NU>,
         el: &mut Elimination<NX, NW, NU>,
     ) -> Result<(), String> {
-        let (hxx, hxw, hww, gx, gw) = self.stage_hessian(k, it, d, curvature, mu);
+        // `H_xx` and `g_x` go straight into the stage's `Q` and `q`, which the terms below
+        // are added to in place (each entry sees the same additions in the same order as
+        // the sums written out, so the same bits).
+        let (hxw, hww, gw) =
+            self.stage_hessian_into(k, it, d, curvature, mu, &mut lq.q_mat, &mut lq.q);
 
-        // δw = w0 + wx δx + wu δu, with δv from the linearised stage equality.
-        let Elimination { w0, wx, wu } = el;
-        wx.fill(0.0);
-        wu.fill(0.0);
-        w0.fill(0.0);
-        for i in 0..NU {
-            wu[(NE + i, i)] = 1.0;
-        }
-        if NE > 0 {
+        // δw = w0 + wx δx + wu δu, with δv from the linearised stage equality: `wx`, `w0`
+        // are `(D_x, 0)`, `(d_0, 0)` and `wu = (D_u, I)`.
+        let (dx, du, d0) = if NE > 0 {
             let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
             let eu: SMatrix<f64, NE, NU> = d.ew.fixed_columns::<NU>(NE).into_owned();
             let lu = Lu::new(&ev).ok_or_else(|| {
                 format!("stage {k}: the stage equality is singular in its dependent decisions")
             })?;
-            let dx = lu.solve_columns(&(-d.ex));
-            let du = lu.solve_columns(&(-eu));
-            let d0 = lu.solve(&(-d.e));
-            wx.fixed_rows_mut::<NE>(0).copy_from(&dx);
-            wu.fixed_rows_mut::<NE>(0).copy_from(&du);
-            w0.fixed_rows_mut::<NE>(0).copy_from(&d0);
+            (
+                lu.solve_columns(&(-d.ex)),
+                lu.solve_columns(&(-eu)),
+                lu.solve(&(-d.e)),
+            )
+        } else {
+            (SMatrix::zeros(), SMatrix::zeros(), SVector::zeros())
+        };
+        let Elimination { w0, wx, wu } = el;
+        wx.fixed_rows_mut::<NE>(0).copy_from(&dx);
+        wx.rows_mut(NE, NW - NE).fill(0.0);
+        w0.fixed_rows_mut::<NE>(0).copy_from(&d0);
+        w0.rows_mut(NE, NW - NE).fill(0.0);
+        wu.fixed_rows_mut::<NE>(0).copy_from(&du);
+        wu.rows_mut(NE, NW - NE).fill(0.0);
+        for i in 0..NU {
+            wu[(NE + i, i)] = 1.0;
         }
-        let (w0, wx, wu) = (&*w0, &*wx, &*wu);
-        // Rows `NE..` of `wx` and `w0` are zero (the free inputs do not depend on δx): the
-        // products with them take only their first `NE` rows (the skipped terms were exact
-        // zeros, and the kept ones are summed in the same order).
-        let dx = wx.fixed_rows::<NE>(0);
-        let d0 = w0.fixed_rows::<NE>(0);
+        let wu = &*wu;
+        // The products with `wx` and `w0` take only their first `NE` rows (the others are
+        // zero; the skipped terms were exact zeros and the kept ones are summed in order).
         let hww_v = hww.fixed_columns::<NE>(0);
         let hww_wx = hww_v * dx;
         let hww_wu = hww * wu;
         let hww_w0 = hww_v * d0;
-        let hxw_wx = hxw.fixed_columns::<NE>(0) * dx;
+        let hxw_v = hxw.fixed_columns::<NE>(0);
+        let hxw_wx = hxw_v * dx;
         let dx_t = dx.transpose();
-        lq.q_mat = hxx + hxw_wx + hxw_wx.transpose() + dx_t * hww_wx.fixed_rows::<NE>(0);
+        lq.q_mat += hxw_wx;
+        lq.q_mat += hxw_wx.transpose();
+        lq.q_mat += dx_t * hww_wx.fixed_rows::<NE>(0);
         lq.s_mat = hxw * wu + dx_t * hww_wu.fixed_rows::<NE>(0);
         lq.r_mat = wu.transpose() * hww_wu;
-        lq.q = gx
-            + dx_t * gw.fixed_rows::<NE>(0)
-            + hxw.fixed_columns::<NE>(0) * d0
-            + dx_t * hww_w0.fixed_rows::<NE>(0);
+        lq.q += dx_t * gw.fixed_rows::<NE>(0);
+        lq.q += hxw_v * d0;
+        lq.q += dx_t * hww_w0.fixed_rows::<NE>(0);
         lq.r = wu.transpose() * (gw + hww_w0);
         self.add_state_equalities(k, it, dc, &mut lq.q_mat, &mut lq.q);
         let fw_v = d.fw.fixed_columns::<NE>(0);
@@ -144,21 +152,18 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
 
     /// Stage `k`'s Hessian and gradient with its inequalities eliminated: the cost's and the
     /// inequalities' curvature (and the SR1 blocks), `Cᵀ Σ C`, and the barrier terms.
+    /// `(H_xw, H_ww, g_w)` are returned; `H_xx` and `g_x` are written into `hxx`, `gx`.
     #[allow(clippy::type_complexity)]
-    pub(super) fn stage_hessian(
+    pub(super) fn stage_hessian_into(
         &self,
         k: usize,
         it: &Iterate<NX, NW, NC>,
         d: &StageDerivatives<NX, NW, NE, NC>,
         curvature: StageCurvature<'_, NX, NW, NE>,
         mu: f64,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-        SVector<f64, NX>,
-        SVector<f64, NW>,
-    ) {
+        hxx: &mut SMatrix<f64, NX, NX>,
+        gx: &mut SVector<f64, NX>,
+    ) -> (SMatrix<f64, NX, NW>, SMatrix<f64, NW, NW>, SVector<f64, NW>) {
         let b = &self.bounds[k];
         // Inequalities: Σ and the barrier gradient term.
         let mut sigma = SVector::<f64, NC>::zeros();
@@ -178,21 +183,46 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
             }
         }
         let cw_s = SMatrix::<f64, NW, NC>::from_fn(|i, j| d.cw[(j, i)] * sigma[j]);
-        // Every term is added into the blocks in place (no zeroed temporaries).
-        let (mut hxx, mut hxw, mut hww) = match curvature.constant {
-            Some(&c) => c,
-            None => (d.hxx, d.hxw, d.hww),
+        // The curvature and the SR1 blocks summed in one pass (not copied, then added to).
+        let (c_xx, c_xw, c_ww) = match curvature.constant {
+            Some(c) => (&c.0, &c.1, &c.2),
+            None => (&d.hxx, &d.hxw, &d.hww),
         };
-        if let Some(q) = curvature.qn {
-            hxx += q.bxx;
-            hxw += q.bxw;
-            hww += q.bww;
-        }
-        add_state_rows_weighted(&d.cx, &d.cw, &sigma, &mut hxx, &mut hxw);
+        let (mut hxw, mut hww) = match curvature.qn {
+            Some(q) => {
+                *hxx = c_xx + q.bxx;
+                (c_xw + q.bxw, c_ww + q.bww)
+            }
+            None => {
+                *hxx = *c_xx;
+                (*c_xw, *c_ww)
+            }
+        };
+        add_state_rows_weighted(&d.cx, &d.cw, &sigma, hxx, &mut hxw);
         hww.gemm(1.0, &cw_s, &d.cw, 1.0);
-        let gx = d.gx + d.cx.transpose() * bc;
+        *gx = d.gx + d.cx.transpose() * bc;
         let gw = d.gw + d.cw.transpose() * bc;
+        (hxw, hww, gw)
+    }
 
+    /// [`Solver::stage_hessian_into`] with every block returned.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn stage_hessian(
+        &self,
+        k: usize,
+        it: &Iterate<NX, NW, NC>,
+        d: &StageDerivatives<NX, NW, NE, NC>,
+        curvature: StageCurvature<'_, NX, NW, NE>,
+        mu: f64,
+    ) -> (
+        SMatrix<f64, NX, NX>,
+        SMatrix<f64, NX, NW>,
+        SMatrix<f64, NW, NW>,
+        SVector<f64, NX>,
+        SVector<f64, NW>,
+    ) {
+        let (mut hxx, mut gx) = (SMatrix::zeros(), SVector::zeros());
+        let (hxw, hww, gw) = self.stage_hessian_into(k, it, d, curvature, mu, &mut hxx, &mut gx);
         (hxx, hxw, hww, gx, gw)
     }
 
