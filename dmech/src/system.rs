@@ -180,10 +180,11 @@ pub trait PrincipalKinematicSystem<
     /// The partial derivatives `(∂ℓ/∂s, ∂ℓ/∂v_s, ∂ℓ/∂ξ)` of the reduced Lagrangian in closed
     /// form, where the system has them. `None`, the default, says it has none: they are
     /// taken from [`PrincipalKinematicSystem::reduced_lagrangian`] by dual numbers. Where a
-    /// system supplies them, the variational transcription's Jacobian pass differentiates
-    /// them by first-order duals (`dmech::partials::pulled_back_gradient_dual`) instead of
-    /// evaluating `ℓ` in hyper-duals; the values the solver's line search measures still
-    /// come from `ℓ`. A system that supplies them must check them against the generic
+    /// system supplies them, every discrete momentum is formed from them
+    /// ([`crate::partials::pulled_back_gradient`], in whatever scalar it is evaluated), and
+    /// the variational transcription's Jacobian pass differentiates them by first-order
+    /// duals ([`crate::partials::pulled_back_gradient_dual`]) instead of evaluating `ℓ` in
+    /// hyper-duals. A system that supplies them must check them against the generic
     /// partials in a test.
     #[allow(clippy::type_complexity)]
     fn closed_form_lagrangian_gradient<T: Lift<Self::Param>>(
