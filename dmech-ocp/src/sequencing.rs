@@ -178,8 +178,31 @@ pub struct SequenceSettings {
 /// condition constrains), restarted at `restart_barrier`. If a mesh fails, the finest mesh
 /// is solved directly from its own start, so that the status and the iterate are its own.
 /// The iterations and times of all meshes are added. `progress` is told of each mesh
-/// (index, count, steps, step) and of a fallback.
+/// (index, count, steps, step) and of a fallback. The solves hand their buffers on
+/// ([`crate::ipm::reuse_workspaces`], room for the finest mesh from the first).
 pub fn mesh_sequence<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NU: usize,
+    const NC: usize,
+>(
+    plan: &P,
+    finest: P::Mesh,
+    settings: SequenceSettings,
+    opts: IpOptions,
+    progress: &dyn Fn(&str),
+) -> SolveResult<NX, NW, NC>
+where
+    P: SequencedPlan<NX, NW, NE, NC>,
+{
+    crate::ipm::reuse_workspaces(plan.steps(&finest), || {
+        sequence_meshes::<P, NX, NW, NE, NU, NC>(plan, finest, settings, opts, progress)
+    })
+}
+
+fn sequence_meshes<
     P,
     const NX: usize,
     const NW: usize,

@@ -95,7 +95,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         // are added to in place (each entry sees the same additions in the same order as
         // the sums written out, so the same bits).
         let (hxw, hww, gw) =
-            self.stage_hessian_into(k, it, d, curvature, mu, &mut lq.q_mat, &mut lq.q);
+            self.stage_hessian_into(k, it, d, curvature, mu, (&mut lq.q_mat, &mut lq.q));
 
         // δw = w0 + wx δx + wu δu, with δv from the linearised stage equality: `wx`, `w0`
         // are `(D_x, 0)`, `(d_0, 0)` and `wu = (D_u, I)`.
@@ -161,8 +161,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         d: &StageDerivatives<NX, NW, NE, NC>,
         curvature: StageCurvature<'_, NX, NW, NE>,
         mu: f64,
-        hxx: &mut SMatrix<f64, NX, NX>,
-        gx: &mut SVector<f64, NX>,
+        (hxx, gx): (&mut SMatrix<f64, NX, NX>, &mut SVector<f64, NX>),
     ) -> (SMatrix<f64, NX, NW>, SMatrix<f64, NW, NW>, SVector<f64, NW>) {
         let b = &self.bounds[k];
         // Inequalities: Σ and the barrier gradient term.
@@ -222,7 +221,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         SVector<f64, NW>,
     ) {
         let (mut hxx, mut gx) = (SMatrix::zeros(), SVector::zeros());
-        let (hxw, hww, gw) = self.stage_hessian_into(k, it, d, curvature, mu, &mut hxx, &mut gx);
+        let (hxw, hww, gw) = self.stage_hessian_into(k, it, d, curvature, mu, (&mut hxx, &mut gx));
         (hxx, hxw, hww, gx, gw)
     }
 

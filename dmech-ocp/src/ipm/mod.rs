@@ -47,6 +47,7 @@ mod sparse_step;
 mod start;
 mod worker_pool;
 
+pub use derivative_pass::reuse_workspaces;
 use derivative_pass::Workspace;
 use filter::Filter;
 pub use globals::GlobalIterate;
@@ -59,7 +60,7 @@ use kkt_error::{KktError, StageAux};
 use line_search::LineSearch;
 pub use options::{IpOptions, KktMethod, Status, Timings};
 pub use parallel::STAGE_THREAD_STACK;
-use parallel::{par_fill, par_update, par_vec, par_zip, par_zip3, PAR_CHUNK};
+use parallel::{par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
 use quasi_newton::QuasiNewton;
 use restoration::Restored;
 
@@ -453,6 +454,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
             m = tmz;
             iter += 1;
         };
+        ws.retire();
         (self.finish(status, it, iter, tm, t_start), restored)
     }
 

@@ -40,6 +40,12 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
         self.bww.fill(0.0);
     }
 
+    /// As [`QuasiNewton::new`]: no curvature and no previous point (a new solve).
+    pub(super) fn start_over(&mut self) {
+        self.reset();
+        self.valid = false;
+    }
+
     /// SR1 update with the multipliers of the new iterate, then remember the new point.
     /// Skipped when `|sᵀr| ≤ skip ‖s‖‖r‖` ([`IpOptions::sr1_skip`]).
     #[allow(clippy::too_many_arguments)]
