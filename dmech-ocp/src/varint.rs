@@ -284,8 +284,8 @@ impl<'a, S> VarIntStages<'a, S> {
         (e, ex, ew)
     }
 
-    /// [`VarIntStages::equality_jacobian`] without the value, for a caller that has it
-    /// (the residual in `f64` is a third of the first-order scheme's Jacobian).
+    /// [`VarIntStages::equality_jacobian`] without the value, for a caller that has it (the
+    /// solver's derivative pass takes the line search's).
     #[allow(clippy::type_complexity)]
     pub fn equality_partials<
         const DOF: usize,
@@ -471,7 +471,7 @@ impl<'a, S> VarIntStages<'a, S> {
 
     /// [`VarIntStages::equality_jacobian`] of the midpoint scheme: each block of
     /// `(s_k, v_{k−1}, v_k)` seeded in turn through the generic momenta (ℓ's gradient in
-    /// nested duals), a velocity's pass evaluating only its interval's half of the
+    /// nested duals, or the system's closed-form partials in duals), a velocity's pass evaluating only its interval's half of the
     /// residual; the inputs by one pass through the forces.
     #[allow(clippy::type_complexity)]
     fn midpoint_equality_jacobian<
