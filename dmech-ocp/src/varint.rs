@@ -275,12 +275,11 @@ impl<'a, S> VarIntStages<'a, S> {
         if self.discretisation == Discretisation::Midpoint {
             return self.midpoint_equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w);
         }
-        self.layout.check(NX, NW, NS + NU);
         // The value as the line search measures it (`equality` in f64): the residual the
         // Newton step removes must be the one the filter sees, to the last bit (the s-pass's
         // real parts differ by round-off, and the iteration count is sensitive to it).
         let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
-        let (ex, ew) = self.first_order_equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w);
+        let (ex, ew) = self.equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w);
         (e, ex, ew)
     }
 
@@ -361,17 +360,7 @@ impl<'a, S> VarIntStages<'a, S> {
             1 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 1>(shape_args, &mut ex),
             2 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 2>(shape_args, &mut ex),
             3 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 3>(shape_args, &mut ex),
-            _ => {
-                let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
-                    terms(true, true, true),
-                    &seeded(&s),
-                    &lift_vec(&v_prev),
-                    &lift_vec(&u_prev),
-                    &lift_vec(&v),
-                    &lift_vec(&u),
-                );
-                put_shape_columns(&mut ex, l, &r);
-            }
+            _ => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, NS>(shape_args, &mut ex),
         }
         // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
         let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
@@ -419,8 +408,9 @@ impl<'a, S> VarIntStages<'a, S> {
         (ex, ew)
     }
 
-    /// The shape columns of `E_x`: every term of the residual in one pass seeded in the
-    /// `K` carried shape coordinates (`K` = [`Layout::ns_kept`]), the ignored ones constant.
+    /// The shape columns of `E_x`: every term of the residual in one pass of `K` dual lanes,
+    /// the carried shape coordinates seeded in the first [`Layout::ns_kept`] `≤ K` of them
+    /// (in state order), the ignored ones constant.
     #[allow(clippy::type_complexity)]
     fn carried_shape_pass<
         const DOF: usize,
@@ -443,7 +433,8 @@ impl<'a, S> VarIntStages<'a, S> {
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
         let l = self.layout;
-        assert_eq!(l.ns_kept(), K, "one lane per carried shape coordinate");
+        let kept = l.ns_kept();
+        assert!(kept <= K, "a dual lane for each carried shape coordinate");
         let s_at = l.s_at();
         let sd = SVector::<D<K>, NS>::from_fn(|i, _| match l.shape_slot(i) {
             Some(at) => {
@@ -466,7 +457,7 @@ impl<'a, S> VarIntStages<'a, S> {
             &lift_vec(v),
             &lift_vec(u),
         );
-        put_columns(ex, s_at, &r);
+        put_columns_by(ex, &r, |j| (j < kept).then_some(s_at + j));
     }
 
     /// [`VarIntStages::equality_jacobian`] of the midpoint scheme: each block of

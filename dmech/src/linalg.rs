@@ -55,26 +55,12 @@ impl<T: Real, const N: usize> Lu<T, N> {
 
     /// Solve `M x = b`.
     pub fn solve(&self, b: &SVector<T, N>) -> SVector<T, N> {
-        let mut x = SVector::<T, N>::from_fn(|i, _| b[self.perm[i]]);
-        for r in 0..N {
-            for c in 0..r {
-                let v = self.lu[(r, c)] * x[c];
-                x[r] -= v;
-            }
-        }
-        for r in (0..N).rev() {
-            for c in r + 1..N {
-                let v = self.lu[(r, c)] * x[c];
-                x[r] -= v;
-            }
-            x[r] /= self.lu[(r, r)];
-        }
-        x
+        self.solve_columns(b)
     }
 
-    /// Solve `M X = B` for a matrix of right-hand sides. Each column sees exactly the
-    /// operations of [`Lu::solve`] in the same order (so the same bits), applied row by row
-    /// to all columns at once: a column at a time was a tenth of the KKT condensing.
+    /// Solve `M X = B` for a matrix of right-hand sides: forward and back substitution
+    /// row by row over all columns at once (a column at a time was a tenth of the KKT
+    /// condensing). The columns do not mix, so each is what [`Lu::solve`] gives for it.
     pub fn solve_columns<const C: usize>(&self, b: &SMatrix<T, N, C>) -> SMatrix<T, N, C> {
         let mut x = SMatrix::<T, N, C>::from_fn(|i, j| b[(self.perm[i], j)]);
         for r in 0..N {

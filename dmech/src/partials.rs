@@ -106,18 +106,8 @@ where
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    // A system's closed-form partials: `∂ℓ/∂v + c ∂ℓ/∂s + Dᵀ ∂ℓ/∂ξ` without duals.
-    if let Some((ls, lv, lxi)) = sys.closed_form_lagrangian_gradient(s, v, xi) {
-        return SVector::from_fn(|j, _| {
-            let mut p = lv[j];
-            if c != 0.0 {
-                p += ls[j] * T::from(c);
-            }
-            for i in 0..DOF {
-                p += d[(i, j)] * lxi[i];
-            }
-            p
-        });
+    if let Some(partials) = sys.closed_form_lagrangian_gradient(s, v, xi) {
+        return pulled_back_partials(partials, c, d);
     }
     // The inputs as vector duals in ν, built directly (their ν-derivatives are `c eᵢ`,
     // `eᵢ` and the rows of `D`): no dual arithmetic before ℓ itself.
@@ -138,6 +128,25 @@ where
         DualVec::new(xi[i], Derivative::some(d.row(i).transpose()))
     });
     grad_part(&sys.reduced_lagrangian(&sd, &vd, &xid))
+}
+
+/// `∂ℓ/∂v + c ∂ℓ/∂s + Dᵀ ∂ℓ/∂ξ` from the partials `(∂ℓ/∂s, ∂ℓ/∂v, ∂ℓ/∂ξ)` of a system
+/// that has them in closed form: the momentum [`pulled_back_gradient`] takes from `ℓ`.
+fn pulled_back_partials<T: Real, const DOF: usize, const NS: usize>(
+    (ls, lv, lxi): (SVector<T, NS>, SVector<T, NS>, SVector<T, DOF>),
+    c: f64,
+    d: &SMatrix<T, DOF, NS>,
+) -> SVector<T, NS> {
+    SVector::from_fn(|j, _| {
+        let mut p = lv[j];
+        if c != 0.0 {
+            p += ls[j] * T::from(c);
+        }
+        for i in 0..DOF {
+            p += d[(i, j)] * lxi[i];
+        }
+        p
+    })
 }
 
 /// `νᵀ` [`pulled_back_gradient`]: `d/dε ℓ(s + c εν, v + εν, ξ + εDν)` at `ε = 0`, one
@@ -206,18 +215,9 @@ pub fn pulled_back_gradient_dual<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
-    // A system's closed-form partials: `∂ℓ/∂v + c ∂ℓ/∂s + Dᵀ ∂ℓ/∂ξ` in first-order duals.
-    if let Some((ls, lv, lxi)) = sys.closed_form_lagrangian_gradient(s, v, xi) {
-        return SVector::from_fn(|j, _| {
-            let mut p = lv[j];
-            if c != 0.0 {
-                p += ls[j] * c;
-            }
-            for i in 0..DOF {
-                p += d[(i, j)] * lxi[i];
-            }
-            p
-        });
+    // A system's closed-form partials, in first-order duals.
+    if let Some(partials) = sys.closed_form_lagrangian_gradient(s, v, xi) {
+        return pulled_back_partials(partials, c, d);
     }
     let lift = |x: &Dv<f64, N>, nu: Option<SMatrix<f64, 1, NS>>, mixed| {
         let mut h = Hd::<N, NS>::from_re(x.re);

@@ -2,7 +2,7 @@
 //! part of the KKT error and its values, in parallel, and the terminal cost's derivatives;
 //! and the buffers it and the Newton step keep from one iteration to the next.
 
-use super::parallel::{par_resize, par_vec_with_capacity};
+use super::parallel::{par_resize, with_room};
 use super::*;
 use std::any::Any;
 use std::cell::RefCell;
@@ -71,18 +71,18 @@ pub fn reuse_workspaces<R>(stages: usize, f: impl FnOnce() -> R) -> R {
 impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
     Workspace<NX, NW, NE, NU, NC>
 {
-    /// Every per-stage array for `n` stages, built on `threads` threads
-    /// ([`par_vec_with_capacity`]), in the buffers a finished solve left if there are some
-    /// ([`reuse_workspaces`]).
+    /// Every per-stage array for `n` stages, built on `threads` threads, in the buffers a
+    /// finished solve left if there are some ([`reuse_workspaces`]).
     pub(super) fn new(n: usize, quasi_newton: bool, threads: usize) -> Self {
         let (capacity, spare) = POOL.with(|p| match p.borrow_mut().as_mut() {
             Some(pool) => (pool.capacity.max(n), pool.spare.take()),
             None => (n, None),
         });
-        match spare.and_then(|s| s.downcast::<Self>().ok()) {
-            Some(ws) => ws.rebuilt(n, quasi_newton, threads),
-            None => Self::with_capacity(n, capacity, quasi_newton, threads),
-        }
+        let ws = match spare.and_then(|s| s.downcast::<Self>().ok()) {
+            Some(ws) => *ws,
+            None => Self::empty(capacity),
+        };
+        ws.rebuilt(n, quasi_newton, threads)
     }
 
     /// Leave the buffers to the next solve ([`reuse_workspaces`]); dropped outside it.
@@ -110,15 +110,14 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
         self
     }
 
-    fn with_capacity(n: usize, capacity: usize, quasi_newton: bool, threads: usize) -> Self {
-        let n_qn = if quasi_newton { n } else { 0 };
-        let room = |m: usize| if m == 0 { 0 } else { capacity };
+    /// No stages, room for `capacity` of them.
+    fn empty(capacity: usize) -> Self {
         Workspace {
-            ders: par_vec_with_capacity(n, capacity, threads, |_| StageDerivatives::zeros()),
-            lq: par_vec_with_capacity(n, capacity, threads, |_| LqStage::zeros()),
-            elim: par_vec_with_capacity(n, capacity, threads, |_| Elimination::zeros()),
-            aux: par_vec_with_capacity(n, capacity, threads, |_| StageAux::zeros()),
-            qn: par_vec_with_capacity(n_qn, room(n_qn), threads, |_| QuasiNewton::new()),
+            ders: with_room(capacity),
+            lq: with_room(capacity),
+            elim: with_room(capacity),
+            aux: with_room(capacity),
+            qn: with_room(capacity),
             constants: ConstantsTable::default(),
             terminal: TerminalDerivatives {
                 cost: 0.0,

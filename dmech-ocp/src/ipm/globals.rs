@@ -206,7 +206,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         el: &Elimination<NX, NW, NU>,
         nt: usize,
     ) -> Result<StageCoupling<NX, NW, NU>, String> {
-        let (_, hxw, hww, _, gw) = self.stage_hessian(k, it, d, curvature, mu);
+        // The state blocks are the condensing's; only the decision blocks are used here.
+        let (mut hxx, mut gx) = (SMatrix::zeros(), SVector::zeros());
+        let (hxw, hww, gw) = self.stage_hessian_into(k, it, d, curvature, mu, (&mut hxx, &mut gx));
         let t0 = NW - nt;
         let mut wt = SMatrix::<f64, NW, NW>::zeros();
         for i in 0..nt {

@@ -204,27 +204,6 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         (hxw, hww, gw)
     }
 
-    /// [`Solver::stage_hessian_into`] with every block returned.
-    #[allow(clippy::type_complexity)]
-    pub(super) fn stage_hessian(
-        &self,
-        k: usize,
-        it: &Iterate<NX, NW, NC>,
-        d: &StageDerivatives<NX, NW, NE, NC>,
-        curvature: StageCurvature<'_, NX, NW, NE>,
-        mu: f64,
-    ) -> (
-        SMatrix<f64, NX, NX>,
-        SMatrix<f64, NX, NW>,
-        SMatrix<f64, NW, NW>,
-        SVector<f64, NX>,
-        SVector<f64, NW>,
-    ) {
-        let (mut hxx, mut gx) = (SMatrix::zeros(), SVector::zeros());
-        let (hxw, hww, gw) = self.stage_hessian_into(k, it, d, curvature, mu, (&mut hxx, &mut gx));
-        (hxx, hxw, hww, gx, gw)
-    }
-
     /// The cost's constant curvature of stage `k`, if the derivative pass reads it from the
     /// constants table rather than copying it into the stage's derivatives: a problem that
     /// declares it constant, without the exact Hessian (which adds the constraints'

@@ -7,27 +7,19 @@ pub(super) fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads
     par_update(out, threads, |k, slot| *slot = f(k));
 }
 
-/// `vec![f(0), …, f(n − 1)]` built on `threads` threads, in an allocation of room for
-/// `capacity ≥ n` items (untouched room costs no memory until it is written). Why: the
-/// solver's per-stage arrays (derivatives, SR1 blocks, condensed stages: some 80 MB at
-/// 4235 stages) were built on one thread at the start of every solve, the first touch of
-/// each page a page fault, while the other thread waited (building them here: the eight
-/// 4 % faster).
-pub(super) fn par_vec_with_capacity<R: Send, F: Fn(usize) -> R + Sync>(
-    n: usize,
-    capacity: usize,
-    threads: usize,
-    f: F,
-) -> Vec<R> {
-    let mut v = Vec::with_capacity(capacity.max(n));
+/// An empty vector with room for `capacity` items, advised to huge pages before anything
+/// touches it (untouched room costs no memory). Fill it with [`par_resize`].
+pub(super) fn with_room<R>(capacity: usize) -> Vec<R> {
+    let mut v = Vec::with_capacity(capacity);
     crate::huge_pages::advise(v.spare_capacity_mut());
-    par_resize(&mut v, n, threads, f);
     v
 }
 
 /// `v` cut or grown to `n` items: the items it keeps are left as they are, new item `k` is
 /// `f(k)`, written on `threads` threads into its spare room (grown, with the huge-page
-/// hint, if it is short).
+/// hint, if it is short). Why threads: the solver's per-stage arrays (some 80 MB at 4235
+/// stages) were built on one thread, the first touch of each page a page fault, while the
+/// other thread waited (building them here: the eight 4 % faster).
 pub(super) fn par_resize<R: Send, F: Fn(usize) -> R + Sync>(
     v: &mut Vec<R>,
     n: usize,
@@ -168,7 +160,8 @@ mod tests {
     fn par_vec_builds_every_element_in_place() {
         for n in [0, 1, PAR_CHUNK - 1, PAR_CHUNK, 5 * PAR_CHUNK + 7] {
             for threads in [1, 2, 3] {
-                let v = par_vec_with_capacity(n, n, threads, |k| (k, vec![k; k % 3]));
+                let mut v = with_room(n);
+                par_resize(&mut v, n, threads, |k| (k, vec![k; k % 3]));
                 let want: Vec<_> = (0..n).map(|k| (k, vec![k; k % 3])).collect();
                 assert_eq!(v, want, "n = {n}, threads = {threads}");
             }
@@ -179,7 +172,8 @@ mod tests {
     /// beyond it.
     #[test]
     fn par_resize_keeps_and_builds_like_a_resize() {
-        let mut v = par_vec_with_capacity(3, 200, 2, |k| k as i64);
+        let mut v = with_room(200);
+        par_resize(&mut v, 3, 2, |k| k as i64);
         let mut want: Vec<i64> = (0..3).collect();
         for (n, tag) in [(150, 1000), (40, 0), (300, 2000), (0, 0), (70, 3000)] {
             v.iter_mut().for_each(|x| *x = -*x);
