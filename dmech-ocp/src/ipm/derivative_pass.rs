@@ -189,9 +189,19 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                 &mut ws.aux,
                 o.threads,
                 |k, d, q, a| {
+                    // Read before `derivatives` overwrites them.
+                    let previous = q.previous_jacobians(d);
                     derivatives(k, d);
                     let nu = d.nu.unwrap_or_else(SVector::zeros);
-                    q.update(o.sr1_skip, &it.x[k], &it.w[k], d, &it.lambda[k], &nu);
+                    q.update(
+                        o.sr1_skip,
+                        &it.x[k],
+                        &it.w[k],
+                        previous,
+                        d,
+                        &it.lambda[k],
+                        &nu,
+                    );
                     finish(k, d, a);
                 },
             );
