@@ -60,7 +60,7 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
         &self,
         d: &StageDerivatives<NX, NW, NE, NC>,
     ) -> Option<StageJacobians<NX, NW, NE>> {
-        self.valid.then(|| StageJacobians {
+        self.valid.then_some(StageJacobians {
             fx: d.fx,
             fw: d.fw,
             ex: d.ex,
@@ -84,8 +84,10 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
         nu: &SVector<f64, NE>,
     ) {
         if let Some(mut dj) = previous {
-            // `dj` becomes the change of the Jacobians, old minus new.
             let (sx, sw) = (x - self.x, w - self.w);
+            // r = y − B s with y = (J − J_old)ᵀ(λ, ν): the new Jacobians are subtracted from
+            // the old ones in place, so no further matrix and no transposed copy is built;
+            // the rank-one terms go into B in place.
             dj.fx -= d.fx;
             dj.fw -= d.fw;
             dj.ex -= d.ex;
@@ -98,6 +100,7 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
             rw.gemv_tr(1.0, &self.bxw, &sx, 1.0);
             rw.gemv_tr(1.0, &dj.fw, lam, 1.0);
             rw.gemv_tr(1.0, &dj.ew, nu, 1.0);
+            // (The old minus the new Jacobians were multiplied: r is negated here.)
             rx.neg_mut();
             rw.neg_mut();
             let den = sx.dot(&rx) + sw.dot(&rw);
