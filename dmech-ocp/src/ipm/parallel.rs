@@ -17,9 +17,9 @@ pub(super) fn with_room<R>(capacity: usize) -> Vec<R> {
 
 /// `v` cut or grown to `n` items: the items it keeps are left as they are, new item `k` is
 /// `f(k)`, written on `threads` threads into its spare room (grown, with the huge-page
-/// hint, if it is short). Why threads: the solver's per-stage arrays (some 80 MB at 4235
-/// stages) were built on one thread, the first touch of each page a page fault, while the
-/// other thread waited (building them here: the eight 4 % faster).
+/// hint, if it is short). Why threads: the first touch of each page of the solver's
+/// per-stage arrays (some 70 MB at 4235 stages) is a page fault; on one thread the other
+/// one would wait through all of them.
 pub(super) fn par_resize<R: Send, F: Fn(usize) -> R + Sync>(
     v: &mut Vec<R>,
     n: usize,

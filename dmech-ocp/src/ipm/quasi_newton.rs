@@ -7,9 +7,8 @@ use super::*;
 ///
 /// The previous point's Jacobians are not kept here: the stage's derivatives still hold
 /// them when the next pass reaches the stage, and it reads them
-/// ([`QuasiNewton::previous_jacobians`]) before it overwrites them. A copy per stage made
-/// this array twice as large (4.4 kB against 2.1 kB per stage at `NX = 11`), all of it
-/// written and read back at every iteration.
+/// ([`QuasiNewton::previous_jacobians`]) before it overwrites them, so this array, written
+/// and read at every iteration, holds only the blocks and the point.
 #[derive(Clone, Debug)]
 pub(super) struct QuasiNewton<const NX: usize, const NW: usize, const NE: usize> {
     pub(super) bxx: SMatrix<f64, NX, NX>,
