@@ -351,37 +351,44 @@ impl<'a, S> VarIntStages<'a, S> {
             incoming,
             force,
         };
-        // s_k: every term, seeded in the carried coordinates only (an ignored one's column
-        // has no place in the state; the WIP carries one of five). The lanes are
-        // independent, so fewer of them change no bit of the kept columns.
+        // With the force at one end of the step, each term of the residual reads one
+        // interval: the incoming momentum (and a left-point force) the previous one, the
+        // outgoing momentum (and a right-point force) the current one. One pass per
+        // interval, seeded in its velocity and the carried shape coordinates, gives both
+        // velocity blocks and the shape columns as the sum of the two passes' shape lanes
+        // (each term is evaluated in exactly one of them). Against a separate shape pass
+        // through every term this saves one evaluation of both momenta (on the WIP a
+        // sixth of the partials' instructions). A midpoint force reads both intervals and
+        // would count its shape derivative twice: it keeps the separate passes, as does a
+        // system too wide for the lane counts below.
         let shape_args = (&s, &v_prev, &u_prev, &v, &u);
-        match l.ns_kept() {
-            0 => {}
-            1 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 1>(shape_args, &mut ex),
-            2 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 2>(shape_args, &mut ex),
-            3 => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, 3>(shape_args, &mut ex),
-            _ => self.carried_shape_pass::<DOF, DIM, NS, NU, NX, NS>(shape_args, &mut ex),
+        let lanes = NS + l.ns_kept();
+        let merged = match (left && right, lanes) {
+            (true, _) => false,
+            (false, 0..=4) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 4>(
+                left,
+                shape_args,
+                (&mut ex, &mut ew),
+            ),
+            (false, 5..=6) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 6>(
+                left,
+                shape_args,
+                (&mut ex, &mut ew),
+            ),
+            (false, 7..=8) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 8>(
+                left,
+                shape_args,
+                (&mut ex, &mut ew),
+            ),
+            (false, _) => false,
+        };
+        if !merged {
+            self.separate_passes::<DOF, DIM, NS, NU, NX, NW>(
+                (left, right),
+                shape_args,
+                (&mut ex, &mut ew),
+            );
         }
-        // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
-        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
-            terms(false, true, left),
-            &lift_vec(&s),
-            &seeded(&v_prev),
-            &lift_vec(&u_prev),
-            &lift_vec(&v),
-            &lift_vec(&u),
-        );
-        put_columns(&mut ex, l.v_at(), &r);
-        // v_k: the outgoing momentum, and the force if it reads the current interval.
-        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
-            terms(true, false, right),
-            &lift_vec(&s),
-            &lift_vec(&v_prev),
-            &lift_vec(&u_prev),
-            &seeded(&v),
-            &lift_vec(&u),
-        );
-        put_columns(&mut ew, 0, &r);
         // The inputs enter through the force only.
         if left {
             let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
@@ -406,6 +413,144 @@ impl<'a, S> VarIntStages<'a, S> {
             put_columns(&mut ew, NS, &r);
         }
         (ex, ew)
+    }
+
+    /// The velocity blocks and the shape columns of `E_x`, `E_w` by one pass per interval
+    /// of `N ≥ NS + kept` dual lanes: the interval's velocity in lanes `0..NS`, the carried
+    /// shape coordinates in lanes `NS..NS + kept` (in state order). The force is read at
+    /// the left point if `left`, otherwise at the right one. `false` (nothing written) if
+    /// the lanes do not fit.
+    #[allow(clippy::type_complexity)]
+    fn interval_passes<
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+        const N: usize,
+    >(
+        &self,
+        left: bool,
+        (s, v_prev, u_prev, v, u): (
+            &SVector<f64, NS>,
+            &SVector<f64, NS>,
+            &SVector<f64, NU>,
+            &SVector<f64, NS>,
+            &SVector<f64, NU>,
+        ),
+        (ex, ew): (&mut SMatrix<f64, NS, NX>, &mut SMatrix<f64, NS, NW>),
+    ) -> bool
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let l = self.layout;
+        let kept = l.ns_kept();
+        if NS + kept > N {
+            return false;
+        }
+        let s_at = l.s_at();
+        let sd = SVector::<D<N>, NS>::from_fn(|i, _| match l.shape_slot(i) {
+            Some(at) => {
+                let mut e = SVector::<f64, N>::zeros();
+                e[NS + at - s_at] = 1.0;
+                D::<N>::new(s[i], num_dual::Derivative::some(e))
+            }
+            None => D::<N>::from_re(s[i]),
+        });
+        let terms = |outgoing, incoming, force| Terms {
+            outgoing,
+            incoming,
+            force,
+        };
+        // The previous interval: the incoming momentum, and a left-point force.
+        let previous = self.equality_terms::<DOF, DIM, NS, NU, N>(
+            terms(false, true, left),
+            &sd,
+            &seeded_from(v_prev, 0),
+            &lift_vec(u_prev),
+            &lift_vec(v),
+            &lift_vec(u),
+        );
+        // The current interval: the outgoing momentum, and a right-point force.
+        let current = self.equality_terms::<DOF, DIM, NS, NU, N>(
+            terms(true, false, !left),
+            &sd,
+            &lift_vec(v_prev),
+            &lift_vec(u_prev),
+            &seeded_from(v, 0),
+            &lift_vec(u),
+        );
+        let (v_at, shape_lane) = (l.v_at(), |j: usize| (NS..NS + kept).contains(&j));
+        put_columns_by(ex, &previous, |j| (j < NS).then_some(v_at + j));
+        put_columns_by(ew, &current, |j| (j < NS).then_some(j));
+        for i in 0..NS {
+            let (gp, gc) = (grad_part(&previous[i]), grad_part(&current[i]));
+            for j in (0..N).filter(|&j| shape_lane(j)) {
+                ex[(i, s_at + j - NS)] = gp[j] + gc[j];
+            }
+        }
+        true
+    }
+
+    /// The shape and velocity columns of `E_x`, `E_w` by a pass per block: the carried
+    /// shape coordinates through every term ([`VarIntStages::carried_shape_pass`]), then
+    /// each velocity through the terms that read it.
+    #[allow(clippy::type_complexity)]
+    fn separate_passes<
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    >(
+        &self,
+        (left, right): (bool, bool),
+        shape_args: (
+            &SVector<f64, NS>,
+            &SVector<f64, NS>,
+            &SVector<f64, NU>,
+            &SVector<f64, NS>,
+            &SVector<f64, NU>,
+        ),
+        (ex, ew): (&mut SMatrix<f64, NS, NX>, &mut SMatrix<f64, NS, NW>),
+    ) where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let l = self.layout;
+        let (s, v_prev, u_prev, v, u) = shape_args;
+        let terms = |outgoing, incoming, force| Terms {
+            outgoing,
+            incoming,
+            force,
+        };
+        // s_k: every term, seeded in the carried coordinates only (an ignored one's column
+        // has no place in the state). The lanes are independent, so a pass as wide as the
+        // shape changes no bit of the kept columns against a narrower one.
+        if l.ns_kept() > 0 {
+            self.carried_shape_pass::<DOF, DIM, NS, NU, NX, NS>(shape_args, ex);
+        }
+        // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
+        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
+            terms(false, true, left),
+            &lift_vec(s),
+            &seeded(v_prev),
+            &lift_vec(u_prev),
+            &lift_vec(v),
+            &lift_vec(u),
+        );
+        put_columns(ex, l.v_at(), &r);
+        // v_k: the outgoing momentum, and the force if it reads the current interval.
+        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
+            terms(true, false, right),
+            &lift_vec(s),
+            &lift_vec(v_prev),
+            &lift_vec(u_prev),
+            &seeded(v),
+            &lift_vec(u),
+        );
+        put_columns(ew, 0, &r);
     }
 
     /// The shape columns of `E_x`: every term of the residual in one pass of `K` dual lanes,

@@ -19,7 +19,9 @@ use num_dual::DualSVec64;
 use robots::wip::algebraic_current::WipAlgebraicCurrent;
 use robots::wip::benchmarks::eight;
 use robots::wip::benchmarks::PlanProblem;
-use robots::wip::plan::{rk_start, varint_plan, varint_start, PlanBounds, PlanModel, WipPlan, NC};
+use robots::wip::plan::{
+    rk_start, varint_layout, varint_plan, varint_start, PlanBounds, PlanModel, WipPlan, NC,
+};
 use robots::wip::Wip;
 
 /// Both are exact derivatives evaluated in double precision along different operation
@@ -71,6 +73,50 @@ fn structured_equality_jacobian_equals_generic() {
                 assert!(
                     err <= ROUND_OFF * scale,
                     "{d:?} {q:?}, stage {k}, perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
+                );
+            }
+        }
+    }
+}
+
+/// The same on the state the solver plans on (`NX = 11`: the wheel angles and charges,
+/// which `ℓ` does not read, left out), where the partials take one pass per interval
+/// seeded in its velocity and the carried tilt.
+#[test]
+fn structured_equality_jacobian_equals_generic_on_the_reduced_state() {
+    let wip = Wip::default();
+    let p = eight(0.005);
+    let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
+    let layout = varint_layout::<Wip, 5, 11>(&wip);
+    let mut rand = lcg(54321);
+    for q in [
+        ForcingQuadrature::Left,
+        ForcingQuadrature::Right,
+        ForcingQuadrature::Midpoint,
+    ] {
+        let st = VarIntStages {
+            layout,
+            ..VarIntStages::new::<3, 2, 5, 2>(&wip, p.h, q)
+        };
+        for k in [0, 1, 700, 2100, 4234] {
+            for perturb in [0.0, 0.3] {
+                // The full state's entries the reduced one keeps: g, α, v, u.
+                let full: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
+                let x = SVector::<f64, 11>::from_fn(|j, _| full[if j < 4 { j } else { j + 4 }]);
+                let w: SVector<f64, 7> = ws[k].map(|v| v + perturb * rand());
+                let got = st.equality_jacobian::<3, 2, 5, 2, 11, 7>(&x, &w);
+                let gx = st.equality::<DualSVec64<11>, 3, 2, 5, 2, 11, 7>(
+                    &seeded(&x),
+                    &w.map(DualSVec64::<11>::from_re),
+                );
+                let gw = st.equality::<DualSVec64<7>, 3, 2, 5, 2, 11, 7>(
+                    &x.map(DualSVec64::<7>::from_re),
+                    &seeded(&w),
+                );
+                let (err, scale) = jacobian_error(got, split_passes(&gx, &gw));
+                assert!(
+                    err <= ROUND_OFF * scale,
+                    "{q:?}, stage {k}, perturbation {perturb}: error {err:.3e} (scale {scale:.3e})"
                 );
             }
         }
