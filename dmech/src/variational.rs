@@ -15,7 +15,8 @@
 use crate::newton::{solve_momentum_matching, NewtonSettings};
 pub use crate::newton::{JacobianPolicy, NewtonCache, StepError};
 use crate::partials::{
-    momenta_and_jacobians, pulled_back_gradient, pulled_back_gradient_dual, value_and_jacobian,
+    momenta_and_jacobians, pulled_back_gradient, pulled_back_gradient_dual,
+    pulled_back_partials_factored, value_and_jacobian,
 };
 use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::LieGroup;
@@ -147,6 +148,13 @@ pub fn incoming_momentum_dual<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
+    let xi_prev = -(sys.connection(s_prev) * v_prev);
+    if let Some(partials) = sys.closed_form_lagrangian_gradient(s_prev, v_prev, &xi_prev) {
+        let dinv = <S::Group<Dv<f64, N>> as LieGroup<DOF, DIM>>::dexp_inv(
+            &(xi_prev * Dv::<f64, N>::from(-h)),
+        );
+        return pulled_back_partials_factored(partials, 0.0, &dinv, a_k);
+    }
     let (xi_prev, d) = incoming_variation::<S, _, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, a_k);
     pulled_back_gradient_dual::<S, DOF, DIM, NS, NU, N>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
 }
@@ -170,6 +178,12 @@ pub fn outgoing_momentum_dual<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
+    let xi_k = -(a_k * v_k);
+    if let Some(partials) = sys.closed_form_lagrangian_gradient(s_k, v_k, &xi_k) {
+        let dinv =
+            <S::Group<Dv<f64, N>> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * Dv::<f64, N>::from(h)));
+        return pulled_back_partials_factored(partials, -h, &dinv, a_k);
+    }
     let (xi_k, d) = outgoing_variation::<S, _, DOF, DIM, NS, NU>(h, v_k, a_k);
     pulled_back_gradient_dual::<S, DOF, DIM, NS, NU, N>(sys, s_k, -h, v_k, &xi_k, &d)
 }
