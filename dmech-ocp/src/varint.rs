@@ -17,7 +17,7 @@ use dmech::midpoint::{
     interval_body_velocity, interval_force, midpoint_incoming_momentum,
     midpoint_momentum_matching_residual, midpoint_outgoing_momentum,
 };
-use dmech::partials::{grad_part, jacobian_part, lift_vec, seeded, seeded_from};
+use dmech::partials::{grad_part, lift_vec, seeded, seeded_from};
 use dmech::variational::{
     discrete_force, incoming_momentum_dual, momentum_matching_residual, outgoing_momentum_dual,
 };
@@ -92,21 +92,11 @@ impl<'a, S> VarIntStages<'a, S> {
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
-        let coords: Vec<T> = (0..l.nc).map(|i| x[i]).collect();
-        let g =
-            <S::Group<T> as LieGroup<DOF, DIM>>::from_coordinates(&coords).expect("layout checked");
+        let g_next = self.group_step::<T, DOF, DIM, NS, NU, NX, NW>(x, w);
         let s: SVector<T, NS> = l.shape(x);
         let v: SVector<T, NS> = segment(w, 0);
         let u: SVector<T, NU> = segment(w, NS);
-        let ht = T::from(self.h);
-        let xi = match self.discretisation {
-            Discretisation::FirstOrder => -(self.sys.connection(&s) * v),
-            Discretisation::Midpoint => {
-                interval_body_velocity::<S, T, DOF, DIM, NS, NU>(self.sys, self.h, &s, &v)
-            }
-        };
-        let g_next = g.compose(&<S::Group<T> as LieGroup<DOF, DIM>>::exp(&(xi * ht)));
-        let s_next = s + v * ht;
+        let s_next = s + v * T::from(self.h);
         let mut out = SVector::<T, NX>::zeros();
         for (i, c) in g_next.coordinates().into_iter().enumerate() {
             out[i] = c;
@@ -121,12 +111,46 @@ impl<'a, S> VarIntStages<'a, S> {
         out
     }
 
-    /// `(f, F_x, F_w)` of [`VarIntStages::dynamics`] by one vector-dual pass of width `NX`.
-    /// `f` reads only `(coords(g_k), s_k)` of `x` and all of `w`; `w` is seeded in the
-    /// directions of the entries of `x` that `f` does not read, `(v_{k−1}, u_{k−1})`, which
-    /// `w = (v_k, u_k)` fills exactly. Each direction of a vector dual is propagated on its
-    /// own, so the columns are the two-pass default's to the bit, from one pass instead of
-    /// two (widths `NX` and `NW`). Checked against the default in a test.
+    /// `g_{k+1} = g_k exp(h ξ_k)`, the one part of [`VarIntStages::dynamics`] that is not
+    /// linear in `(x_k, w_k)`.
+    fn group_step<
+        T: Real,
+        const DOF: usize,
+        const DIM: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    >(
+        &self,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> S::Group<T>
+    where
+        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    {
+        let l = self.layout;
+        let g = <S::Group<T> as LieGroup<DOF, DIM>>::from_coordinates(&x.as_slice()[..l.nc])
+            .expect("layout checked");
+        let s: SVector<T, NS> = l.shape(x);
+        let v: SVector<T, NS> = segment(w, 0);
+        let xi = match self.discretisation {
+            Discretisation::FirstOrder => -(self.sys.connection(&s) * v),
+            Discretisation::Midpoint => {
+                interval_body_velocity::<S, T, DOF, DIM, NS, NU>(self.sys, self.h, &s, &v)
+            }
+        };
+        g.compose(&<S::Group<T> as LieGroup<DOF, DIM>>::exp(&(xi * T::from(self.h))))
+    }
+
+    /// `(f, F_x, F_w)` of [`VarIntStages::dynamics`]: the group rows by one vector-dual pass
+    /// of width `NX` through [`VarIntStages::group_step`], the other rows written out (they
+    /// are linear: `s_{k+1} = s_k + h v_k`, `(v_k, u_k)` copied). The group step reads only
+    /// `(coords(g_k), s_k)` of `x` and all of `w`; `w` is seeded in the directions of the
+    /// entries of `x` it does not read, `(v_{k−1}, u_{k−1})`, which `w = (v_k, u_k)` fills
+    /// exactly. Each direction of a vector dual is propagated on its own, so the columns
+    /// are the two-pass default's to the bit (checked against it in a test); the linear
+    /// rows' entries `1`, `h` are what a dual pass gives for them, exactly.
     #[allow(clippy::type_complexity)]
     pub fn dynamics_jacobian<
         const DOF: usize,
@@ -143,18 +167,47 @@ impl<'a, S> VarIntStages<'a, S> {
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
-        let at = self.layout.v_at();
-        let mut xd = seeded(x);
-        for d in xd.iter_mut().skip(at) {
-            *d = D::<NX>::from_re(d.re);
-        }
+        let l = self.layout;
+        l.check(NX, NW, NS + NU);
+        let at = l.v_at();
+        let xd = SVector::<D<NX>, NX>::from_fn(|i, _| {
+            if i < at {
+                let mut e = SVector::<f64, NX>::zeros();
+                e[i] = 1.0;
+                D::<NX>::new(x[i], num_dual::Derivative::some(e))
+            } else {
+                D::<NX>::from_re(x[i])
+            }
+        });
         let wd = seeded_from::<f64, NX, NW>(w, at);
-        let y = self.dynamics::<D<NX>, DOF, DIM, NS, NU, NX, NW>(&xd, &wd);
-        let jac = jacobian_part(&y);
-        let fw = jac.fixed_columns::<NW>(at).into_owned();
-        let mut fx = jac;
-        fx.columns_mut(at, NX - at).fill(0.0);
-        (y.map(|d| d.re), fx, fw)
+        let g_next = self.group_step::<D<NX>, DOF, DIM, NS, NU, NX, NW>(&xd, &wd);
+        let mut f = SVector::<f64, NX>::zeros();
+        let mut fx = SMatrix::<f64, NX, NX>::zeros();
+        let mut fw = SMatrix::<f64, NX, NW>::zeros();
+        for (i, c) in g_next.coordinates().iter().enumerate() {
+            f[i] = c.re;
+            let g = grad_part(c);
+            for j in 0..at {
+                fx[(i, j)] = g[j];
+            }
+            for j in 0..NW {
+                fw[(i, j)] = g[at + j];
+            }
+        }
+        for i in 0..NS {
+            if let Some(slot) = l.shape_slot(i) {
+                f[slot] = x[slot] + w[i] * self.h;
+                fx[(slot, slot)] = 1.0;
+                fw[(slot, i)] = self.h;
+            }
+            f[at + i] = w[i];
+            fw[(at + i, i)] = 1.0;
+        }
+        for i in 0..NU {
+            f[l.u_at() + i] = w[NS + i];
+            fw[(l.u_at() + i, NS + i)] = 1.0;
+        }
+        (f, fx, fw)
     }
 
     /// `e(x_k, w_k)`: the momentum-matching residual of node `k` (divided by `h`).
