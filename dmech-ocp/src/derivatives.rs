@@ -146,7 +146,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
         if NE == 0 {
             return Some(SVector::zeros());
         }
-        let gw = self.gw + self.fw.transpose() * lambda + self.cw.transpose() * zeta;
+        let gw = self.gw + self.fw.tr_mul(lambda) + self.cw.tr_mul(zeta);
         let ev: SMatrix<f64, NE, NE> = self.ew.fixed_columns::<NE>(0).into_owned();
         Lu::new(&ev.transpose()).map(|lu| lu.solve(&(-gw.fixed_rows::<NE>(0).into_owned())))
     }

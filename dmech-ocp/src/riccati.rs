@@ -153,20 +153,32 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
         let pa = p_mat * st.a;
         let pb = p_mat * st.b;
         let pc = p_mat * st.c + p_vec;
-        let huu = st.r_mat + self.eye_u + st.b.transpose() * pb;
-        let hux = st.s_mat.transpose() + st.b.transpose() * pa;
-        let hxx = st.q_mat + self.eye_x + st.a.transpose() * pa;
-        let hu = st.r + st.b.transpose() * pc;
-        let hx = st.q + st.a.transpose() * pc;
+        // Products with a transposed factor as `tr_mul` (column dot products, no transposed
+        // copy), and `AᵀPA`, symmetric, formed on and above the diagonal only: the sweep is
+        // the serial part of the Newton step.
+        let huu = st.r_mat + self.eye_u + st.b.tr_mul(&pb);
+        let hux = st.s_mat.transpose() + st.b.tr_mul(&pa);
+        let hu = st.r + st.b.tr_mul(&pc);
+        let hx = st.q + st.a.tr_mul(&pc);
         let chol = huu
             .cholesky()
             .ok_or(RiccatiError::NotPositiveDefinite { stage: k })?;
         let gain = -chol.solve(&hux);
         let ff = -chol.solve(&hu);
-        let pm = hxx + hux.transpose() * gain;
-        let p_next = ((pm + pm.transpose()) * 0.5, hx + hux.transpose() * ff);
+        // P_k = Q + I δ + AᵀPA + Hᵤₓᵀ K, symmetrised.
+        let (q_mat, correction) = (&st.q_mat, hux.tr_mul(&gain));
+        let mut p_new = SMatrix::<f64, NX, NX>::zeros();
+        for j in 0..NX {
+            for i in 0..=j {
+                let atpa = st.a.column(i).dot(&pa.column(j));
+                let sym = 0.5 * (q_mat[(i, j)] + q_mat[(j, i)])
+                    + 0.5 * (correction[(i, j)] + correction[(j, i)]);
+                p_new[(i, j)] = sym + self.eye_x[(i, j)] + atpa;
+                p_new[(j, i)] = p_new[(i, j)];
+            }
+        }
         self.gains[k] = (gain, ff);
-        self.cost_to_go[k] = p_next;
+        self.cost_to_go[k] = (p_new, hx + hux.tr_mul(&ff));
         self.next = k;
         Ok(())
     }

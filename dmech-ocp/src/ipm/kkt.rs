@@ -132,16 +132,17 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         let hww_w0 = hww_v * d0;
         let hxw_v = hxw.fixed_columns::<NE>(0);
         let hxw_wx = hxw_v * dx;
-        let dx_t = dx.transpose();
+        // Products with a transposed factor by `tr_mul` (column dot products), without
+        // forming the transpose.
         lq.q_mat += hxw_wx;
         lq.q_mat += hxw_wx.transpose();
-        lq.q_mat += dx_t * hww_wx.fixed_rows::<NE>(0);
-        lq.s_mat = hxw * wu + dx_t * hww_wu.fixed_rows::<NE>(0);
-        lq.r_mat = wu.transpose() * hww_wu;
-        lq.q += dx_t * gw.fixed_rows::<NE>(0);
+        lq.q_mat += dx.tr_mul(&hww_wx.fixed_rows::<NE>(0));
+        lq.s_mat = hxw * wu + dx.tr_mul(&hww_wu.fixed_rows::<NE>(0));
+        lq.r_mat = wu.tr_mul(&hww_wu);
+        lq.q += dx.tr_mul(&gw.fixed_rows::<NE>(0));
         lq.q += hxw_v * d0;
-        lq.q += dx_t * hww_w0.fixed_rows::<NE>(0);
-        lq.r = wu.transpose() * (gw + hww_w0);
+        lq.q += dx.tr_mul(&hww_w0.fixed_rows::<NE>(0));
+        lq.r = wu.tr_mul(&(gw + hww_w0));
         self.add_state_equalities(k, it, dc, &mut lq.q_mat, &mut lq.q);
         let fw_v = d.fw.fixed_columns::<NE>(0);
         lq.a = d.fx + fw_v * dx;
@@ -199,8 +200,8 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         };
         add_state_rows_weighted(&d.cx, &d.cw, &sigma, hxx, &mut hxw);
         hww.gemm(1.0, &cw_s, &d.cw, 1.0);
-        *gx = d.gx + d.cx.transpose() * bc;
-        let gw = d.gw + d.cw.transpose() * bc;
+        *gx = d.gx + d.cx.tr_mul(&bc);
+        let gw = d.gw + d.cw.tr_mul(&bc);
         (hxw, hww, gw)
     }
 

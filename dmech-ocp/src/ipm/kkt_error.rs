@@ -57,14 +57,14 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     ) -> StageKkt {
         let zeta = it.z_hi[k] - it.z_lo[k];
         let lam = &it.lambda[k];
-        let mut gx = d.gx + d.fx.transpose() * lam + d.cx.transpose() * zeta;
+        let mut gx = d.gx + d.fx.tr_mul(lam) + d.cx.tr_mul(&zeta);
         if k > 0 {
             gx -= it.lambda[k - 1]; // x_k's part in the dynamics row of stage k − 1
         }
-        let mut gw = d.gw + d.fw.transpose() * lam + d.cw.transpose() * zeta;
+        let mut gw = d.gw + d.fw.tr_mul(lam) + d.cw.tr_mul(&zeta);
         let nu_sum = d.nu.map(|nu| {
-            gx += d.ex.transpose() * nu;
-            gw += d.ew.transpose() * nu;
+            gx += d.ex.tr_mul(&nu);
+            gw += d.ew.tr_mul(&nu);
             nu.abs().sum()
         });
         // A state equality fixes one component: its multiplier estimate zeroes that
