@@ -140,7 +140,9 @@ impl<'a, S> VarIntStages<'a, S> {
                 interval_body_velocity::<S, T, DOF, DIM, NS, NU>(self.sys, self.h, &s, &v)
             }
         };
-        g.compose(&<S::Group<T> as LieGroup<DOF, DIM>>::exp(&(xi * T::from(self.h))))
+        g.compose(&<S::Group<T> as LieGroup<DOF, DIM>>::exp(
+            &(xi * T::from(self.h)),
+        ))
     }
 
     /// `(f, F_x, F_w)` of [`VarIntStages::dynamics`]: the group rows by one vector-dual pass

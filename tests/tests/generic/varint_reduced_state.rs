@@ -6,12 +6,12 @@
 //! systems read every shape coordinate, so the checks cover every carried count the
 //! passes dispatch on; and the structured partials against the generic path.
 
+use dmech::partials::{grad_part, seeded};
 use dmech::variational::ForcingQuadrature;
 use dmech_ocp::varint::VarIntStages;
 use dmech_tests::random_system::{
     random_stage_state, Lcg, RandomSystem, RandomSystemSpec, Se2Family,
 };
-use dmech::partials::{grad_part, seeded};
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
 
@@ -132,7 +132,10 @@ fn structured_partials_match<const NXR: usize>(seed: u64, ignored: &[usize]) {
         );
         // The random system reads every shape coordinate: the carried columns are not zero.
         for j in nc..nc + NS - ignored.len() {
-            assert!(want_x.column(j).amax() > 0.0, "{ignored:?}: column {j} is read");
+            assert!(
+                want_x.column(j).amax() > 0.0,
+                "{ignored:?}: column {j} is read"
+            );
         }
     }
 }
