@@ -44,3 +44,4 @@ mod test_rng;
 pub mod transcription;
 pub mod varint;
 mod varint_curvature;
+mod varint_partials;

@@ -15,11 +15,24 @@ use dmech_tests::random_system::{
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
 
-/// `NS = 4` on SE(2): the full state has `NX = 3 + 3·4 = 15`; `NXR = 15 − ignored.len()`.
-fn carried_columns_match<const NXR: usize>(seed: u64, ignored: &[usize]) {
-    const NS: usize = 4;
-    const NX: usize = 15;
-    const NW: usize = 8;
+const NS: usize = 4;
+const NX: usize = 15;
+const NW: usize = 8;
+
+/// A random system with `NS = 4` on SE(2) and a stage point: the full state (`NX = 3 + 3·4
+/// = 15`, the ignored positions at zero, as the reduced state reads them), the reduced one
+/// (`NXR = 15 − ignored.len()`), the decision, and where the full state's kept entries and
+/// shape block sit.
+struct Case<const NXR: usize> {
+    sys: RandomSystem<Se2Family, 3, 2, NS>,
+    x: SVector<f64, NX>,
+    xr: SVector<f64, NXR>,
+    w: SVector<f64, NW>,
+    nc: usize,
+    kept: Vec<usize>,
+}
+
+fn case<const NXR: usize>(seed: u64, ignored: &[usize]) -> Case<NXR> {
     let spec = RandomSystemSpec {
         damping: 0.3,
         cyclic_first: false,
@@ -32,12 +45,30 @@ fn carried_columns_match<const NXR: usize>(seed: u64, ignored: &[usize]) {
         x[nc + i] = 0.0;
     }
     let w = SVector::<f64, NW>::from_fn(|_, _| rng.uniform());
-    // The full state's entries the reduced one keeps.
     let kept: Vec<usize> = (0..NX)
         .filter(|&j| !ignored.iter().any(|&i| j == nc + i))
         .collect();
     assert_eq!(kept.len(), NXR);
     let xr = SVector::<f64, NXR>::from_fn(|j, _| x[kept[j]]);
+    Case {
+        sys,
+        x,
+        xr,
+        w,
+        nc,
+        kept,
+    }
+}
+
+fn carried_columns_match<const NXR: usize>(seed: u64, ignored: &[usize]) {
+    let Case {
+        sys,
+        x,
+        xr,
+        w,
+        nc,
+        kept,
+    } = case::<NXR>(seed, ignored);
     for quadrature in [
         ForcingQuadrature::Left,
         ForcingQuadrature::Right,
@@ -86,23 +117,8 @@ fn a_reduced_state_has_the_full_states_carried_columns_to_the_bit() {
 /// Both are exact derivatives in double precision along different operation orders: they
 /// may differ by round-off, a few hundred ulps of the largest entry.
 fn structured_partials_match<const NXR: usize>(seed: u64, ignored: &[usize]) {
-    const NS: usize = 4;
-    const NX: usize = 15;
-    const NW: usize = 8;
     const ROUND_OFF: f64 = 512.0 * f64::EPSILON;
-    let spec = RandomSystemSpec {
-        damping: 0.3,
-        cyclic_first: false,
-        shape_dependence: 0.5,
-    };
-    let sys = RandomSystem::<Se2Family, 3, 2, NS>::draw(seed, spec);
-    let mut rng = Lcg(seed ^ 0xBEEF);
-    let (x, nc) = random_stage_state::<Se2Family, 3, 2, NX>(&mut rng);
-    let w = SVector::<f64, NW>::from_fn(|_, _| rng.uniform());
-    let kept: Vec<usize> = (0..NX)
-        .filter(|&j| !ignored.iter().any(|&i| j == nc + i))
-        .collect();
-    let xr = SVector::<f64, NXR>::from_fn(|j, _| x[kept[j]]);
+    let Case { sys, xr, w, nc, .. } = case::<NXR>(seed, ignored);
     for quadrature in [
         ForcingQuadrature::Left,
         ForcingQuadrature::Right,
