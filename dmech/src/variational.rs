@@ -148,14 +148,15 @@ pub fn incoming_momentum_dual<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
+    // `incoming_variation`'s `(ξ, D)`, with `D = −dexp⁻¹ A` formed only without closed-form
+    // partials (with them, `pulled_back_partials_factored` never forms it).
     let xi_prev = -(sys.connection(s_prev) * v_prev);
+    let dinv =
+        <S::Group<Dv<f64, N>> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * Dv::<f64, N>::from(-h)));
     if let Some(partials) = sys.closed_form_lagrangian_gradient(s_prev, v_prev, &xi_prev) {
-        let dinv = <S::Group<Dv<f64, N>> as LieGroup<DOF, DIM>>::dexp_inv(
-            &(xi_prev * Dv::<f64, N>::from(-h)),
-        );
         return pulled_back_partials_factored(partials, 0.0, &dinv, a_k);
     }
-    let (xi_prev, d) = incoming_variation::<S, _, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, a_k);
+    let d = -(dinv * a_k);
     pulled_back_gradient_dual::<S, DOF, DIM, NS, NU, N>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
 }
 
@@ -178,13 +179,14 @@ pub fn outgoing_momentum_dual<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
+    // `outgoing_variation`'s `(ξ, D)`, `D` formed only without closed-form partials.
     let xi_k = -(a_k * v_k);
+    let dinv =
+        <S::Group<Dv<f64, N>> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * Dv::<f64, N>::from(h)));
     if let Some(partials) = sys.closed_form_lagrangian_gradient(s_k, v_k, &xi_k) {
-        let dinv =
-            <S::Group<Dv<f64, N>> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * Dv::<f64, N>::from(h)));
         return pulled_back_partials_factored(partials, -h, &dinv, a_k);
     }
-    let (xi_k, d) = outgoing_variation::<S, _, DOF, DIM, NS, NU>(h, v_k, a_k);
+    let d = -(dinv * a_k);
     pulled_back_gradient_dual::<S, DOF, DIM, NS, NU, N>(sys, s_k, -h, v_k, &xi_k, &d)
 }
 
