@@ -370,8 +370,9 @@ impl<S> VarIntStages<'_, S> {
 
     /// [`VarIntStages::equality_jacobian`] of the midpoint scheme: each block of
     /// `(s_k, v_{k−1}, v_k)` seeded in turn through the generic momenta (ℓ's gradient in
-    /// nested duals, or the system's closed-form partials in duals), a velocity's pass evaluating only its interval's half of the
-    /// residual; the inputs by one pass through the forces.
+    /// nested duals, or the system's closed-form partials in duals), a velocity's pass
+    /// evaluating only its interval's half of the residual; the inputs by one pass through
+    /// the forces.
     #[allow(clippy::type_complexity)]
     fn midpoint_equality_jacobian<
         const DOF: usize,
