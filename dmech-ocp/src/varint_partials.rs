@@ -12,6 +12,20 @@ use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
 
+/// `(left, (s, v_{k−1}, u_{k−1}, v_k, u_k), (E_x, E_w))` of
+/// [`VarIntStages::interval_passes`].
+type IntervalPassArgs<'a, const NS: usize, const NU: usize, const NX: usize, const NW: usize> = (
+    bool,
+    (
+        &'a SVector<f64, NS>,
+        &'a SVector<f64, NS>,
+        &'a SVector<f64, NU>,
+        &'a SVector<f64, NS>,
+        &'a SVector<f64, NU>,
+    ),
+    (&'a mut SMatrix<f64, NS, NX>, &'a mut SMatrix<f64, NS, NW>),
+);
+
 impl<S> VarIntStages<'_, S> {
     /// `(e, E_x, E_w)`, exact, each block of `(s_k, v_{k−1}, u_{k−1}, v_k, u_k)` seeded only
     /// in the passes of the terms that read it: the outgoing momentum reads `(s_k, v_k)`,
@@ -128,31 +142,16 @@ impl<S> VarIntStages<'_, S> {
         // system too wide for the lane counts below.
         let shape_args = (&s, &v_prev, &u_prev, &v, &u);
         let lanes = NS + l.ns_kept();
-        let merged = match (left && right, lanes) {
-            (true, _) => false,
-            (false, 0..=4) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 4>(
-                left,
-                shape_args,
-                (&mut ex, &mut ew),
-            ),
-            (false, 5..=6) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 6>(
-                left,
-                shape_args,
-                (&mut ex, &mut ew),
-            ),
-            (false, 7..=8) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 8>(
-                left,
-                shape_args,
-                (&mut ex, &mut ew),
-            ),
-            (false, _) => false,
-        };
-        if !merged {
-            self.separate_passes::<DOF, DIM, NS, NU, NX, NW>(
+        let args = (left, shape_args, (&mut ex, &mut ew));
+        match (left && right, lanes) {
+            (false, 0..=4) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 4>(args),
+            (false, 5..=6) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 6>(args),
+            (false, 7..=8) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 8>(args),
+            _ => self.separate_passes::<DOF, DIM, NS, NU, NX, NW>(
                 (left, right),
                 shape_args,
                 (&mut ex, &mut ew),
-            );
+            ),
         }
         // The inputs enter through the force only.
         if left {
@@ -183,8 +182,7 @@ impl<S> VarIntStages<'_, S> {
     /// The velocity blocks and the shape columns of `E_x`, `E_w` by one pass per interval
     /// of `N ≥ NS + kept` dual lanes: the interval's velocity in lanes `0..NS`, the carried
     /// shape coordinates in lanes `NS..NS + kept` (in state order). The force is read at
-    /// the left point if `left`, otherwise at the right one. `false` (nothing written) if
-    /// the lanes do not fit.
+    /// the left point if `left`, otherwise at the right one.
     #[allow(clippy::type_complexity)]
     fn interval_passes<
         const DOF: usize,
@@ -196,24 +194,16 @@ impl<S> VarIntStages<'_, S> {
         const N: usize,
     >(
         &self,
-        left: bool,
-        (s, v_prev, u_prev, v, u): (
-            &SVector<f64, NS>,
-            &SVector<f64, NS>,
-            &SVector<f64, NU>,
-            &SVector<f64, NS>,
-            &SVector<f64, NU>,
-        ),
-        (ex, ew): (&mut SMatrix<f64, NS, NX>, &mut SMatrix<f64, NS, NW>),
-    ) -> bool
-    where
+        (left, (s, v_prev, u_prev, v, u), (ex, ew)): IntervalPassArgs<'_, NS, NU, NX, NW>,
+    ) where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
         let l = self.layout;
         let kept = l.ns_kept();
-        if NS + kept > N {
-            return false;
-        }
+        assert!(
+            NS + kept <= N,
+            "a dual lane for each velocity and carried shape coordinate"
+        );
         let s_at = l.s_at();
         let sd = SVector::<D<N>, NS>::from_fn(|i, _| match l.shape_slot(i) {
             Some(at) => {
@@ -255,7 +245,6 @@ impl<S> VarIntStages<'_, S> {
                 ex[(i, s_at + j - NS)] = gp[j] + gc[j];
             }
         }
-        true
     }
 
     /// The shape and velocity columns of `E_x`, `E_w` by a pass per block: the carried

@@ -81,6 +81,39 @@ where
     pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
 }
 
+/// `(ξ_{k−1}, dexp⁻¹(−hξ_{k−1}))` of the incoming momentum, `ξ_{k−1} = −A(s_{k−1}) v_{k−1}`:
+/// [`incoming_variation`]'s factors.
+fn incoming_factors<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    sys: &S,
+    h: f64,
+    s_prev: &SVector<T, NS>,
+    v_prev: &SVector<T, NS>,
+) -> (SVector<T, DOF>, SMatrix<T, DOF, DOF>)
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+{
+    let xi_prev = -(sys.connection(s_prev) * v_prev);
+    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * T::from(-h)));
+    (xi_prev, dinv)
+}
+
+/// `(ξ_k, dexp⁻¹(hξ_k))` of the outgoing momentum, `ξ_k = −A(s_k) v_k`:
+/// [`outgoing_variation`]'s factors.
+fn outgoing_factors<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    h: f64,
+    v_k: &SVector<T, NS>,
+    a_k: &SMatrix<T, DOF, NS>,
+) -> (SVector<T, DOF>, SMatrix<T, DOF, DOF>)
+where
+    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    T: Lift<S::Param>,
+{
+    let xi_k = -(a_k * v_k);
+    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * T::from(h)));
+    (xi_k, dinv)
+}
+
 /// `(ξ_{k−1}, D)` of the incoming momentum: `ξ_{k−1} = −A(s_{k−1}) v_{k−1}` and the
 /// variation `δξ = D ν`, `D = −dexp⁻¹(−hξ_{k−1}) A(s_k)`.
 pub fn incoming_variation<
@@ -101,8 +134,7 @@ where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
     T: Lift<S::Param>,
 {
-    let xi_prev = -(sys.connection(s_prev) * v_prev);
-    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * T::from(-h)));
+    let (xi_prev, dinv) = incoming_factors::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev);
     (xi_prev, -(dinv * a_k))
 }
 
@@ -123,8 +155,7 @@ where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
     T: Lift<S::Param>,
 {
-    let xi_k = -(a_k * v_k);
-    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * T::from(h)));
+    let (xi_k, dinv) = outgoing_factors::<S, T, DOF, DIM, NS, NU>(h, v_k, a_k);
     (xi_k, -(dinv * a_k))
 }
 
@@ -148,11 +179,9 @@ pub fn incoming_momentum_dual<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
-    // `incoming_variation`'s `(ξ, D)`, with `D = −dexp⁻¹ A` formed only without closed-form
-    // partials (with them, `pulled_back_partials_factored` never forms it).
-    let xi_prev = -(sys.connection(s_prev) * v_prev);
-    let dinv =
-        <S::Group<Dv<f64, N>> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * Dv::<f64, N>::from(-h)));
+    // `D = −dexp⁻¹ A` is formed only without closed-form partials (with them,
+    // `pulled_back_partials_factored` never needs it).
+    let (xi_prev, dinv) = incoming_factors::<S, _, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev);
     if let Some(partials) = sys.closed_form_lagrangian_gradient(s_prev, v_prev, &xi_prev) {
         return pulled_back_partials_factored(partials, 0.0, &dinv, a_k);
     }
@@ -179,10 +208,8 @@ pub fn outgoing_momentum_dual<
 where
     S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
 {
-    // `outgoing_variation`'s `(ξ, D)`, `D` formed only without closed-form partials.
-    let xi_k = -(a_k * v_k);
-    let dinv =
-        <S::Group<Dv<f64, N>> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * Dv::<f64, N>::from(h)));
+    // `D` formed only without closed-form partials.
+    let (xi_k, dinv) = outgoing_factors::<S, _, DOF, DIM, NS, NU>(h, v_k, a_k);
     if let Some(partials) = sys.closed_form_lagrangian_gradient(s_k, v_k, &xi_k) {
         return pulled_back_partials_factored(partials, -h, &dinv, a_k);
     }

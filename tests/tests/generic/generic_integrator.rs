@@ -111,3 +111,29 @@ fn shape_dependent_connection_energy_and_convergence() {
     println!("VI configuration errors {errs:?}, order {order:.3}");
     assert!((order - 1.0).abs() < 0.2, "order {order}");
 }
+
+/// `dmech::partials::pulled_back_partials_factored` (`∂ℓ/∂ξ` contracted with `dexp⁻ᵀ`
+/// first, then `−Aᵀ`) against the momentum written with `D = −dexp⁻¹ A` formed:
+/// `∂ℓ/∂v + c ∂ℓ/∂s + Dᵀ ∂ℓ/∂ξ`, on random blocks. The same sums in another order: each
+/// entry sums at most 11 terms whose magnitudes add to less than 0.5 + 0.025 + 9·0.125 <
+/// 1.7, so either order errs by at most 11·ε·1.7.
+#[test]
+fn factored_momentum_equals_the_one_through_d() {
+    use dmech::partials::pulled_back_partials_factored;
+    use dmech_tests::random_system::Lcg;
+    use nalgebra::SMatrix;
+    let mut rng = Lcg(0x5EED);
+    for _ in 0..100 {
+        let ls = SVector::<f64, 4>::from_fn(|_, _| rng.uniform());
+        let lv = SVector::<f64, 4>::from_fn(|_, _| rng.uniform());
+        let lxi = SVector::<f64, 3>::from_fn(|_, _| rng.uniform());
+        let dinv = SMatrix::<f64, 3, 3>::from_fn(|_, _| rng.uniform());
+        let a = SMatrix::<f64, 3, 4>::from_fn(|_, _| rng.uniform());
+        for c in [0.0, -0.05] {
+            let got = pulled_back_partials_factored((ls, lv, lxi), c, &dinv, &a);
+            let d = -(dinv * a);
+            let want = lv + ls * c + d.transpose() * lxi;
+            assert!((got - want).amax() <= 2.0 * 11.0 * 1.7 * f64::EPSILON);
+        }
+    }
+}
