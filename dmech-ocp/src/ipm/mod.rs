@@ -60,7 +60,7 @@ use kkt_error::{KktError, StageAux};
 use line_search::LineSearch;
 pub use options::{IpOptions, KktMethod, Status, Timings};
 pub use parallel::STAGE_THREAD_STACK;
-use parallel::{par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
+use parallel::{par_collect, par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
 use quasi_newton::QuasiNewton;
 use restoration::Restored;
 

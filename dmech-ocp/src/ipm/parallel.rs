@@ -56,6 +56,17 @@ pub(super) fn par_resize<R: Send, F: Fn(usize) -> R + Sync>(
     unsafe { v.set_len(n) };
 }
 
+/// `(0..len).map(f).collect()` built on `threads` threads ([`par_resize`]).
+pub(super) fn par_collect<R: Send, F: Fn(usize) -> R + Sync>(
+    len: usize,
+    threads: usize,
+    f: F,
+) -> Vec<R> {
+    let mut v = Vec::with_capacity(len);
+    par_resize(&mut v, len, threads, f);
+    v
+}
+
 /// Stages per work item of the parallel loops: small enough that two threads finish
 /// together (stage costs differ, e.g. where the friction saturates), large enough that
 /// taking an item costs nothing against its work.

@@ -145,38 +145,34 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         // Per stage (δw, δt_lo, δt_hi, δz_lo, δz_hi), in parallel.
         type StageStep<const NW: usize, const NC: usize> =
             (SVector<f64, NW>, [SVector<f64, NC>; 4]);
-        let mut per_stage: Vec<StageStep<NW, NC>> =
-            vec![(SVector::zeros(), [SVector::zeros(); 4]); n];
-        par_update(
-            &mut per_stage,
-            self.opts.threads,
-            |k, (dwk, [dt_lo, dt_hi, dz_lo, dz_hi])| {
-                let c = &elim[k];
-                *dwk = c.w0 + c.wx * dx[k] + c.wu * du[k];
-                if let Some(g) = dw_globals {
-                    *dwk += g[k];
+        let per_stage: Vec<StageStep<NW, NC>> = par_collect(n, self.opts.threads, |k| {
+            let c = &elim[k];
+            let mut dwk = c.w0 + c.wx * dx[k] + c.wu * du[k];
+            if let Some(g) = dw_globals {
+                dwk += g[k];
+            }
+            let d = &ders[k];
+            let cd = d.cx * dx[k] + d.cw * dwk;
+            let b = &self.bounds[k];
+            let [mut dt_lo, mut dt_hi, mut dz_lo, mut dz_hi] = [SVector::zeros(); 4];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
+                    dt_lo[i] = cd[i] + r;
+                    dz_lo[i] = mu / it.t_lo[k][i]
+                        - it.z_lo[k][i]
+                        - it.z_lo[k][i] / it.t_lo[k][i] * dt_lo[i];
                 }
-                let d = &ders[k];
-                let cd = d.cx * dx[k] + d.cw * *dwk;
-                let b = &self.bounds[k];
-                for i in 0..NC {
-                    if b.has_lo[i] > 0.0 {
-                        let r = d.c[i] - b.lo[i] - it.t_lo[k][i];
-                        dt_lo[i] = cd[i] + r;
-                        dz_lo[i] = mu / it.t_lo[k][i]
-                            - it.z_lo[k][i]
-                            - it.z_lo[k][i] / it.t_lo[k][i] * dt_lo[i];
-                    }
-                    if b.has_hi[i] > 0.0 {
-                        let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
-                        dt_hi[i] = r - cd[i];
-                        dz_hi[i] = mu / it.t_hi[k][i]
-                            - it.z_hi[k][i]
-                            - it.z_hi[k][i] / it.t_hi[k][i] * dt_hi[i];
-                    }
+                if b.has_hi[i] > 0.0 {
+                    let r = b.hi[i] - d.c[i] - it.t_hi[k][i];
+                    dt_hi[i] = r - cd[i];
+                    dz_hi[i] = mu / it.t_hi[k][i]
+                        - it.z_hi[k][i]
+                        - it.z_hi[k][i] / it.t_hi[k][i] * dt_hi[i];
                 }
-            },
-        );
+            }
+            (dwk, [dt_lo, dt_hi, dz_lo, dz_hi])
+        });
         let dw = per_stage.iter().map(|s| s.0).collect();
         let dt_lo = per_stage.iter().map(|s| s.1[0]).collect();
         let dt_hi = per_stage.iter().map(|s| s.1[1]).collect();
