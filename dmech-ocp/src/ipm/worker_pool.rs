@@ -4,8 +4,8 @@
 //! points' values, the step's recovery) and a pipelined factorisation. Scoped threads
 //! started for each cost a thread's creation and its fresh stack pages each time: about
 //! 280 thread starts on the eight (some 100 loops of two threads, 77 factorisations of
-//! one). Kept workers wait on a condition variable instead, and the calling thread works
-//! as one of them.
+//! one). Kept workers wait on a condition variable instead (after a short spin, [`SPIN`]),
+//! and the calling thread works as one of them.
 //!
 //! One loop at a time uses the pool; a loop started while it is busy (another solver's
 //! thread, or a loop inside a loop) runs on scoped threads of its own, as before.
