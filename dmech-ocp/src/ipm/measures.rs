@@ -117,14 +117,14 @@ impl Default for LogSum {
     }
 }
 
-const MANTISSA_BITS: u64 = (1 << 52) - 1;
+const MANTISSA_MASK: u64 = (1 << 52) - 1;
 const EXPONENT_OF_ONE: u64 = 1023 << 52;
 
 /// `(m, e)` with `x = m 2^e`, `m ∈ [1, 2)`, for a positive normal `x`.
 fn split_binary(x: f64) -> (f64, i64) {
     let bits = x.to_bits();
     let e = (bits >> 52) as i64 - 1023;
-    (f64::from_bits((bits & MANTISSA_BITS) | EXPONENT_OF_ONE), e)
+    (f64::from_bits((bits & MANTISSA_MASK) | EXPONENT_OF_ONE), e)
 }
 
 impl LogSum {

@@ -54,18 +54,15 @@ struct Pool {
 /// 1.04 at 2 ms (a spinning core is not free on a shared virtual machine).
 const SPIN: Duration = Duration::from_micros(300);
 
-/// Spin until `done()` or [`SPIN`] has passed; whether `done()` held.
-fn spin_until(done: impl Fn() -> bool) -> bool {
+/// Spin until `done()` holds or [`SPIN`] has passed (the caller checks again under the lock).
+fn spin_until(done: impl Fn() -> bool) {
     let t0 = Instant::now();
-    loop {
+    while t0.elapsed() < SPIN {
         for _ in 0..64 {
             if done() {
-                return true;
+                return;
             }
             std::hint::spin_loop();
-        }
-        if t0.elapsed() >= SPIN {
-            return done();
         }
     }
 }
