@@ -33,6 +33,68 @@ pub(crate) struct Terms {
     pub(crate) force: bool,
 }
 
+impl Terms {
+    /// The whole residual.
+    pub(crate) const ALL: Terms = Terms {
+        outgoing: true,
+        incoming: true,
+        force: true,
+    };
+    /// The force alone (the only term that reads the inputs).
+    pub(crate) const FORCE: Terms = Terms {
+        outgoing: false,
+        incoming: false,
+        force: true,
+    };
+
+    /// The terms of the interval before the node: the incoming momentum, and the force if
+    /// it reads that interval.
+    pub(crate) fn previous_interval(force: bool) -> Terms {
+        Terms {
+            outgoing: false,
+            incoming: true,
+            force,
+        }
+    }
+
+    /// The terms of the interval after the node: the outgoing momentum, and the force if
+    /// it reads that interval.
+    pub(crate) fn current_interval(force: bool) -> Terms {
+        Terms {
+            outgoing: true,
+            incoming: false,
+            force,
+        }
+    }
+}
+
+/// The blocks of `(x_k, w_k)` the stage equality reads: `s_k`, `v_{k−1}`, `u_{k−1}` from the
+/// state, `v_k`, `u_k` from the decision (the group coordinates it never reads).
+pub(crate) struct NodePoint<T: nalgebra::Scalar, const NS: usize, const NU: usize> {
+    pub(crate) s: SVector<T, NS>,
+    pub(crate) v_prev: SVector<T, NS>,
+    pub(crate) u_prev: SVector<T, NU>,
+    pub(crate) v: SVector<T, NS>,
+    pub(crate) u: SVector<T, NU>,
+}
+
+impl<T: Real, const NS: usize, const NU: usize> NodePoint<T, NS, NU> {
+    /// The blocks of `(x, w)` in `layout` (`w` starts with `(v_k, u_k)`).
+    pub(crate) fn of<const NX: usize, const NW: usize>(
+        layout: Layout,
+        x: &SVector<T, NX>,
+        w: &SVector<T, NW>,
+    ) -> Self {
+        NodePoint {
+            s: layout.shape(x),
+            v_prev: segment(x, layout.v_at()),
+            u_prev: segment(x, layout.u_at()),
+            v: segment(w, 0),
+            u: segment(w, NS),
+        }
+    }
+}
+
 /// The stage functions of the VI transcription of `sys` at step `h`.
 #[derive(Clone, Copy)]
 pub struct VarIntStages<'a, S> {
@@ -226,13 +288,14 @@ impl<'a, S> VarIntStages<'a, S> {
     where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
-        let l = self.layout;
-        l.check(NX, NW, NS + NU);
-        let s: SVector<T, NS> = l.shape(x);
-        let v_prev: SVector<T, NS> = segment(x, l.v_at());
-        let u_prev: SVector<T, NU> = segment(x, l.u_at());
-        let v: SVector<T, NS> = segment(w, 0);
-        let u: SVector<T, NU> = segment(w, NS);
+        self.layout.check(NX, NW, NS + NU);
+        let NodePoint {
+            s,
+            v_prev,
+            u_prev,
+            v,
+            u,
+        } = NodePoint::<T, NS, NU>::of(self.layout, x, w);
         let s_prev = s - v_prev * T::from(self.h);
         if self.discretisation == Discretisation::Midpoint {
             return midpoint_momentum_matching_residual::<S, T, DOF, DIM, NS, NU>(

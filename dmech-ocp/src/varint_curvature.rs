@@ -21,7 +21,7 @@ use crate::layout::segment;
 use crate::varint::{Terms, VarIntStages};
 use dmech::partials::pulled_back_directional;
 use dmech::variational::{discrete_force, incoming_variation, outgoing_variation};
-use dmech::{ForcingQuadrature, PrincipalKinematicSystem};
+use dmech::PrincipalKinematicSystem;
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Dual2SVec64, HyperDualSVec64};
@@ -144,26 +144,10 @@ impl<S> VarIntStages<'_, S> {
         // (v_{k−1}, u_{k−1}) are adjacent in the state, in w's order.
         let p: SVector<f64, NW> = segment(x, l.v_at());
         let q = *w;
-        let (left, right) = match self.quadrature {
-            ForcingQuadrature::Left => (true, false),
-            ForcingQuadrature::Right => (false, true),
-            ForcingQuadrature::Midpoint => (true, true),
-        };
-        let every = Terms {
-            outgoing: true,
-            incoming: true,
-            force: true,
-        };
-        let prev = Terms {
-            outgoing: false,
-            incoming: true,
-            force: left,
-        };
-        let cur = Terms {
-            outgoing: true,
-            incoming: false,
-            force: right,
-        };
+        let (left, right) = self.quadrature.ends();
+        let every = Terms::ALL;
+        let prev = Terms::previous_interval(left);
+        let cur = Terms::current_interval(right);
         type D2<const N: usize> = Dual2SVec64<N>;
         let hss = hess2(&self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
             every,
@@ -206,11 +190,7 @@ impl<S> VarIntStages<'_, S> {
         ));
         // p and q meet only in a force that reads both intervals.
         let hpq = if left && right {
-            let force = Terms {
-                outgoing: false,
-                incoming: false,
-                force: true,
-            };
+            let force = Terms::FORCE;
             let (ph, qh) = seed_hyper(&p, &q);
             self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
                 force,

@@ -4,27 +4,13 @@
 //! of the step, or separate passes), the group coordinates never
 //! (`docs/ocp.md`, "Derivatives").
 
-use crate::layout::{segment, Layout};
-use crate::varint::{Terms, VarIntStages, D};
+use crate::layout::Layout;
+use crate::varint::{NodePoint, Terms, VarIntStages, D};
 use dmech::midpoint::{interval_force, midpoint_incoming_momentum, midpoint_outgoing_momentum};
 use dmech::partials::{grad_part, lift_vec, seeded, seeded_from};
-use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
+use dmech::{Discretisation, PrincipalKinematicSystem};
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
-
-/// `(left, (s, v_{k−1}, u_{k−1}, v_k, u_k), (E_x, E_w))` of
-/// [`VarIntStages::interval_passes`].
-type IntervalPassArgs<'a, const NS: usize, const NU: usize, const NX: usize, const NW: usize> = (
-    bool,
-    (
-        &'a SVector<f64, NS>,
-        &'a SVector<f64, NS>,
-        &'a SVector<f64, NU>,
-        &'a SVector<f64, NS>,
-        &'a SVector<f64, NU>,
-    ),
-    (&'a mut SMatrix<f64, NS, NX>, &'a mut SMatrix<f64, NS, NW>),
-);
 
 impl<S> VarIntStages<'_, S> {
     /// `(e, E_x, E_w)`, exact, each block of `(s_k, v_{k−1}, u_{k−1}, v_k, u_k)` seeded only
@@ -113,23 +99,10 @@ impl<S> VarIntStages<'_, S> {
             "the first-order scheme's partials, with (v_k, u_k) leading the decision"
         );
         let l = self.layout;
-        let s: SVector<f64, NS> = l.shape(x);
-        let v_prev: SVector<f64, NS> = segment(x, l.v_at());
-        let u_prev: SVector<f64, NU> = segment(x, l.u_at());
-        let v: SVector<f64, NS> = segment(w, 0);
-        let u: SVector<f64, NU> = segment(w, NS);
+        let p = NodePoint::<f64, NS, NU>::of(l, x, w);
         let mut ex = SMatrix::<f64, NS, NX>::zeros();
         let mut ew = SMatrix::<f64, NS, NW>::zeros();
-        let (left, right) = match self.quadrature {
-            ForcingQuadrature::Left => (true, false),
-            ForcingQuadrature::Right => (false, true),
-            ForcingQuadrature::Midpoint => (true, true),
-        };
-        let terms = |outgoing, incoming, force| Terms {
-            outgoing,
-            incoming,
-            force,
-        };
+        let (left, right) = self.quadrature.ends();
         // With the force at one end of the step, each term of the residual reads one
         // interval: the incoming momentum (and a left-point force) the previous one, the
         // outgoing momentum (and a right-point force) the current one. One pass per
@@ -140,39 +113,41 @@ impl<S> VarIntStages<'_, S> {
         // sixth of the partials' instructions). A midpoint force reads both intervals and
         // would count its shape derivative twice: it keeps the separate passes, as does a
         // system too wide for the lane counts below.
-        let shape_args = (&s, &v_prev, &u_prev, &v, &u);
         let lanes = NS + l.ns_kept();
-        let args = (left, shape_args, (&mut ex, &mut ew));
+        let blocks = (&mut ex, &mut ew);
         match (left && right, lanes) {
-            (false, 0..=4) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 4>(args),
-            (false, 5..=6) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 6>(args),
-            (false, 7..=8) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 8>(args),
-            _ => self.separate_passes::<DOF, DIM, NS, NU, NX, NW>(
-                (left, right),
-                shape_args,
-                (&mut ex, &mut ew),
-            ),
+            (false, 0..=4) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 4>(left, &p, blocks),
+            (false, 5..=6) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 6>(left, &p, blocks),
+            (false, 7..=8) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 8>(left, &p, blocks),
+            _ => self.separate_passes::<DOF, DIM, NS, NU, NX, NW>((left, right), &p, blocks),
         }
         // The inputs enter through the force only.
+        let (ls, lvp, lup, lv, lu) = (
+            lift_vec(&p.s),
+            lift_vec(&p.v_prev),
+            lift_vec(&p.u_prev),
+            lift_vec(&p.v),
+            lift_vec(&p.u),
+        );
         if left {
             let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
-                terms(false, false, true),
-                &lift_vec(&s),
-                &lift_vec(&v_prev),
-                &seeded(&u_prev),
-                &lift_vec(&v),
-                &lift_vec(&u),
+                Terms::FORCE,
+                &ls,
+                &lvp,
+                &seeded(&p.u_prev),
+                &lv,
+                &lu,
             );
             put_columns(&mut ex, l.u_at(), &r);
         }
         if right {
             let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
-                terms(false, false, true),
-                &lift_vec(&s),
-                &lift_vec(&v_prev),
-                &lift_vec(&u_prev),
-                &lift_vec(&v),
-                &seeded(&u),
+                Terms::FORCE,
+                &ls,
+                &lvp,
+                &lup,
+                &lv,
+                &seeded(&p.u),
             );
             put_columns(&mut ew, NS, &r);
         }
@@ -194,7 +169,9 @@ impl<S> VarIntStages<'_, S> {
         const N: usize,
     >(
         &self,
-        (left, (s, v_prev, u_prev, v, u), (ex, ew)): IntervalPassArgs<'_, NS, NU, NX, NW>,
+        left: bool,
+        p: &NodePoint<f64, NS, NU>,
+        (ex, ew): (&mut SMatrix<f64, NS, NX>, &mut SMatrix<f64, NS, NW>),
     ) where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
@@ -204,52 +181,44 @@ impl<S> VarIntStages<'_, S> {
             NS + kept <= N,
             "a dual lane for each velocity and carried shape coordinate"
         );
-        let s_at = l.s_at();
-        let sd = SVector::<D<N>, NS>::from_fn(|i, _| match l.shape_slot(i) {
-            Some(at) => {
-                let mut e = SVector::<f64, N>::zeros();
-                e[NS + at - s_at] = 1.0;
-                D::<N>::new(s[i], num_dual::Derivative::some(e))
-            }
-            None => D::<N>::from_re(s[i]),
-        });
-        let terms = |outgoing, incoming, force| Terms {
-            outgoing,
-            incoming,
-            force,
-        };
-        // The previous interval: the incoming momentum, and a left-point force.
+        let sd = carried_shape_seeded::<NS, N>(l, &p.s, NS);
+        let (lvp, lup, lv, lu) = (
+            lift_vec(&p.v_prev),
+            lift_vec(&p.u_prev),
+            lift_vec(&p.v),
+            lift_vec(&p.u),
+        );
         let previous = self.equality_terms::<DOF, DIM, NS, NU, N>(
-            terms(false, true, left),
+            Terms::previous_interval(left),
             &sd,
-            &seeded_from(v_prev, 0),
-            &lift_vec(u_prev),
-            &lift_vec(v),
-            &lift_vec(u),
+            &seeded_from(&p.v_prev, 0),
+            &lup,
+            &lv,
+            &lu,
         );
-        // The current interval: the outgoing momentum, and a right-point force.
         let current = self.equality_terms::<DOF, DIM, NS, NU, N>(
-            terms(true, false, !left),
+            Terms::current_interval(!left),
             &sd,
-            &lift_vec(v_prev),
-            &lift_vec(u_prev),
-            &seeded_from(v, 0),
-            &lift_vec(u),
+            &lvp,
+            &lup,
+            &seeded_from(&p.v, 0),
+            &lu,
         );
-        let (v_at, shape_lane) = (l.v_at(), |j: usize| (NS..NS + kept).contains(&j));
+        let (s_at, v_at) = (l.s_at(), l.v_at());
         put_columns_by(ex, &previous, |j| (j < NS).then_some(v_at + j));
         put_columns_by(ew, &current, |j| (j < NS).then_some(j));
         for i in 0..NS {
             let (gp, gc) = (grad_part(&previous[i]), grad_part(&current[i]));
-            for j in (0..N).filter(|&j| shape_lane(j)) {
+            for j in NS..NS + kept {
                 ex[(i, s_at + j - NS)] = gp[j] + gc[j];
             }
         }
     }
 
     /// The shape and velocity columns of `E_x`, `E_w` by a pass per block: the carried
-    /// shape coordinates through every term ([`VarIntStages::carried_shape_pass`]), then
-    /// each velocity through the terms that read it.
+    /// shape coordinates through every term (lanes `0..kept` of an `NS`-lane pass; the
+    /// lanes are independent, so its width changes no bit of the kept columns), then each
+    /// velocity through the terms that read it.
     #[allow(clippy::type_complexity)]
     fn separate_passes<
         const DOF: usize,
@@ -261,100 +230,53 @@ impl<S> VarIntStages<'_, S> {
     >(
         &self,
         (left, right): (bool, bool),
-        shape_args: (
-            &SVector<f64, NS>,
-            &SVector<f64, NS>,
-            &SVector<f64, NU>,
-            &SVector<f64, NS>,
-            &SVector<f64, NU>,
-        ),
+        p: &NodePoint<f64, NS, NU>,
         (ex, ew): (&mut SMatrix<f64, NS, NX>, &mut SMatrix<f64, NS, NW>),
     ) where
         S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
     {
         let l = self.layout;
-        let (s, v_prev, u_prev, v, u) = shape_args;
-        let terms = |outgoing, incoming, force| Terms {
-            outgoing,
-            incoming,
-            force,
-        };
+        let kept = l.ns_kept();
+        let (ls, lvp, lup, lv, lu) = (
+            lift_vec(&p.s),
+            lift_vec(&p.v_prev),
+            lift_vec(&p.u_prev),
+            lift_vec(&p.v),
+            lift_vec(&p.u),
+        );
         // s_k: every term, seeded in the carried coordinates only (an ignored one's column
-        // has no place in the state). The lanes are independent, so a pass as wide as the
-        // shape changes no bit of the kept columns against a narrower one.
-        if l.ns_kept() > 0 {
-            self.carried_shape_pass::<DOF, DIM, NS, NU, NX>(shape_args, ex);
+        // has no place in the state).
+        if kept > 0 {
+            let r = self.equality_terms::<DOF, DIM, NS, NU, NS>(
+                Terms::ALL,
+                &carried_shape_seeded::<NS, NS>(l, &p.s, 0),
+                &lvp,
+                &lup,
+                &lv,
+                &lu,
+            );
+            put_columns_by(ex, &r, |j| (j < kept).then_some(l.s_at() + j));
         }
         // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
-        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
-            terms(false, true, left),
-            &lift_vec(s),
-            &seeded(v_prev),
-            &lift_vec(u_prev),
-            &lift_vec(v),
-            &lift_vec(u),
+        let r = self.equality_terms::<DOF, DIM, NS, NU, NS>(
+            Terms::previous_interval(left),
+            &ls,
+            &seeded(&p.v_prev),
+            &lup,
+            &lv,
+            &lu,
         );
         put_columns(ex, l.v_at(), &r);
         // v_k: the outgoing momentum, and the force if it reads the current interval.
-        let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
-            terms(true, false, right),
-            &lift_vec(s),
-            &lift_vec(v_prev),
-            &lift_vec(u_prev),
-            &seeded(v),
-            &lift_vec(u),
+        let r = self.equality_terms::<DOF, DIM, NS, NU, NS>(
+            Terms::current_interval(right),
+            &ls,
+            &lvp,
+            &lup,
+            &seeded(&p.v),
+            &lu,
         );
         put_columns(ew, 0, &r);
-    }
-
-    /// The shape columns of `E_x`: every term of the residual in one pass of `NS` dual
-    /// lanes, the carried shape coordinates seeded in the first [`Layout::ns_kept`] of them
-    /// (in state order), the ignored ones constant.
-    #[allow(clippy::type_complexity)]
-    fn carried_shape_pass<
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-        const NX: usize,
-    >(
-        &self,
-        (s, v_prev, u_prev, v, u): (
-            &SVector<f64, NS>,
-            &SVector<f64, NS>,
-            &SVector<f64, NU>,
-            &SVector<f64, NS>,
-            &SVector<f64, NU>,
-        ),
-        ex: &mut SMatrix<f64, NS, NX>,
-    ) where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
-    {
-        let l = self.layout;
-        let kept = l.ns_kept();
-        let s_at = l.s_at();
-        let sd = SVector::<D<NS>, NS>::from_fn(|i, _| match l.shape_slot(i) {
-            Some(at) => {
-                let mut e = SVector::<f64, NS>::zeros();
-                e[at - s_at] = 1.0;
-                D::<NS>::new(s[i], num_dual::Derivative::some(e))
-            }
-            None => D::<NS>::from_re(s[i]),
-        });
-        let all = Terms {
-            outgoing: true,
-            incoming: true,
-            force: true,
-        };
-        let r = self.equality_terms::<DOF, DIM, NS, NU, NS>(
-            all,
-            &sd,
-            &lift_vec(v_prev),
-            &lift_vec(u_prev),
-            &lift_vec(v),
-            &lift_vec(u),
-        );
-        put_columns_by(ex, &r, |j| (j < kept).then_some(s_at + j));
     }
 
     /// [`VarIntStages::equality_jacobian`] of the midpoint scheme: each block of
@@ -380,11 +302,13 @@ impl<S> VarIntStages<'_, S> {
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
-        let s: SVector<f64, NS> = l.shape(x);
-        let v_prev: SVector<f64, NS> = segment(x, l.v_at());
-        let u_prev: SVector<f64, NU> = segment(x, l.u_at());
-        let v: SVector<f64, NS> = segment(w, 0);
-        let u: SVector<f64, NU> = segment(w, NS);
+        let NodePoint {
+            s,
+            v_prev,
+            u_prev,
+            v,
+            u,
+        } = NodePoint::<f64, NS, NU>::of(l, x, w);
         let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
         let mut ex = SMatrix::<f64, NS, NX>::zeros();
         let mut ew = SMatrix::<f64, NS, NW>::zeros();
@@ -521,4 +445,21 @@ fn put_shape_columns<const R: usize, const C: usize, const NS: usize>(
     r: &SVector<DualSVec64<NS>, R>,
 ) {
     put_columns_by(m, r, |j| l.shape_slot(j));
+}
+
+/// `s` in `N`-lane duals with the carried coordinates seeded in lanes
+/// `first_lane..first_lane + kept` (in state order) and the ignored ones constant.
+fn carried_shape_seeded<const NS: usize, const N: usize>(
+    l: Layout,
+    s: &SVector<f64, NS>,
+    first_lane: usize,
+) -> SVector<D<N>, NS> {
+    SVector::from_fn(|i, _| match l.shape_slot(i) {
+        Some(at) => {
+            let mut e = SVector::<f64, N>::zeros();
+            e[first_lane + at - l.s_at()] = 1.0;
+            D::<N>::new(s[i], num_dual::Derivative::some(e))
+        }
+        None => D::<N>::from_re(s[i]),
+    })
 }

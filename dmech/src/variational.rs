@@ -40,6 +40,18 @@ pub enum ForcingQuadrature {
     Midpoint,
 }
 
+impl ForcingQuadrature {
+    /// Which ends of the step the force reads: `(left, right)`, the node before (`k − 1`)
+    /// and the node itself (`k`).
+    pub fn ends(self) -> (bool, bool) {
+        match self {
+            ForcingQuadrature::Left => (true, false),
+            ForcingQuadrature::Right => (false, true),
+            ForcingQuadrature::Midpoint => (true, true),
+        }
+    }
+}
+
 impl std::str::FromStr for ForcingQuadrature {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
