@@ -6,7 +6,7 @@
 //! do not read (docs/ocp.md, "What is left"). Random stages, 4235 of them (the eight at
 //! 5 ms), so that each pass streams its data as the solver's does.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use dmech_ocp::riccati::{BackwardSweep, LqStage};
+use dmech_ocp::solver::riccati::{BackwardSweep, LqStage};
 use nalgebra::{SMatrix, SVector};
 use std::hint::black_box;
 

@@ -26,22 +26,9 @@
 //! All stage functions are generic over the scalar, so their exact Jacobians and Hessians
 //! come from dual numbers, stage by stage. The design is written up in `docs/ocp.md`.
 
-pub mod derivatives;
-pub mod free_timing;
-pub mod global_riccati;
-mod huge_pages;
-pub mod ipm;
-pub mod kinematic_start;
-pub mod layout;
-pub mod problem;
-pub mod refine;
-pub mod riccati;
-pub mod runge_kutta;
-pub mod sequencing;
-pub mod sparse_kkt;
+pub mod nlp;
+pub mod solver;
 #[cfg(test)]
 mod test_rng;
+pub mod toolkit;
 pub mod transcription;
-pub mod varint;
-mod varint_curvature;
-mod varint_partials;

@@ -164,7 +164,7 @@ pub trait PrincipalKinematicSystem<
     /// most through a total time derivative (a term `c(s) ṡ_j`-like coupling whose change
     /// under `s_j → s_j + const` is exact), so that the momentum-matching residual does not
     /// either. A transcription may leave their positions out of its state
-    /// (`dmech_ocp::layout::Layout::ignoring`). Default: none.
+    /// (`dmech_ocp::transcription::layout::Layout::ignoring`). Default: none.
     fn ignorable_shape(&self) -> &'static [usize] {
         &[]
     }

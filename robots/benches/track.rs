@@ -3,7 +3,7 @@
 //! 50-Hz poses arriving late), the nominal plant by RK4 with 10 substeps per 5-ms sample.
 //! Real-time factor = 30 s / the measured time (docs/tracking.md).
 use criterion::{criterion_group, criterion_main, Criterion};
-use dmech_ocp::ipm::IpOptions;
+use dmech_ocp::solver::IpOptions;
 use robots::wip::benchmarks;
 use robots::wip::plan::{plan, CurrentModel, PlanBounds, Transcription};
 use robots::wip::plan_report::reduced_trajectory;
@@ -34,7 +34,7 @@ fn reference() -> Trajectory {
         opts,
     );
     assert!(
-        matches!(o.status, dmech_ocp::ipm::Status::Solved),
+        matches!(o.status, dmech_ocp::solver::Status::Solved),
         "the eight at 20 ms: {:?}",
         o.status
     );

@@ -1,6 +1,6 @@
 // Temporary experiment (not committed): iteration counts with the exact Hessian.
 use dmech::Discretisation;
-use dmech_ocp::ipm::IpOptions;
+use dmech_ocp::solver::IpOptions;
 use robots::wip::benchmarks::{eight, zigzag};
 use robots::wip::plan::{plan, CurrentModel, PlanBounds, Transcription};
 use robots::wip::{Wip, WipParams};

@@ -1,5 +1,5 @@
 //! A robot's planning problem in typed terms, and its transcription into a
-//! [`StageProblem`](crate::problem::StageProblem) for every discretisation: the first-order and midpoint variational
+//! [`StageProblem`](crate::nlp::StageProblem) for every discretisation: the first-order and midpoint variational
 //! integrators ([`VarIntTranscription`]) and RK1/2/4 ([`RkTranscription`]).
 //!
 //! A robot supplies a [`PlanningProblem`]: its cost and path constraints over a [`Stage`]
@@ -25,7 +25,7 @@
 //! ```
 //! use dmech::{Discretisation, Lift, PrincipalKinematicSystem};
 //! use dmech_lie::{Real, Se2};
-//! use dmech_ocp::ipm::{IpOptions, Solver, Status};
+//! use dmech_ocp::solver::{IpOptions, Solver, Status};
 //! use dmech_ocp::transcription::*;
 //! use nalgebra::{SMatrix, SVector};
 //!
@@ -88,9 +88,11 @@
 //! assert!((plan.stages[n].pose[0] - 1.0).abs() < 1e-8);
 //! ```
 
+pub mod free_timing;
+pub mod layout;
 mod problem;
-mod rk;
-mod varint;
+pub mod runge_kutta;
+pub mod variational;
 pub use problem::*;
-pub use rk::RkTranscription;
-pub use varint::VarIntTranscription;
+pub use runge_kutta::RkTranscription;
+pub use variational::VarIntTranscription;

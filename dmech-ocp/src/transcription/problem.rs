@@ -2,8 +2,8 @@
 //! trajectory, [`Condition`]s and the [`PlanningProblem`] trait a robot implements; where a
 //! quantity sits in a transcription's state.
 
-use crate::layout::Layout;
-use crate::problem::StateEquality;
+use crate::nlp::StateEquality;
+use crate::transcription::layout::Layout;
 use dmech_lie::Real;
 use nalgebra::SVector;
 
@@ -106,12 +106,12 @@ pub trait PlanningProblem<const NP: usize, const NS: usize, const NU: usize, con
     /// `true` if the cost is quadratic and the constraints affine in the stage's quantities
     /// (pose, shape, velocity, input, previous input). A transcription's stage vectors hold
     /// those quantities linearly, so the solver may compute the cost's curvature once per
-    /// stage ([`crate::problem::StageProblem::constant_cost_curvature`]). Default `false`.
+    /// stage ([`crate::nlp::StageProblem::constant_cost_curvature`]). Default `false`.
     fn quadratic_cost_affine_constraints(&self) -> bool {
         false
     }
     /// The running cost of stage `k` when its step is `ratio` times the nominal one (free
-    /// timing, [`crate::free_timing`]). Default: `ratio · cost`, a cost per stage being the
+    /// timing, [`crate::transcription::free_timing`]). Default: `ratio · cost`, a cost per stage being the
     /// rectangle rule of a running cost over the step (the same at `ratio = 1`).
     fn cost_at_step<T: Real>(&self, k: usize, stage: &Stage<T, NP, NS, NU>, ratio: T) -> T {
         self.cost(k, stage) * ratio

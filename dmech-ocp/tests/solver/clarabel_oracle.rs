@@ -9,8 +9,8 @@ use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, ZeroConeT,
 };
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, Solver, Status};
-use dmech_ocp::problem::{StageProblem, StateEquality};
+use dmech_ocp::nlp::{StageProblem, StateEquality};
+use dmech_ocp::solver::{IpOptions, Solver, Status};
 use nalgebra::SVector;
 
 /// A double integrator `x = (p, v)`, `w = u`, cost `½(u² + q_v v² + q_p p²)` per stage,

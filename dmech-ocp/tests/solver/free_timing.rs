@@ -5,8 +5,8 @@
 //! least-squares problem solved in closed form.
 
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, KktMethod, Solver, Status};
-use dmech_ocp::problem::{GlobalEquality, Globals, StageProblem, StateEquality};
+use dmech_ocp::nlp::{GlobalEquality, Globals, StageProblem, StateEquality};
+use dmech_ocp::solver::{IpOptions, KktMethod, Solver, Status};
 use nalgebra::{DMatrix, DVector, SVector};
 
 /// `x = (position, velocity)`, `w = (u, h)`: `h` is the step of the stage's phase.

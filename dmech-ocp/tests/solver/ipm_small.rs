@@ -1,8 +1,8 @@
 //! The interior point on small problems with known structure.
 
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, Solver, Status};
-use dmech_ocp::problem::{StageProblem, StateEquality};
+use dmech_ocp::nlp::{StageProblem, StateEquality};
+use dmech_ocp::solver::{IpOptions, Solver, Status};
 use nalgebra::SVector;
 
 /// A double integrator (position, velocity) driven by a bounded force, with a rate limit
@@ -191,7 +191,7 @@ fn a_final_barrier_stops_where_the_full_solve_leaves_it() {
     let (landed, _) = solve(Some(between), 500);
     assert_eq!(landed.status, Status::Solved);
     assert!(landed.iterations < full.iterations);
-    let mean_tz = |it: &dmech_ocp::ipm::Iterate<3, 1, 2>| {
+    let mean_tz = |it: &dmech_ocp::solver::Iterate<3, 1, 2>| {
         let pairs = it
             .t_lo
             .iter()

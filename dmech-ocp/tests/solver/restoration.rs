@@ -9,8 +9,8 @@ use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, ZeroConeT,
 };
 use dmech_lie::Real;
-use dmech_ocp::ipm::{IpOptions, Solver, Status};
-use dmech_ocp::problem::{StageProblem, StateEquality};
+use dmech_ocp::nlp::{StageProblem, StateEquality};
+use dmech_ocp::solver::{IpOptions, Solver, Status};
 use nalgebra::SVector;
 
 /// A double integrator `x = (p, v)`, `w = u`, `|u| ≤ u_max`, from rest at 0 to rest at
@@ -113,7 +113,7 @@ fn least_violation(p: &RestToRest, tol: f64) -> f64 {
     solver.solution.obj_val
 }
 
-fn solve(p: &RestToRest) -> dmech_ocp::ipm::SolveResult<2, 1, 1> {
+fn solve(p: &RestToRest) -> dmech_ocp::solver::SolveResult<2, 1, 1> {
     let s: Solver<2, 1, 0, 1, 1> = Solver::new(p, IpOptions::default());
     s.solve(s.initial_iterate(vec![SVector::zeros(); p.n + 1], vec![SVector::zeros(); p.n]))
 }
@@ -136,7 +136,10 @@ fn an_unreachable_end_state_is_reported_at_its_least_violation() {
 
 /// `r` is `far` reported infeasible after a restoration, at a point that meets the
 /// dynamics and the bounds and whose end-state violation is the least one.
-fn assert_reported_at_least_violation(far: &RestToRest, r: dmech_ocp::ipm::SolveResult<2, 1, 1>) {
+fn assert_reported_at_least_violation(
+    far: &RestToRest,
+    r: dmech_ocp::solver::SolveResult<2, 1, 1>,
+) {
     let (p_n, v_n) = (r.iterate.x[far.n][0], r.iterate.x[far.n][1]);
     let ours = 0.5 * ((p_n - far.target).powi(2) + v_n.powi(2));
     let best = least_violation(far, 1e-10);

@@ -16,8 +16,8 @@
 
 use dmech::{Discretisation, Lift, PrincipalKinematicSystem};
 use dmech_lie::{Real, Se2};
-use dmech_ocp::ipm::{IpOptions, Solver, Status};
-use dmech_ocp::kinematic_start::varint_start_from_path;
+use dmech_ocp::solver::{IpOptions, Solver, Status};
+use dmech_ocp::toolkit::kinematic_start::varint_start_from_path;
 use dmech_ocp::transcription::{
     Condition, PlanningProblem, Quantity, Stage, StartState, VarIntTranscription,
 };

@@ -9,11 +9,11 @@ use super::model::{Car, NS, NU};
 use super::problems::{CarProblem, Pose};
 use dmech::Discretisation;
 use dmech_lie::{LieGroup, Real, Se2};
-use dmech_ocp::ipm::{IpOptions, SolveResult, Status};
-use dmech_ocp::kinematic_start::varint_start_from_path;
-use dmech_ocp::layout::Layout;
-use dmech_ocp::problem::StageProblem;
-use dmech_ocp::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
+use dmech_ocp::nlp::StageProblem;
+use dmech_ocp::solver::{IpOptions, SolveResult, Status};
+use dmech_ocp::toolkit::kinematic_start::varint_start_from_path;
+use dmech_ocp::toolkit::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
+use dmech_ocp::transcription::layout::Layout;
 use dmech_ocp::transcription::{
     Condition, PlannedTrajectory, PlanningProblem, Quantity, Stage, StartState, VarIntTranscription,
 };
@@ -270,7 +270,7 @@ pub struct CarOutcome {
 }
 
 /// The car's plan on meshes of different steps, for
-/// [`dmech_ocp::sequencing::mesh_sequence`]: a mesh is a step, the start the kinematic one
+/// [`dmech_ocp::toolkit::sequencing::mesh_sequence`]: a mesh is a step, the start the kinematic one
 /// along [`start_path`].
 struct CarSequence<'p> {
     car: &'p Car,

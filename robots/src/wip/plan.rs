@@ -15,8 +15,8 @@ pub use super::plan_start::{polyline_start, rk_start, varint_start};
 use super::simulate::Integrator;
 use super::Wip;
 use dmech::{Discretisation, RungeKutta};
-use dmech_ocp::ipm::{IpOptions, SolveResult};
-use dmech_ocp::sequencing::{continuation, direct_or_continuation};
+use dmech_ocp::solver::{IpOptions, SolveResult};
+use dmech_ocp::toolkit::sequencing::{continuation, direct_or_continuation};
 use dmech_ocp::transcription::PlannedTrajectory as GenericTrajectory;
 use nalgebra::SVector;
 
@@ -82,11 +82,11 @@ impl std::str::FromStr for CurrentModel {
 
 /// A finished solve, transcription-independent.
 pub struct PlanOutcome {
-    pub status: dmech_ocp::ipm::Status,
+    pub status: dmech_ocp::solver::Status,
     pub iterations: usize,
     pub objective: f64,
     pub max_violation: f64,
-    pub timings: dmech_ocp::ipm::Timings,
+    pub timings: dmech_ocp::solver::Timings,
     pub trajectory: PlannedTrajectory,
     /// The stage times of a plan with free timing (`None`: `k h`).
     pub times: Option<Vec<f64>>,
@@ -149,7 +149,7 @@ pub(super) fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const 
 
 /// Plan with the given transcription and current model from the polyline start.
 ///
-/// VI plans run by mesh sequencing ([`dmech_ocp::sequencing::mesh_sequence`]): the coarsest mesh, and an RK plan,
+/// VI plans run by mesh sequencing ([`dmech_ocp::toolkit::sequencing::mesh_sequence`]): the coarsest mesh, and an RK plan,
 /// are solved in two phases: the problem with a gentler Coulomb friction (`d_0 = 1 s/rad` instead of 8:
 /// same saturated torque, 8× smaller slope at zero relative wheel speed) from the
 /// polyline start; then the true problem, warm-started from that solution with a small

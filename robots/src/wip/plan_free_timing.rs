@@ -1,6 +1,6 @@
 //! The WIP's plan with free waypoint timing (`wip plan … --free-timing`, `docs/ocp.md`,
 //! "Free waypoint timing"): the fixed-timing plan, then from its solution the problem whose
-//! segments between waypoints each choose their own step ([`dmech_ocp::free_timing`]).
+//! segments between waypoints each choose their own step ([`dmech_ocp::transcription::free_timing`]).
 
 use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::PlanProblem;
@@ -9,8 +9,8 @@ use super::plan_problem::{varint_plan, PlanBounds, PlanModel, NC, NX, NX_ALGEBRA
 use super::plan_sequence::{friction_continuation, varint_solve};
 use super::Wip;
 use dmech::Discretisation;
-use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
-use dmech_ocp::ipm::{IpOptions, Solver};
+use dmech_ocp::solver::{IpOptions, Solver};
+use dmech_ocp::transcription::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
 
 /// Bounds on each segment's step ratio `h_j / h` in a plan with free timing: within a
 /// factor of two of the nominal step, so that the first-order integrator's error stays
@@ -40,7 +40,7 @@ pub struct FreeTimingOutcome {
 /// The plan with free waypoint timing (the first-order VI): the fixed-timing plan by mesh
 /// sequencing, then, from its solution, the problem whose segments between waypoints each
 /// have their own step `h_j = σ_j h`, `σ_j` in [`FREE_TIMING_RATIOS`]
-/// ([`dmech_ocp::free_timing`]), with the total time fixed (`Σ N_j σ_j = N`) or priced
+/// ([`dmech_ocp::transcription::free_timing`]), with the total time fixed (`Σ N_j σ_j = N`) or priced
 /// (`total`). The fixed timing is a feasible point of the free problem, so its objective
 /// (plus, when priced, the price of its duration) is an upper bound.
 pub fn plan_free_timing(

@@ -15,7 +15,7 @@ use super::benchmarks::PlanProblem;
 use super::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
-use dmech_ocp::layout::Layout;
+use dmech_ocp::transcription::layout::Layout;
 use dmech_ocp::transcription::{
     Condition, PlanningProblem, Quantity, RkTranscription, Stage, StartState, VarIntTranscription,
 };

@@ -7,9 +7,9 @@ use super::plan_problem::{
 };
 use super::plan_start::varint_start;
 use dmech::Discretisation;
-use dmech_ocp::ipm::{IpOptions, SolveResult};
-use dmech_ocp::layout::Layout;
-use dmech_ocp::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
+use dmech_ocp::solver::{IpOptions, SolveResult};
+use dmech_ocp::toolkit::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
+use dmech_ocp::transcription::layout::Layout;
 use nalgebra::SVector;
 
 /// The VI plan by mesh sequencing over the friction continuation's `models`.
@@ -50,7 +50,7 @@ const MESH_COARSEST_STEP: f64 = 0.02;
 /// solution (iterations of the fine mesh): 1e-3: 54, 1e-4: 34–37, 1e-5: 39–40.
 const MESH_RESTART_BARRIER: f64 = 1e-4;
 
-/// The WIP's VI plan as a family of meshes for [`dmech_ocp::sequencing::mesh_sequence`]:
+/// The WIP's VI plan as a family of meshes for [`dmech_ocp::toolkit::sequencing::mesh_sequence`]:
 /// the meshes are [`PlanProblem::at_step`], the continuation phases the friction
 /// continuation's models (the last is the model itself), the start the polyline start.
 ///

@@ -4,7 +4,7 @@
 use super::benchmarks::{arc_lengths, PlanProblem};
 use super::plan_problem::{varint_layout, PlanModel};
 use super::Wip;
-use dmech_ocp::layout::Layout;
+use dmech_ocp::transcription::layout::Layout;
 use nalgebra::SVector;
 
 /// A start along the waypoint polyline: the arc length is a monotone cubic in time through

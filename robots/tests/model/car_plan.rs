@@ -2,7 +2,7 @@
 //! (kinematic) start, with every constraint holding on the returned plan.
 
 use dmech::Discretisation;
-use dmech_ocp::ipm::{IpOptions, Status};
+use dmech_ocp::solver::{IpOptions, Status};
 use robots::car::plan::{plan, CarBounds};
 use robots::car::problems::CarProblem;
 use robots::car::Car;

@@ -9,11 +9,11 @@
 
 use dmech::partials::{seeded, split_passes};
 use dmech::{Discretisation, ForcingQuadrature, RungeKutta};
-use dmech_ocp::derivatives::generic_cost_curvature;
-use dmech_ocp::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
-use dmech_ocp::problem::StageProblem;
-use dmech_ocp::runge_kutta::RkStages;
-use dmech_ocp::varint::VarIntStages;
+use dmech_ocp::nlp::derivatives::generic_cost_curvature;
+use dmech_ocp::nlp::StageProblem;
+use dmech_ocp::transcription::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
+use dmech_ocp::transcription::runge_kutta::RkStages;
+use dmech_ocp::transcription::variational::VarIntStages;
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
 use robots::wip::algebraic_current::WipAlgebraicCurrent;
@@ -360,8 +360,8 @@ fn rk_dynamics_jacobian_equals_generic() {
 /// and at perturbed points, with random multipliers.
 #[test]
 fn block_constraint_curvature_equals_generic() {
-    use dmech_ocp::derivatives::generic_constraint_curvature;
-    use dmech_ocp::problem::StageProblem;
+    use dmech_ocp::nlp::derivatives::generic_constraint_curvature;
+    use dmech_ocp::nlp::StageProblem;
     use robots::wip::plan::{varint_plan, PlanBounds};
     let wip = Wip::default();
     let p = eight(0.005);
@@ -404,8 +404,8 @@ fn block_constraint_curvature_equals_generic() {
 /// inequality multipliers, at the eight's start and at perturbed points.
 #[test]
 fn rk_cost_curvature_equals_generic() {
-    use dmech_ocp::derivatives::generic_cost_curvature;
-    use dmech_ocp::problem::StageProblem;
+    use dmech_ocp::nlp::derivatives::generic_cost_curvature;
+    use dmech_ocp::nlp::StageProblem;
     use robots::wip::plan::{rk_plan, PlanBounds};
 
     fn worst<M, const NS: usize, const NX: usize>(model: &M) -> f64
@@ -533,8 +533,9 @@ fn the_reduced_vi_state_is_the_full_one_without_the_ignorable_positions() {
             x.fixed_rows_mut::<4>(4).fill(0.0);
             let w: SVector<f64, 7> = ws[k].map(|v| v + perturb * rand());
             let xr = SVector::<f64, NX_VI>::from_fn(|i, _| x[kept[i]]);
-            let df = dmech_ocp::derivatives::stage_derivatives(&full, k, &x, &w, &zeta, None);
-            let dr = dmech_ocp::derivatives::stage_derivatives(&reduced, k, &xr, &w, &zeta, None);
+            let df = dmech_ocp::nlp::derivatives::stage_derivatives(&full, k, &x, &w, &zeta, None);
+            let dr =
+                dmech_ocp::nlp::derivatives::stage_derivatives(&reduced, k, &xr, &w, &zeta, None);
             let pick = |m: &SMatrix<f64, 15, 15>| {
                 SMatrix::<f64, NX_VI, NX_VI>::from_fn(|i, j| m[(kept[i], kept[j])])
             };
@@ -567,9 +568,10 @@ fn the_reduced_vi_state_is_the_full_one_without_the_ignorable_positions() {
             // every cost-to-go vanish); random ones would move ν through `F_vᵀλ`.
             let mut lam = SVector::<f64, 15>::from_fn(|_, _| rand());
             lam.fixed_rows_mut::<4>(4).fill(0.0);
-            let hf = dmech_ocp::derivatives::stage_derivatives(&full, k, &x, &w, &zeta, Some(&lam));
+            let hf =
+                dmech_ocp::nlp::derivatives::stage_derivatives(&full, k, &x, &w, &zeta, Some(&lam));
             let lam_r = rows(&lam);
-            let hr = dmech_ocp::derivatives::stage_derivatives(
+            let hr = dmech_ocp::nlp::derivatives::stage_derivatives(
                 &reduced,
                 k,
                 &xr,

@@ -4,8 +4,8 @@
 use dmech::continuous::{ContinuousModel, ContinuousState};
 use dmech::{Discretisation, ForcingQuadrature, RungeKutta, VariationalIntegrator, ViState};
 use dmech_lie::LieGroup;
-use dmech_ocp::runge_kutta::RkStages;
-use dmech_ocp::varint::VarIntStages;
+use dmech_ocp::transcription::runge_kutta::RkStages;
+use dmech_ocp::transcription::variational::VarIntStages;
 use nalgebra::SVector;
 use num_dual::DualSVec64;
 use robots::wip::state::from_reduced;

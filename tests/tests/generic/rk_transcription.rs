@@ -7,7 +7,7 @@
 use dmech::continuous::motion_residual;
 use dmech::partials::{grad_part, jacobian_part, seeded};
 use dmech::RungeKutta;
-use dmech_ocp::runge_kutta::RkStages;
+use dmech_ocp::transcription::runge_kutta::RkStages;
 use dmech_tests::random_system::{
     random_stage_state, GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family,
     So3Family,

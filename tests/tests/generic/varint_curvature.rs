@@ -6,8 +6,8 @@
 
 use dmech::variational::ForcingQuadrature;
 use dmech_lie::Real;
-use dmech_ocp::derivatives::{block_hessian, StageScalar};
-use dmech_ocp::varint::VarIntStages;
+use dmech_ocp::nlp::derivatives::{block_hessian, StageScalar};
+use dmech_ocp::transcription::variational::VarIntStages;
 use dmech_tests::random_system::{
     random_stage_state, GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family,
     So3Family,

@@ -8,7 +8,7 @@
 
 use dmech::partials::{grad_part, seeded};
 use dmech::variational::ForcingQuadrature;
-use dmech_ocp::varint::VarIntStages;
+use dmech_ocp::transcription::variational::VarIntStages;
 use dmech_tests::random_system::{
     random_stage_state, Lcg, RandomSystem, RandomSystemSpec, Se2Family,
 };

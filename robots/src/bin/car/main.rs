@@ -3,7 +3,7 @@
 
 use clap::{Parser, Subcommand, ValueEnum};
 use dmech::Discretisation;
-use dmech_ocp::ipm::{IpOptions, Status};
+use dmech_ocp::solver::{IpOptions, Status};
 use robots::car::plan::{plan, CarBounds};
 use robots::car::problems::CarProblem;
 use robots::car::report::{plots, summary_json, CarTrajectory};

@@ -1,7 +1,7 @@
 //! `wip bench`: the paper's computation-time comparison rerun with our solver.
 
 use crate::common::{positive_number, CurrentArg, Failure, IntegratorArg};
-use dmech_ocp::ipm::IpOptions;
+use dmech_ocp::solver::IpOptions;
 use robots::io::OutputSet;
 use robots::wip::benchmarks;
 use robots::wip::plan::{plan, CurrentModel, PlanBounds};

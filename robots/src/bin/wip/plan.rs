@@ -4,8 +4,8 @@ use crate::common::{
     check_size, load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg,
     Failure, IntegratorArg,
 };
-use dmech_ocp::free_timing::TotalTime;
-use dmech_ocp::ipm::{IpOptions, KktMethod, Status};
+use dmech_ocp::solver::{IpOptions, KktMethod, Status};
+use dmech_ocp::transcription::free_timing::TotalTime;
 use robots::cli::HessianArg;
 use robots::io::OutputSet;
 use robots::wip::benchmarks;

@@ -1,4 +1,4 @@
-//! Global variables in the interior point ([`crate::problem::Globals`]): `p` with simple
+//! Global variables in the interior point ([`crate::nlp::Globals`]): `p` with simple
 //! bounds (a barrier on `p − lo` and `hi − p` directly, no slacks), linear equalities
 //! `aᵀp = b` (multipliers `y_g`) and a linear cost `cᵀp`. Stage `k` reads `p[support(k)]`
 //! through the last `per_stage` entries `θ_k` of its decision, kept equal to them.
@@ -6,7 +6,7 @@
 //! The Newton step: each stage condensed as without globals, plus its coupling to `θ_k`
 //! (`δw = w0 + W_x δx + W_u δu + W_θ δθ`, the stage equality eliminating `δv` for `δθ`
 //! too); the Riccati recursion augmented by the globals' columns
-//! ([`crate::global_riccati`]), whose reduced system in `δp`,
+//! ([`crate::solver::kkt::global_riccati`]), whose reduced system in `δp`,
 //! ```text
 //! [Ψ₀ + Σ_g + δ_w I   Aᵀ] [δp ]   [−(ψ₀ + c − μ/(p − lo) + μ/(hi − p))]
 //! [A                  0 ] [y_g⁺] = [−(A p − b)                         ]
@@ -17,10 +17,10 @@
 //! `c + Σ_k S_kᵀ ∇_θ L_k + Aᵀy_g − z_lo + z_hi`.
 
 use super::*;
-use crate::global_riccati::{global_forward, global_sweep, GlobalSchur, LqCoupling};
-use crate::problem::Globals;
-use crate::riccati::LqSolution;
-use crate::sparse_kkt::GlobalTerms;
+use crate::nlp::Globals;
+use crate::solver::kkt::global_riccati::{global_forward, global_sweep, GlobalSchur, LqCoupling};
+use crate::solver::kkt::riccati::LqSolution;
+use crate::solver::kkt::sparse_ldlt::GlobalTerms;
 use nalgebra::{DMatrix, DVector};
 
 /// The globals' part of an iterate: `p`, the multipliers of its lower and upper bounds
@@ -35,28 +35,28 @@ pub struct GlobalIterate {
 
 /// The globals' part of a Newton step: `δp`, `δz`, and the equalities' new multipliers.
 #[derive(Clone, Debug, Default)]
-pub(super) struct GlobalStep {
-    pub(super) dp: Vec<f64>,
-    pub(super) dz_lo: Vec<f64>,
-    pub(super) dz_hi: Vec<f64>,
-    pub(super) y: Vec<f64>,
+pub(in crate::solver) struct GlobalStep {
+    pub(in crate::solver) dp: Vec<f64>,
+    pub(in crate::solver) dz_lo: Vec<f64>,
+    pub(in crate::solver) dz_hi: Vec<f64>,
+    pub(in crate::solver) y: Vec<f64>,
 }
 
 /// A stage's coupling to its globals, and how its decision moves with them (`W_θ`, the
 /// first `per_stage` columns).
-pub(super) type StageCoupling<const NX: usize, const NW: usize, const NU: usize> =
+pub(in crate::solver) type StageCoupling<const NX: usize, const NW: usize, const NU: usize> =
     (LqCoupling<NX, NU, NW>, SMatrix<f64, NW, NW>);
 
 /// What the solver keeps of the problem's globals.
 #[derive(Clone, Debug)]
-pub(super) struct GlobalSpec {
-    pub(super) g: Globals,
-    pub(super) has_lo: Vec<bool>,
-    pub(super) has_hi: Vec<bool>,
+pub(in crate::solver) struct GlobalSpec {
+    pub(in crate::solver) g: Globals,
+    pub(in crate::solver) has_lo: Vec<bool>,
+    pub(in crate::solver) has_hi: Vec<bool>,
 }
 
 impl GlobalSpec {
-    pub(super) fn new(g: Globals) -> Self {
+    pub(in crate::solver) fn new(g: Globals) -> Self {
         GlobalSpec {
             has_lo: g.lo.iter().map(|v| v.is_finite()).collect(),
             has_hi: g.hi.iter().map(|v| v.is_finite()).collect(),
@@ -65,7 +65,7 @@ impl GlobalSpec {
     }
 
     /// The same globals with their cost multiplied by `c` (objective scaling).
-    pub(super) fn with_cost_scaled(mut self, c: f64) -> Self {
+    pub(in crate::solver) fn with_cost_scaled(mut self, c: f64) -> Self {
         self.g.cost.iter_mut().for_each(|v| *v *= c);
         self
     }
@@ -79,17 +79,17 @@ impl GlobalSpec {
     }
 
     /// `Σ|aᵀp − b|` and its largest term.
-    pub(super) fn violation(&self, p: &[f64]) -> (f64, f64) {
+    pub(in crate::solver) fn violation(&self, p: &[f64]) -> (f64, f64) {
         self.residuals(p)
             .fold((0.0, 0.0f64), |(s, m), r| (s + r.abs(), m.max(r.abs())))
     }
 
-    pub(super) fn cost(&self, p: &[f64]) -> f64 {
+    pub(in crate::solver) fn cost(&self, p: &[f64]) -> f64 {
         self.g.cost.iter().zip(p).map(|(c, v)| c * v).sum()
     }
 
     /// `−μ Σ ln` of the bounds' gaps.
-    pub(super) fn log_barrier(&self, p: &[f64], mu: f64) -> f64 {
+    pub(in crate::solver) fn log_barrier(&self, p: &[f64], mu: f64) -> f64 {
         let mut logs = 0.0;
         for j in 0..p.len() {
             if self.has_lo[j] {
@@ -103,7 +103,7 @@ impl GlobalSpec {
     }
 
     /// The largest `|t z − μ|` over the bounds.
-    pub(super) fn complementarity(&self, gi: &GlobalIterate, mu: f64) -> f64 {
+    pub(in crate::solver) fn complementarity(&self, gi: &GlobalIterate, mu: f64) -> f64 {
         let mut c = 0.0f64;
         for j in 0..gi.p.len() {
             if self.has_lo[j] {
@@ -118,7 +118,7 @@ impl GlobalSpec {
 
     /// The globals' part of a start: `p` (the given one, or the problem's) pushed into its
     /// bounds by IPOPT's rule, unit bound multipliers, zero equality multipliers.
-    pub(super) fn start(&self, p: Option<&[f64]>) -> GlobalIterate {
+    pub(in crate::solver) fn start(&self, p: Option<&[f64]>) -> GlobalIterate {
         let g = &self.g;
         let p = (0..g.len())
             .map(|j| {
@@ -149,7 +149,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     Solver<'a, NX, NW, NE, NU, NC>
 {
     /// The last `per_stage` entries of every `w_k` set to the globals they copy.
-    pub(super) fn sync_globals(&self, it: &mut Iterate<NX, NW, NC>) {
+    pub(in crate::solver) fn sync_globals(&self, it: &mut Iterate<NX, NW, NC>) {
         let Some(gs) = &self.globals else { return };
         let t0 = NW - gs.g.per_stage;
         for (k, w) in it.w.iter_mut().enumerate() {
@@ -161,7 +161,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
 
     /// The gradient of the Lagrangian in `p`: `c + Σ_k S_kᵀ ∇_θ L_k + Aᵀy − z_lo + z_hi`,
     /// with `∇_w L_k = ∇ℓ + F_wᵀλ + C_wᵀζ + E_wᵀν` from the derivatives at `it`.
-    pub(super) fn global_gradient(
+    pub(in crate::solver) fn global_gradient(
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
@@ -238,7 +238,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
 
     /// Every stage's coupling, in parallel, into `out`.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn couplings(
+    pub(in crate::solver) fn couplings(
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
@@ -266,7 +266,12 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     /// The globals' own terms of the Newton system at `gi`: the barrier curvature plus the
     /// shift `delta` on the diagonal, the gradient `c − μ/(p − lo) + μ/(hi − p)`, the
     /// equalities `A δp = −(A p − b)`.
-    pub(super) fn global_terms(&self, gi: &GlobalIterate, mu: f64, delta: f64) -> GlobalTerms {
+    pub(in crate::solver) fn global_terms(
+        &self,
+        gi: &GlobalIterate,
+        mu: f64,
+        delta: f64,
+    ) -> GlobalTerms {
         let Some(gs) = &self.globals else {
             return GlobalTerms::default();
         };
@@ -334,7 +339,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     }
 
     /// The Newton step of a problem with globals (see [`Solver::newton_step`]).
-    pub(super) fn newton_step_global(
+    pub(in crate::solver) fn newton_step_global(
         &self,
         it: &Iterate<NX, NW, NC>,
         ws: &mut Workspace<NX, NW, NE, NU, NC>,
@@ -404,7 +409,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     /// The step from the sweeps and `δp`: the forward pass, the stages' recovery with
     /// `W_θ δθ_k` added to their decisions, the bound multipliers of the globals.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn global_recover(
+    pub(in crate::solver) fn global_recover(
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
@@ -427,7 +432,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     /// The step from the LQ solution and the globals' step `δp`, `y_g`: the stages'
     /// recovery with `W_θ δθ_k` added to their decisions, the globals' bound multipliers.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn recover_with_globals(
+    pub(in crate::solver) fn recover_with_globals(
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
@@ -478,7 +483,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     /// [`Solver::second_order_correction`]): the same system with the residuals of the
     /// dynamics and stage equalities replaced, at the iteration's shift `delta`.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn global_correction(
+    pub(in crate::solver) fn global_correction(
         &self,
         it: &Iterate<NX, NW, NC>,
         ws: &mut Workspace<NX, NW, NE, NU, NC>,

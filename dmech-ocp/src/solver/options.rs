@@ -49,7 +49,7 @@ pub enum KktMethod {
     /// complement) when the problem has globals.
     #[default]
     Riccati,
-    /// The whole condensed KKT matrix by faer's sparse `LDLᵀ` ([`crate::sparse_kkt`]).
+    /// The whole condensed KKT matrix by faer's sparse `LDLᵀ` ([`crate::solver::kkt::sparse_ldlt`]).
     SparseLdlt,
 }
 

@@ -4,8 +4,8 @@
 //! of the step, or separate passes), the group coordinates never
 //! (`docs/ocp.md`, "Derivatives").
 
-use crate::layout::Layout;
-use crate::varint::{NodePoint, Terms, VarIntStages, D};
+use crate::transcription::layout::Layout;
+use crate::transcription::variational::stages::{NodePoint, Terms, VarIntStages, D};
 use dmech::midpoint::{interval_force, midpoint_incoming_momentum, midpoint_outgoing_momentum};
 use dmech::partials::{grad_part, lift_vec, seeded, seeded_from};
 use dmech::{Discretisation, PrincipalKinematicSystem};

@@ -2,15 +2,20 @@
 //! variational integrator.
 
 use super::problem::*;
-use crate::derivatives::{generic_constraint_curvature, HessianBlocks};
-use crate::ipm::Iterate;
-use crate::layout::segment;
-use crate::problem::{StageProblem, StateEquality};
-use crate::varint::VarIntStages;
+use crate::nlp::derivatives::generic_constraint_curvature;
+use crate::nlp::HessianBlocks;
+use crate::nlp::{StageProblem, StateEquality};
+use crate::solver::Iterate;
+use crate::transcription::layout::segment;
 use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 use std::marker::PhantomData;
+
+mod curvature;
+mod partials;
+pub(crate) mod stages;
+pub use stages::VarIntStages;
 
 /// A robot's problem on a variational integrator (first order or midpoint):
 /// `x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`, `w_k = (v_k, u_k)`, stage equality = the

@@ -11,7 +11,7 @@ pub(super) fn par_fill<R: Send, F: Fn(usize) -> R + Sync>(out: &mut [R], threads
 /// touches it (untouched room costs no memory). Fill it with [`par_resize`].
 pub(super) fn with_room<R>(capacity: usize) -> Vec<R> {
     let mut v = Vec::with_capacity(capacity);
-    crate::huge_pages::advise(v.spare_capacity_mut());
+    crate::solver::huge_pages::advise(v.spare_capacity_mut());
     v
 }
 
@@ -33,7 +33,7 @@ pub(super) fn par_resize<R: Send, F: Fn(usize) -> R + Sync>(
     let have = v.len();
     if n > v.capacity() {
         v.reserve_exact(n - have);
-        crate::huge_pages::advise(v.spare_capacity_mut());
+        crate::solver::huge_pages::advise(v.spare_capacity_mut());
     }
     let written = std::sync::atomic::AtomicUsize::new(0);
     par_update(

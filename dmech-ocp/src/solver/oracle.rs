@@ -14,12 +14,12 @@
 
 use super::restoration::Restoration;
 use super::scaling::ScaledCost;
-use crate::derivatives::{
+use crate::nlp::derivatives::{
     stage_derivatives_into, stage_first_derivatives_into, state_curvature, state_pass,
-    terminal_derivatives, HessianBlocks, Precomputed, StageDerivatives, StageValues,
-    TerminalDerivatives,
+    terminal_derivatives, Precomputed, StageDerivatives, StageValues, TerminalDerivatives,
 };
-use crate::problem::{Globals, StageProblem, StateEquality};
+use crate::nlp::HessianBlocks;
+use crate::nlp::{Globals, StageProblem, StateEquality};
 use nalgebra::{SMatrix, SVector};
 
 /// A problem's `f64` face: what the engine evaluates, stage by stage.
@@ -51,7 +51,7 @@ pub(super) trait StageOracle<const NX: usize, const NW: usize, const NE: usize, 
         w: &SVector<f64, NW>,
         zeta: &SVector<f64, NC>,
     ) -> HessianBlocks<NX, NW>;
-    /// `∇_x ℓ_k` and `C_x` ([`crate::derivatives::state_pass`]).
+    /// `∇_x ℓ_k` and `C_x` ([`crate::nlp::derivatives::state_pass`]).
     fn state_gradients(
         &self,
         k: usize,
@@ -177,7 +177,7 @@ where
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
     ) -> StageValues<NX, NE, NC> {
-        crate::derivatives::stage_values(self, k, x, w)
+        crate::nlp::derivatives::stage_values(self, k, x, w)
     }
     fn cost_curvature(
         &self,

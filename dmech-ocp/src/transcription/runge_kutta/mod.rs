@@ -2,17 +2,20 @@
 //! continuous model.
 
 use super::problem::*;
-use crate::derivatives::{
-    block_hessian, cost_and_inequalities, generic_cost_curvature, HessianBlocks, StageScalar,
+use crate::nlp::derivatives::{
+    block_hessian, cost_and_inequalities, generic_cost_curvature, StageScalar,
 };
-use crate::ipm::Iterate;
-use crate::layout::segment;
-use crate::problem::{StageProblem, StateEquality};
-use crate::runge_kutta::RkStages;
+use crate::nlp::HessianBlocks;
+use crate::nlp::{StageProblem, StateEquality};
+use crate::solver::Iterate;
+use crate::transcription::layout::segment;
 use dmech::{PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 use std::marker::PhantomData;
+
+pub(crate) mod stages;
+pub use stages::RkStages;
 
 /// A robot's problem on an explicit Runge–Kutta step of the continuous model:
 /// `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`, no stage equality.

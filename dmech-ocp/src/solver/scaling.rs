@@ -16,8 +16,8 @@
 //! the problem's own units.
 
 use super::Iterate;
-use crate::derivatives::HessianBlocks;
-use crate::problem::{StageProblem, StateEquality};
+use crate::nlp::HessianBlocks;
+use crate::nlp::{StageProblem, StateEquality};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 
@@ -81,7 +81,7 @@ where
     fn constant_cost_curvature(&self) -> bool {
         self.p.constant_cost_curvature()
     }
-    fn globals(&self) -> Option<crate::problem::Globals> {
+    fn globals(&self) -> Option<crate::nlp::Globals> {
         self.p.globals().map(|mut g| {
             g.cost.iter_mut().for_each(|v| *v *= self.c);
             g

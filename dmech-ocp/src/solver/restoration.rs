@@ -31,7 +31,7 @@
 
 use super::oracle::{RestorationOracle, RestorationSetup};
 use super::*;
-use crate::derivatives::HessianBlocks;
+use crate::nlp::HessianBlocks;
 use dmech_lie::Real;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -180,7 +180,7 @@ where
     }
     /// The globals stay, with their equalities and bounds hard (they can always be met)
     /// and without their cost.
-    fn globals(&self) -> Option<crate::problem::Globals> {
+    fn globals(&self) -> Option<crate::nlp::Globals> {
         self.p.globals().map(|mut g| {
             g.cost.iter_mut().for_each(|v| *v = 0.0);
             g

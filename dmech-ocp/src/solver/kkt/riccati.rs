@@ -116,9 +116,9 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
         self.eye_x = SMatrix::<f64, NX, NX>::identity() * shift;
         self.eye_u = SMatrix::<f64, NU, NU>::identity() * shift;
         let terminal = (q_n + self.eye_x, *q_vec_n);
-        crate::huge_pages::resize(&mut self.cost_to_go, n + 1, terminal);
+        crate::solver::huge_pages::resize(&mut self.cost_to_go, n + 1, terminal);
         self.cost_to_go[n] = terminal;
-        crate::huge_pages::resize(&mut self.gains, n, (SMatrix::zeros(), SVector::zeros()));
+        crate::solver::huge_pages::resize(&mut self.gains, n, (SMatrix::zeros(), SVector::zeros()));
         self.next = n;
     }
 
@@ -221,7 +221,8 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
 }
 
 /// Solve the LQ problem over `stages[0..N]` and the terminal cost `(q_n, q_vec_n)` from
-/// `x0`, with the primal shift `shift`.
+/// `x0`, with the primal shift `shift` (the tests' reference path).
+#[cfg(test)]
 pub fn solve_lq<const NX: usize, const NU: usize>(
     stages: &[LqStage<NX, NU>],
     q_n: &SMatrix<f64, NX, NX>,
@@ -233,7 +234,8 @@ pub fn solve_lq<const NX: usize, const NU: usize>(
 }
 
 /// The backward sweep over `stages[0..N]` and the terminal cost `(q_n, q_vec_n)` with the
-/// primal shift `shift`, complete.
+/// primal shift `shift`, complete (the tests' reference path).
+#[cfg(test)]
 pub fn sweep_lq<const NX: usize, const NU: usize>(
     stages: &[LqStage<NX, NU>],
     q_n: &SMatrix<f64, NX, NX>,

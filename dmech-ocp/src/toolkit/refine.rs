@@ -7,7 +7,7 @@
 //! (`docs/ocp.md`, "Why the iteration count grows with N"). From the coarse solution the
 //! switch is within one coarse step of its place.
 //!
-//! Layout of [`crate::varint`]: `x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`,
+//! Layout of [`crate::transcription::variational`]: `x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`,
 //! `w_k = (v_k, u_k)`. Coarse stage `k` (step `H`, `N_c` steps) and fine stage `j` (step
 //! `h`, `N_f` steps) are matched by stage fraction, `κ = j N_c/N_f`, so that both ends
 //! match when the duration is not a whole number of steps:
@@ -36,9 +36,9 @@
 //! constraints among them (SE(2)'s `(x, y, θ)`, `Rⁿ`); a group with constrained
 //! coordinates (unit quaternions) would need its own interpolation.
 
-use crate::ipm::Iterate;
-use crate::layout::Layout;
-use crate::problem::StateEquality;
+use crate::nlp::StateEquality;
+use crate::solver::Iterate;
+use crate::transcription::layout::Layout;
 use nalgebra::SVector;
 
 /// The state equalities of the coarse and the fine problem (each in its own problem's

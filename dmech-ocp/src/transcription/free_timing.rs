@@ -14,18 +14,19 @@
 //! (right-point forcing, weight `h_k`, divided by `h_k` as the fixed-step rows). With
 //! `h_{k−1} = h_k` it is the fixed-step residual. The decision is `w_k = (v_k, u_k, σ_{k−1},
 //! σ_k)`, the last two the solver's copies of the globals of intervals `k − 1` and `k`
-//! ([`crate::problem::Globals`]). The robot's cost and constraints see the step ratio
+//! ([`crate::nlp::Globals`]). The robot's cost and constraints see the step ratio
 //! through [`PlanningProblem::cost_at_step`] and [`PlanningProblem::constraints_at_step`].
 
-use crate::derivatives::{
+use crate::nlp::derivatives::{
     cost_and_inequalities, generic_cost_curvature, generic_equality_jacobian, hess2, seed2,
-    seed_hyper, HessianBlocks,
+    seed_hyper,
 };
-use crate::ipm::Iterate;
-use crate::layout::segment;
-use crate::problem::{GlobalEquality, Globals, StageProblem, StateEquality};
+use crate::nlp::HessianBlocks;
+use crate::nlp::{GlobalEquality, Globals, StageProblem, StateEquality};
+use crate::solver::Iterate;
+use crate::transcription::layout::segment;
+use crate::transcription::variational::stages::VarIntStages;
 use crate::transcription::{PlannedTrajectory, PlanningProblem, VarIntTranscription};
-use crate::varint::VarIntStages;
 use dmech::partials::{dl_ds, dl_dv, dl_dxi, jacobian_part, lift_vec};
 use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
 use dmech_lie::{LieGroup, Real};

@@ -15,12 +15,12 @@
 // Stage loops index several per-stage arrays (derivatives, iterate, step) in step.
 #![allow(clippy::needless_range_loop)]
 
-use crate::derivatives::{
-    ConstantsTable, HessianBlocks, Precomputed, StageConstants, StageDerivatives, StageValues,
-    TerminalDerivatives,
+use crate::nlp::derivatives::{
+    ConstantsTable, Precomputed, StageConstants, StageDerivatives, StageValues, TerminalDerivatives,
 };
-use crate::problem::{StageProblem, StateEquality};
-use crate::riccati::{BackwardSweep, LqSolution, LqStage, RiccatiError};
+use crate::nlp::HessianBlocks;
+use crate::nlp::{StageProblem, StateEquality};
+use crate::solver::kkt::riccati::{BackwardSweep, LqSolution, LqStage, RiccatiError};
 use dmech::linalg::Lu;
 use nalgebra::{SMatrix, SVector};
 use std::io::Write as _;
@@ -28,7 +28,7 @@ use std::time::Instant;
 
 mod derivative_pass;
 mod filter;
-mod globals;
+mod huge_pages;
 mod inertia;
 mod iterate;
 mod iteration_table;
@@ -43,19 +43,21 @@ mod quasi_newton;
 mod recovery;
 mod restoration;
 mod scaling;
-mod sparse_step;
 mod start;
 mod worker_pool;
 
 pub use derivative_pass::reuse_workspaces;
 use derivative_pass::Workspace;
 use filter::Filter;
-pub use globals::GlobalIterate;
-use globals::GlobalSpec;
 use inertia::InertiaCorrection;
 use iterate::{Bounds, Elimination, Measures, Step};
 pub use iterate::{Iterate, SolveResult};
-use kkt::StageCurvature;
+pub use kkt::globals::GlobalIterate;
+use kkt::globals::GlobalSpec;
+/// The Riccati recursion, for the `state_size` benchmark only.
+#[cfg(feature = "bench")]
+#[doc(hidden)]
+pub use kkt::riccati;
 use kkt_error::{KktError, StageAux};
 use line_search::LineSearch;
 pub use options::{IpOptions, KktMethod, Status, Timings};
@@ -166,7 +168,7 @@ pub struct Solver<
     /// The problem's global variables, if any (`globals.rs`).
     globals: Option<GlobalSpec>,
     /// The sparse KKT matrix's symbolic factorisation, once the sparse path needs it.
-    sparse: std::sync::OnceLock<Result<crate::sparse_kkt::SparseKkt, String>>,
+    sparse: std::sync::OnceLock<Result<crate::solver::kkt::sparse_ldlt::SparseKkt, String>>,
 }
 
 impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>

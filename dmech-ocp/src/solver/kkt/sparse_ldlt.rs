@@ -1,4 +1,4 @@
-//! The KKT system of the (globally coupled) LQ problem of [`crate::global_riccati`] as one
+//! The KKT system of the (globally coupled) LQ problem of [`crate::solver::kkt::global_riccati`] as one
 //! sparse symmetric matrix, factorised by faer's sparse `LDLᵀ`: the alternative to the
 //! augmented Riccati recursion, for problems whose coupling is not a stage chain.
 //!
@@ -17,8 +17,8 @@
 //! (which only makes the pivots of the multipliers' block nonzero). The multipliers of the
 //! dynamics in the Riccati convention are `λ_k = −ν_k`.
 
-use crate::global_riccati::LqCoupling;
-use crate::riccati::{LqSolution, LqStage};
+use crate::solver::kkt::global_riccati::LqCoupling;
+use crate::solver::kkt::riccati::{LqSolution, LqStage};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::ldlt::factor::{LdltParams, LdltRegularization};
 use faer::sparse::linalg::cholesky::{
@@ -442,8 +442,8 @@ fn read<const NX: usize, const NU: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::global_riccati::{global_forward, global_sweep};
-    use crate::riccati::{solve_lq, sweep_lq};
+    use crate::solver::kkt::global_riccati::{global_forward, global_sweep};
+    use crate::solver::kkt::riccati::{solve_lq, sweep_lq};
     use nalgebra::DMatrix;
 
     const NX: usize = 4;

@@ -9,19 +9,11 @@
 //! when the exact Hessian is asked for ([`StageProblem::constraint_curvature`]); by default
 //! the solver approximates it by SR1 from the Jacobians (`docs/ocp.md`).
 
-use crate::problem::StageProblem;
+use crate::nlp::{HessianBlocks, StageProblem};
 use dmech::linalg::Lu;
 use dmech::partials::{grad_part as grad, jacobian_part, seeded as seed, split_passes};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
-
-/// The blocks `(∇²_xx, ∇²_xw, ∇²_ww)` of a stage's Hessian (of a scalar function of
-/// `(x, w)`).
-pub type HessianBlocks<const NX: usize, const NW: usize> = (
-    SMatrix<f64, NX, NX>,
-    SMatrix<f64, NX, NW>,
-    SMatrix<f64, NW, NW>,
-);
 
 /// What a solver computes once per stage for a problem whose derivatives are partly
 /// constant: the cost's curvature ([`StageProblem::constant_cost_curvature`]) and, when the

@@ -1,7 +1,7 @@
 //! The iterate and the result of a solve, and the per-iteration working data: the
 //! eliminated stage equality, the bounds, the Newton step, the residual measures.
 
-use super::globals::{GlobalIterate, GlobalStep};
+use super::kkt::globals::{GlobalIterate, GlobalStep};
 use super::{Status, Timings};
 use nalgebra::{SMatrix, SVector};
 

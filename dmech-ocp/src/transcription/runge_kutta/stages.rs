@@ -1,7 +1,7 @@
 //! The Runge–Kutta transcriptions of the continuous model:
 //! `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`, `x_{k+1} = (RK step with u_k held, u_k)`.
 
-use crate::layout::{segment, Layout};
+use crate::transcription::layout::{segment, Layout};
 use dmech::continuous::{acceleration, acceleration_jacobian, coordinate_rate};
 use dmech::partials::{grad_part, jacobian_part, seeded};
 use dmech::{PrincipalKinematicSystem, RungeKutta};

@@ -24,7 +24,7 @@
 //! `λ_k = P_{k+1} x_{k+1} + p_{k+1} + Π_{k+1} p`. Per stage the extra work is
 //! `O(n_x² n_g)`, against `O(n_x³)` for the sweep itself.
 
-use crate::riccati::{BackwardSweep, LqSolution, LqStage, RiccatiError};
+use crate::solver::kkt::riccati::{BackwardSweep, LqSolution, LqStage, RiccatiError};
 use nalgebra::{Const, DMatrix, DVector, Dyn, OMatrix, SMatrix, SVector};
 
 /// `R` rows, one column per global.
@@ -243,7 +243,7 @@ pub fn global_forward<'s, const NX: usize, const NU: usize, const NT: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::riccati::{solve_lq, sweep_lq};
+    use crate::solver::kkt::riccati::{solve_lq, sweep_lq};
 
     fn mat<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
         SMatrix::from_fn(|_, _| crate::test_rng::uniform(seed))

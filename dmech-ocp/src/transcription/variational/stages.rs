@@ -12,7 +12,7 @@
 //! ([`dmech::midpoint`]): `ξ_k = −A(s_k + ½h v_k) v_k` in the dynamics and the midpoint
 //! momentum-matching residual as the equality.
 
-use crate::layout::{segment, Layout};
+use crate::transcription::layout::{segment, Layout};
 use dmech::midpoint::{interval_body_velocity, midpoint_momentum_matching_residual};
 use dmech::partials::{grad_part, seeded_from};
 use dmech::variational::{

@@ -3,7 +3,7 @@
 //!
 //! `νᵀe` is a third derivative of `ℓ`: the momenta are first derivatives, and the stage
 //! Hessian differentiates them twice more. Through the generic path
-//! ([`crate::derivatives::generic_constraint_curvature`]) that is `ℓ` in `Dual2` numbers
+//! ([`crate::nlp::derivatives::generic_constraint_curvature`]) that is `ℓ` in `Dual2` numbers
 //! over the whole stage vector, nested inside the vector dual of each momentum's gradient
 //! (over a millisecond a stage on the robots in `robots/`). Here:
 //! - each momentum is contracted with `ν` by a *scalar* dual along `ν`
@@ -16,9 +16,10 @@
 //! - `λᵀf` is cheap (the group's `exp` and the connection) and goes through
 //!   [`block_hessian`] on the dynamics alone.
 
-use crate::derivatives::{block_hessian, hess2, seed2, seed_hyper, HessianBlocks, StageScalar};
-use crate::layout::segment;
-use crate::varint::{Terms, VarIntStages};
+use crate::nlp::derivatives::{block_hessian, hess2, seed2, seed_hyper, StageScalar};
+use crate::nlp::HessianBlocks;
+use crate::transcription::layout::segment;
+use crate::transcription::variational::stages::{Terms, VarIntStages};
 use dmech::partials::pulled_back_directional;
 use dmech::variational::{discrete_force, incoming_variation, outgoing_variation};
 use dmech::PrincipalKinematicSystem;

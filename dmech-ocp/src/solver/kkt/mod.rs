@@ -5,6 +5,12 @@
 
 use super::*;
 
+pub(crate) mod global_riccati;
+pub(super) mod globals;
+pub mod riccati;
+pub(crate) mod sparse_ldlt;
+mod sparse_step;
+
 /// What stage `k`'s Hessian takes besides its derivatives: the cost's constant curvature
 /// when the derivative pass left it in the constants table (its blocks in the derivatives
 /// are then not written), and the stage's SR1 blocks.

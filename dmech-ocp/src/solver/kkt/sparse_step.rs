@@ -1,12 +1,12 @@
 //! The Newton step by faer's sparse `LDLᵀ` of the whole condensed KKT matrix
-//! ([`crate::sparse_kkt`], `IpOptions::kkt = KktMethod::SparseLdlt`): the same condensed
+//! ([`crate::solver::kkt::sparse_ldlt`], `IpOptions::kkt = KktMethod::SparseLdlt`): the same condensed
 //! stages and couplings as the Riccati path, the inertia read from `D`, the same inertia
 //! correction. With or without globals.
 
 use super::kkt::corrected_derivatives;
 use super::*;
-use crate::global_riccati::LqCoupling;
-use crate::sparse_kkt::{SparseKkt, SparseKktError};
+use crate::solver::kkt::global_riccati::LqCoupling;
+use crate::solver::kkt::sparse_ldlt::{SparseKkt, SparseKktError};
 
 impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
     Solver<'a, NX, NW, NE, NU, NC>
@@ -69,7 +69,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     }
 
     /// The Newton step by the sparse path (see [`Solver::newton_step`]).
-    pub(super) fn newton_step_sparse(
+    pub(in crate::solver) fn newton_step_sparse(
         &self,
         it: &Iterate<NX, NW, NC>,
         ws: &mut Workspace<NX, NW, NE, NU, NC>,
@@ -150,7 +150,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     /// The second-order correction by the sparse path (see
     /// [`Solver::second_order_correction`]).
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn sparse_correction(
+    pub(in crate::solver) fn sparse_correction(
         &self,
         it: &Iterate<NX, NW, NC>,
         ws: &mut Workspace<NX, NW, NE, NU, NC>,

@@ -30,7 +30,7 @@ pub(super) struct Workspace<
     /// (empty until the first restart: the sparse KKT path never sweeps).
     pub(super) sweep: BackwardSweep<NX, NU>,
     /// Each stage's coupling to the globals (empty without them; `globals.rs`).
-    pub(super) couplings: Vec<globals::StageCoupling<NX, NW, NU>>,
+    pub(super) couplings: Vec<kkt::globals::StageCoupling<NX, NW, NU>>,
 }
 
 /// Inside [`reuse_workspaces`] on this thread: the stage capacity of new workspaces, and

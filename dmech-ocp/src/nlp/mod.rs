@@ -24,10 +24,19 @@
 //! `p[support(k)]`: the stage functions keep their signature, and their derivatives in
 //! those entries are the derivatives in `p` (`docs/ocp.md`, "Free waypoint timing").
 
-use crate::derivatives::HessianBlocks;
 use dmech::partials::{lift_vec, seeded, split_passes};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
+
+pub mod derivatives;
+
+/// The blocks `(∇²_xx, ∇²_xw, ∇²_ww)` of a stage's Hessian (of a scalar function of
+/// `(x, w)`).
+pub type HessianBlocks<const NX: usize, const NW: usize> = (
+    SMatrix<f64, NX, NX>,
+    SMatrix<f64, NX, NW>,
+    SMatrix<f64, NW, NW>,
+);
 
 /// `x_k[index] = value` at stage `k` (`k = N` is the end state).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -160,7 +169,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     /// `s ℓ_k + ζᵀc_k` at `(x, w)` (`s = cost_scale`: a wrapper that scales the cost passes
     /// its scale down, so that the problem's own override serves it). The default
     /// differentiates [`StageProblem::cost`] and [`StageProblem::constraints`] twice by dual
-    /// numbers over the whole stage ([`crate::derivatives::generic_cost_curvature`]; only
+    /// numbers over the whole stage ([`crate::nlp::derivatives::generic_cost_curvature`]; only
     /// the `ww` block when [`StageProblem::affine_in_state`]); a problem that knows which
     /// part of the state they are curved in overrides it (e.g.
     /// [`crate::transcription::RkTranscription`]).
@@ -175,15 +184,15 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     where
         Self: Sized,
     {
-        crate::derivatives::generic_cost_curvature::<Self, NX, NW, NE, NC>(
+        crate::nlp::derivatives::generic_cost_curvature::<Self, NX, NW, NE, NC>(
             self, k, x, w, cost_scale, zeta,
         )
     }
     /// The curvature of the constraints, `(∇²_xx, ∇²_xw, ∇²_ww)` of `λᵀf + νᵀe` at
     /// `(x, w)` (the exact Hessian's part beyond the cost and the inequalities). The default
     /// differentiates [`StageProblem::dynamics`] and [`StageProblem::equality`] twice by
-    /// dual numbers ([`crate::derivatives::generic_constraint_curvature`]); a problem with a
-    /// cheaper exact route overrides it (e.g. [`crate::varint::VarIntStages`]).
+    /// dual numbers ([`crate::nlp::derivatives::generic_constraint_curvature`]); a problem with a
+    /// cheaper exact route overrides it (e.g. [`crate::transcription::variational::stages::VarIntStages`]).
     fn constraint_curvature(
         &self,
         k: usize,
@@ -195,7 +204,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     where
         Self: Sized,
     {
-        crate::derivatives::generic_constraint_curvature::<Self, NX, NW, NE, NC>(
+        crate::nlp::derivatives::generic_constraint_curvature::<Self, NX, NW, NE, NC>(
             self, k, x, w, lambda, nu,
         )
     }
@@ -208,7 +217,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     /// `(f, F_x, F_w)` of the dynamics, exact. The default differentiates
     /// [`StageProblem::dynamics`] by two vector-dual passes (seeded in `x`, then in `w`); a
     /// problem with a cheaper exact route overrides it (e.g.
-    /// [`crate::runge_kutta::RkStages::dynamics_jacobian`]).
+    /// [`crate::transcription::runge_kutta::stages::RkStages::dynamics_jacobian`]).
     #[allow(clippy::type_complexity)]
     fn dynamics_jacobian(
         &self,
@@ -223,7 +232,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     /// `(e, E_x, E_w)` of the stage equality, exact. The default differentiates
     /// [`StageProblem::equality`] by two vector-dual passes (seeded in `x`, then in `w`); a
     /// problem with a cheaper exact route overrides it (e.g.
-    /// [`crate::varint::VarIntStages::equality_jacobian`]).
+    /// [`crate::transcription::variational::stages::VarIntStages::equality_jacobian`]).
     #[allow(clippy::type_complexity)]
     fn equality_jacobian(
         &self,
@@ -234,12 +243,12 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     where
         Self: Sized,
     {
-        crate::derivatives::generic_equality_jacobian::<Self, NX, NW, NE, NC>(self, k, x, w)
+        crate::nlp::derivatives::generic_equality_jacobian::<Self, NX, NW, NE, NC>(self, k, x, w)
     }
     /// `(E_x, E_w)` alone, for a caller that has the value already (the solver measured
     /// `e` at this point in its line search). The default drops the value of
     /// [`StageProblem::equality_jacobian`]; a problem whose value is a pass of its own
-    /// (e.g. [`crate::varint::VarIntStages::first_order_equality_partials`]) overrides it.
+    /// (e.g. [`crate::transcription::variational::stages::VarIntStages::first_order_equality_partials`]) overrides it.
     #[allow(clippy::type_complexity)]
     fn equality_partials(
         &self,

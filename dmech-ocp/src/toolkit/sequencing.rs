@@ -6,10 +6,10 @@
 //! driver here is the same for every robot. The measurements behind the constants are in
 //! `docs/ocp.md` ("Mesh sequencing").
 
-use crate::ipm::{IpOptions, SolveResult, Solver, Status};
-use crate::layout::Layout;
-use crate::problem::StageProblem;
-use crate::refine::{refine_varint_iterate, EqualityLists};
+use crate::nlp::StageProblem;
+use crate::solver::{IpOptions, SolveResult, Solver, Status};
+use crate::toolkit::refine::{refine_varint_iterate, EqualityLists};
+use crate::transcription::layout::Layout;
 use nalgebra::SVector;
 
 /// Solve each problem in turn, each from the previous one's solution; all but the last
@@ -179,7 +179,7 @@ pub struct SequenceSettings {
 /// is solved directly from its own start, so that the status and the iterate are its own.
 /// The iterations and times of all meshes are added. `progress` is told of each mesh
 /// (index, count, steps, step) and of a fallback. The solves hand their buffers on
-/// ([`crate::ipm::reuse_workspaces`], room for the finest mesh from the first).
+/// ([`crate::solver::reuse_workspaces`], room for the finest mesh from the first).
 pub fn mesh_sequence<
     P,
     const NX: usize,
@@ -197,7 +197,7 @@ pub fn mesh_sequence<
 where
     P: SequencedPlan<NX, NW, NE, NC>,
 {
-    crate::ipm::reuse_workspaces(plan.steps(&finest), || {
+    crate::solver::reuse_workspaces(plan.steps(&finest), || {
         sequence_meshes::<P, NX, NW, NE, NU, NC>(plan, finest, settings, opts, progress)
     })
 }

@@ -41,18 +41,18 @@
 //! #     }
 //! #     fn forcing<T: Lift<f64>>(&self, _s: &SVector<T, 2>, _v: &SVector<T, 2>, u: &SVector<T, 2>) -> SVector<T, 2> { *u }
 //! # }
-//! use dmech_ocp::kinematic_start::shape_motion;
+//! use dmech_ocp::toolkit::kinematic_start::shape_motion;
 //! let h = 0.02;
 //! let path: Vec<Se2<f64>> = (0..=50).map(|k| Se2::new(0.5 * h * k as f64, 0.0, 0.0)).collect();
 //! let weights = SVector::<f64, 2>::repeat(1e-9);
 //! let (s, v) = shape_motion::<_, 3, 2, 2, 2>(&DiffDrive, h, &path, &SVector::zeros(), &weights)?;
 //! assert!(v.iter().all(|vk| (vk[0] - 10.0).abs() < 1e-3 && (vk[1] - 10.0).abs() < 1e-3));
 //! assert!((s[50][0] - 10.0).abs() < 1e-3); // 1 s at 10 rad/s
-//! # Ok::<(), dmech_ocp::kinematic_start::KinematicStartError>(())
+//! # Ok::<(), dmech_ocp::toolkit::kinematic_start::KinematicStartError>(())
 //! ```
 
-use crate::ipm::{IpOptions, SolveResult, Solver, Status};
-use crate::problem::{StageProblem, StateEquality};
+use crate::nlp::{StageProblem, StateEquality};
+use crate::solver::{IpOptions, SolveResult, Solver, Status};
 use dmech::PrincipalKinematicSystem;
 use dmech_lie::{LieGroup, Real};
 use nalgebra::SVector;
