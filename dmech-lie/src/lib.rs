@@ -14,6 +14,8 @@
 //! Every closed form with a removable singularity (`θ → 0`) branches on the real part and
 //! evaluates a series in the dual variable, so derivatives at exactly zero are exact.
 
+pub mod dual;
+pub mod linalg;
 pub mod rn;
 pub mod scalar;
 pub mod se2;

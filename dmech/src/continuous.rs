@@ -10,12 +10,11 @@
 //! `𝕄 = ∂(P − Aᵀμ)/∂v` (at fixed `A`) and `r₀ = r(0)`, whose time derivatives are taken
 //! by a dual number in time along `(ṡ, v̇) = (v, 0)`.
 
-use crate::linalg::{solve, Lu};
 use crate::newton::StepError;
-use crate::partials::{
-    dl_ds, dl_dxi, jacobian_part, pulled_back_gradient, seeded, value_and_jacobian,
-};
+use crate::partials::{dl_ds, dl_dxi, pulled_back_gradient};
 use crate::system::{Lift, PrincipalKinematicSystem};
+use dmech_lie::dual::{jacobian_part, seeded, value_and_jacobian};
+use dmech_lie::linalg::{solve, Lu};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Dual, DualVec};

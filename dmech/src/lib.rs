@@ -60,7 +60,6 @@
 
 pub mod continuous;
 pub mod energy;
-pub mod linalg;
 pub mod midpoint;
 pub mod newton;
 pub mod partials;

@@ -18,9 +18,10 @@
 //! the equation onto itself (the source of reversibility).
 
 use crate::newton::{solve_momentum_matching, NewtonCache, NewtonSettings};
-use crate::partials::{pulled_back_gradient, value_and_jacobian};
+use crate::partials::pulled_back_gradient;
 use crate::system::{Lift, PrincipalKinematicSystem};
 use crate::variational::{StepError, VariationalIntegrator, ViState};
+use dmech_lie::dual::value_and_jacobian;
 use dmech_lie::LieGroup;
 use nalgebra::{SMatrix, SVector};
 use num_dual::{DualSVec64, DualVec};

@@ -3,7 +3,7 @@
 //! with Broyden updates. Shared by every discretisation in [`crate::variational`] and
 //! [`crate::midpoint`].
 
-use crate::linalg::Lu;
+use dmech_lie::linalg::Lu;
 use nalgebra::{SMatrix, SVector};
 use std::fmt;
 

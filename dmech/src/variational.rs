@@ -16,9 +16,10 @@ use crate::newton::{solve_momentum_matching, NewtonSettings};
 pub use crate::newton::{JacobianPolicy, NewtonCache, StepError};
 use crate::partials::{
     momenta_and_jacobians, pulled_back_gradient, pulled_back_gradient_dual,
-    pulled_back_partials_factored, value_and_jacobian,
+    pulled_back_partials_factored,
 };
 use crate::system::{Lift, PrincipalKinematicSystem};
+use dmech_lie::dual::value_and_jacobian;
 use dmech_lie::LieGroup;
 use nalgebra::{SMatrix, SVector};
 use num_dual::{DualSVec64, DualVec};

@@ -5,8 +5,8 @@
 //! RK1.
 use criterion::{criterion_group, criterion_main, Criterion};
 use dmech::continuous::RungeKutta;
-use dmech::partials::seeded;
 use dmech::Discretisation;
+use dmech_lie::dual::seeded;
 use dmech_ocp::nlp::derivatives::{generic_constraint_curvature, stage_derivatives, stage_values};
 use dmech_ocp::nlp::StageProblem;
 use nalgebra::SVector;

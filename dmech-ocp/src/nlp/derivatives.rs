@@ -10,8 +10,8 @@
 //! the solver approximates it by SR1 from the Jacobians (`docs/ocp.md`).
 
 use crate::nlp::{HessianBlocks, StageProblem};
-use dmech::linalg::Lu;
-use dmech::partials::{grad_part as grad, jacobian_part, seeded as seed, split_passes};
+use dmech_lie::dual::{grad_part as grad, jacobian_part, seeded as seed, split_passes};
+use dmech_lie::linalg::Lu;
 use nalgebra::{SMatrix, SVector};
 use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
 

@@ -24,7 +24,7 @@
 //! `p[support(k)]`: the stage functions keep their signature, and their derivatives in
 //! those entries are the derivatives in `p` (`docs/ocp.md`, "Free waypoint timing").
 
-use dmech::partials::{lift_vec, seeded, split_passes};
+use dmech_lie::dual::{lift_vec, seeded, split_passes};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 

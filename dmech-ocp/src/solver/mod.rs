@@ -21,7 +21,7 @@ use crate::nlp::derivatives::{
 use crate::nlp::HessianBlocks;
 use crate::nlp::{StageProblem, StateEquality};
 use crate::solver::kkt::riccati::{BackwardSweep, LqSolution, LqStage, RiccatiError};
-use dmech::linalg::Lu;
+use dmech_lie::linalg::Lu;
 use nalgebra::{SMatrix, SVector};
 use std::io::Write as _;
 use std::time::Instant;

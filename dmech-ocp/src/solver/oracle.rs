@@ -196,8 +196,8 @@ where
     ) -> (SVector<f64, NX>, SMatrix<f64, NC, NX>) {
         let (l, c) = state_pass(self, k, x, w);
         (
-            dmech::partials::grad_part(&l),
-            dmech::partials::jacobian_part(&c),
+            dmech_lie::dual::grad_part(&l),
+            dmech_lie::dual::jacobian_part(&c),
         )
     }
     fn state_curvature(

@@ -202,7 +202,8 @@ where
                 regularisation[i]
             }));
         let rhs = -(a.transpose() * problem.body_velocities[k]);
-        ws[k] = dmech::linalg::Lu::new(&normal).map_or_else(SVector::zeros, |lu| lu.solve(&rhs));
+        ws[k] =
+            dmech_lie::linalg::Lu::new(&normal).map_or_else(SVector::zeros, |lu| lu.solve(&rhs));
         xs[k + 1] = xs[k] + ws[k] * h;
     }
     let r: SolveResult<NS, NS, 0> = solver.solve(solver.initial_iterate(xs, ws));

@@ -153,7 +153,7 @@ pub fn shape_acceleration_with_response<T: Real, const K: usize>(
     rhs[5] -= -fl + f_shape[2];
 
     // ν̇ = −(SᵀMS)⁻¹ Sᵀ (M Ṡ ν + K + P − 𝓕).
-    let lu = dmech::linalg::Lu::new(&sms)?;
+    let lu = dmech_lie::linalg::Lu::new(&sms)?;
     let shape = |nud: SVector<T, 3>| {
         [
             nud[0],

@@ -7,8 +7,8 @@
 //! RK1/2/4 and both current models; at the eight's start and at perturbed points. (The
 //! closed form against the accelerations derived from `ℓ`: `tests/model/wip_continuous.rs`.)
 
-use dmech::partials::{seeded, split_passes};
 use dmech::{Discretisation, ForcingQuadrature, RungeKutta};
+use dmech_lie::dual::{seeded, split_passes};
 use dmech_ocp::nlp::derivatives::generic_cost_curvature;
 use dmech_ocp::nlp::StageProblem;
 use dmech_ocp::transcription::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};

@@ -113,7 +113,7 @@ fn stage_jacobians_match_central_differences() {
             SVector::<D, 7>::from_fn(|i, _| z[15 + i]),
         )
     };
-    let (_, jd) = dmech::partials::value_and_jacobian(
+    let (_, jd) = dmech_lie::dual::value_and_jacobian(
         |z: &SVector<D, 22>| {
             let (x, wv) = split(z);
             let f = vi.dynamics::<D, 3, 2, 5, 2, 15, 7>(&x, &wv);

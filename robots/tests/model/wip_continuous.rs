@@ -133,7 +133,7 @@ fn upright_equilibrium_has_one_unstable_real_eigenvalue() {
     // Linearise the 6 non-cyclic states (α, v_α, v_d, v_θ, iR, iL) by dual numbers.
     use num_dual::DualSVec64;
     type D = DualSVec64<6>;
-    let (_, jac) = dmech::partials::value_and_jacobian(
+    let (_, jac) = dmech_lie::dual::value_and_jacobian(
         |z: &SVector<D, 6>| {
             let p = w.params;
             let vr = (z[2] + z[3] * p.d) / p.r;
@@ -373,7 +373,7 @@ fn perturbed_wip(rng: &mut Lcg) -> Wip {
 /// as above: ε·κ with κ ≈ 1e4 (the derivatives go through the same factorisation).
 #[test]
 fn closed_form_acceleration_of_both_models_equals_generic_path() {
-    use dmech::partials::{jacobian_part, seeded};
+    use dmech_lie::dual::{jacobian_part, seeded};
     use num_dual::DualSVec64;
     use robots::wip::algebraic_current::WipAlgebraicCurrent;
 
@@ -457,7 +457,8 @@ fn closed_form_acceleration_of_both_models_equals_generic_path() {
 /// round-off with margin (no solve amplifies it here).
 #[test]
 fn closed_form_lagrangian_gradient_of_both_models_equals_dual_partials() {
-    use dmech::partials::{dl_ds, dl_dv, dl_dxi, jacobian_part};
+    use dmech::partials::{dl_ds, dl_dv, dl_dxi};
+    use dmech_lie::dual::jacobian_part;
     use num_dual::{Derivative, DualSVec64};
     use robots::wip::algebraic_current::WipAlgebraicCurrent;
 

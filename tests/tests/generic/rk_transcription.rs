@@ -5,8 +5,8 @@
 //! on random systems with shape-dependent inertia and connection, on SE(2), SO(3) and SE(3).
 
 use dmech::continuous::motion_residual;
-use dmech::partials::{grad_part, jacobian_part, seeded};
 use dmech::RungeKutta;
+use dmech_lie::dual::{grad_part, jacobian_part, seeded};
 use dmech_ocp::transcription::runge_kutta::RkStages;
 use dmech_tests::random_system::{
     random_stage_state, GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family,

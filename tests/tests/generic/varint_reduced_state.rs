@@ -6,8 +6,8 @@
 //! systems read every shape coordinate, so the checks cover every carried count the
 //! passes dispatch on; and the structured partials against the generic path.
 
-use dmech::partials::{grad_part, seeded};
 use dmech::variational::ForcingQuadrature;
+use dmech_lie::dual::{grad_part, seeded};
 use dmech_ocp::transcription::variational::VarIntStages;
 use dmech_tests::random_system::{
     random_stage_state, Lcg, RandomSystem, RandomSystemSpec, Se2Family,

@@ -3,8 +3,8 @@
 
 use crate::transcription::layout::{segment, Layout};
 use dmech::continuous::{acceleration, acceleration_jacobian, coordinate_rate};
-use dmech::partials::{grad_part, jacobian_part, seeded};
 use dmech::{PrincipalKinematicSystem, RungeKutta};
+use dmech_lie::dual::{grad_part, jacobian_part, seeded};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;

@@ -7,8 +7,8 @@
 use crate::transcription::layout::Layout;
 use crate::transcription::variational::stages::{NodePoint, Terms, VarIntStages, D};
 use dmech::midpoint::{interval_force, midpoint_incoming_momentum, midpoint_outgoing_momentum};
-use dmech::partials::{grad_part, lift_vec, seeded, seeded_from};
 use dmech::{Discretisation, PrincipalKinematicSystem};
+use dmech_lie::dual::{grad_part, lift_vec, seeded, seeded_from};
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
 

@@ -14,11 +14,11 @@
 
 use crate::transcription::layout::{segment, Layout};
 use dmech::midpoint::{interval_body_velocity, midpoint_momentum_matching_residual};
-use dmech::partials::{grad_part, seeded_from};
 use dmech::variational::{
     discrete_force, incoming_momentum_dual, momentum_matching_residual, outgoing_momentum_dual,
 };
 use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
+use dmech_lie::dual::{grad_part, seeded_from};
 use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;

@@ -4,7 +4,7 @@
 use crate::wip::Wip;
 use crate::wip::WipParams;
 use dmech::continuous::acceleration;
-use dmech::partials::value_and_jacobian;
+use dmech_lie::dual::value_and_jacobian;
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 

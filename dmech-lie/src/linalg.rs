@@ -1,6 +1,6 @@
 //! A small dense solve generic over the scalar (so that solutions carry dual derivatives).
 
-use dmech_lie::Real;
+use crate::Real;
 use nalgebra::{SMatrix, SVector};
 
 /// Solve `M x = b` (one use of [`Lu`]). Returns `None` if a pivot is zero or not finite.
