@@ -33,22 +33,21 @@ pub use so3::So3;
 use nalgebra::{SMatrix, SVector};
 use std::fmt::Debug;
 
-/// A matrix Lie group with `DOF`-dimensional algebra acting on `R^DIM`.
+/// A matrix Lie group with a `DOF`-dimensional algebra.
 ///
 /// Implementations are generic structs `G<T>` over a [`Real`] scalar; [`LieGroup::With`]
 /// names the same group over another scalar, which is how values are lifted into dual
-/// numbers ([`LieGroup::from_re`]) and derivatives dropped ([`LieGroup::re`]).
-pub trait LieGroup<const DOF: usize, const DIM: usize>: Copy + Debug + Sized {
+/// numbers ([`LieGroup::from_re`]) and derivatives dropped ([`LieGroup::re`]). The space a
+/// group acts on is a trait of its own, [`GroupAction`].
+pub trait LieGroup<const DOF: usize>: Copy + Debug + Sized {
     type Scalar: Real;
     /// The same group over scalar `U`.
-    type With<U: Real>: LieGroup<DOF, DIM, Scalar = U, With<f64> = Self::With<f64>>;
+    type With<U: Real>: LieGroup<DOF, Scalar = U, With<f64> = Self::With<f64>>;
 
     fn identity() -> Self;
     /// `self ∘ other`.
     fn compose(&self, other: &Self) -> Self;
     fn inverse(&self) -> Self;
-    /// The group action on a point, `g · p`.
-    fn act(&self, p: &SVector<Self::Scalar, DIM>) -> SVector<Self::Scalar, DIM>;
     fn exp(xi: &SVector<Self::Scalar, DOF>) -> Self;
     /// The principal logarithm (rotation angle in (−π, π]).
     fn log(&self) -> SVector<Self::Scalar, DOF>;
@@ -60,15 +59,6 @@ pub trait LieGroup<const DOF: usize, const DIM: usize>: Copy + Debug + Sized {
     fn dexp(xi: &SVector<Self::Scalar, DOF>) -> SMatrix<Self::Scalar, DOF, DOF>;
     /// Inverse of [`LieGroup::dexp`].
     fn dexp_inv(xi: &SVector<Self::Scalar, DOF>) -> SMatrix<Self::Scalar, DOF, DOF>;
-    /// Right Jacobians of the action: `(∂(g·p)/∂g, ∂(g·p)/∂p)`.
-    #[allow(clippy::type_complexity)]
-    fn act_jacobians(
-        &self,
-        p: &SVector<Self::Scalar, DIM>,
-    ) -> (
-        SMatrix<Self::Scalar, DIM, DOF>,
-        SMatrix<Self::Scalar, DIM, DIM>,
-    );
     /// Drop all derivative parts.
     fn re(&self) -> Self::With<f64>;
     /// Lift an `f64` element into this scalar (zero derivative parts).
@@ -119,6 +109,22 @@ pub trait LieGroup<const DOF: usize, const DIM: usize>: Copy + Debug + Sized {
     fn inverse_jacobian(&self) -> SMatrix<Self::Scalar, DOF, DOF> {
         -self.adjoint()
     }
+}
+
+/// The action of a [`LieGroup`] on `R^DIM` (SE(2) and SO(2) on the plane, SE(3) and SO(3)
+/// on space, `Rⁿ` on itself by translation).
+pub trait GroupAction<const DOF: usize, const DIM: usize>: LieGroup<DOF> {
+    /// The group action on a point, `g · p`.
+    fn act(&self, p: &SVector<Self::Scalar, DIM>) -> SVector<Self::Scalar, DIM>;
+    /// Right Jacobians of the action: `(∂(g·p)/∂g, ∂(g·p)/∂p)`.
+    #[allow(clippy::type_complexity)]
+    fn act_jacobians(
+        &self,
+        p: &SVector<Self::Scalar, DIM>,
+    ) -> (
+        SMatrix<Self::Scalar, DIM, DOF>,
+        SMatrix<Self::Scalar, DIM, DIM>,
+    );
 }
 
 /// The `3×3` skew matrix `v^` with `v^ w = v × w`.

@@ -1,13 +1,13 @@
 //! The vector space `Rⁿ` as an (abelian) Lie group under addition.
 
-use crate::{LieGroup, Real};
+use crate::{GroupAction, LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
 
 /// `Rⁿ` under `+`: `exp` and `log` are the identity, `Ad = dexp = I`, `ad = 0`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rn<T: Real, const N: usize>(pub SVector<T, N>);
 
-impl<T: Real, const N: usize> LieGroup<N, N> for Rn<T, N> {
+impl<T: Real, const N: usize> LieGroup<N> for Rn<T, N> {
     type Scalar = T;
     type With<U: Real> = Rn<U, N>;
 
@@ -19,9 +19,6 @@ impl<T: Real, const N: usize> LieGroup<N, N> for Rn<T, N> {
     }
     fn inverse(&self) -> Self {
         Rn(-self.0)
-    }
-    fn act(&self, p: &SVector<T, N>) -> SVector<T, N> {
-        p + self.0
     }
     fn exp(xi: &SVector<T, N>) -> Self {
         Rn(*xi)
@@ -41,9 +38,6 @@ impl<T: Real, const N: usize> LieGroup<N, N> for Rn<T, N> {
     fn dexp_inv(_xi: &SVector<T, N>) -> SMatrix<T, N, N> {
         SMatrix::identity()
     }
-    fn act_jacobians(&self, _p: &SVector<T, N>) -> (SMatrix<T, N, N>, SMatrix<T, N, N>) {
-        (SMatrix::identity(), SMatrix::identity())
-    }
     fn re(&self) -> Rn<f64, N> {
         Rn(self.0.map(|x| x.re()))
     }
@@ -55,5 +49,14 @@ impl<T: Real, const N: usize> LieGroup<N, N> for Rn<T, N> {
     }
     fn from_coordinates(c: &[T]) -> Option<Self> {
         (c.len() == N).then(|| Rn(SVector::from_column_slice(c)))
+    }
+}
+
+impl<T: Real, const N: usize> GroupAction<N, N> for Rn<T, N> {
+    fn act(&self, p: &SVector<T, N>) -> SVector<T, N> {
+        p + self.0
+    }
+    fn act_jacobians(&self, _p: &SVector<T, N>) -> (SMatrix<T, N, N>, SMatrix<T, N, N>) {
+        (SMatrix::identity(), SMatrix::identity())
     }
 }

@@ -1,7 +1,7 @@
 //! SE(2), rigid motions of the plane: `g = (x, y, θ)`, tangent `ξ = (v_x, v_y, ω)`.
 
 use crate::scalar::{cosc, dexp_inv_coeff, sinc, sinc3, wrap_angle};
-use crate::{LieGroup, Real};
+use crate::{GroupAction, LieGroup, Real};
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 
 /// A planar pose: translation `(x, y)` and heading `θ` (kept unwrapped, like [`crate::So2`]).
@@ -48,7 +48,7 @@ impl<T: Real> Se2<T> {
     }
 }
 
-impl<T: Real> LieGroup<3, 2> for Se2<T> {
+impl<T: Real> LieGroup<3> for Se2<T> {
     type Scalar = T;
     type With<U: Real> = Se2<U>;
 
@@ -62,9 +62,6 @@ impl<T: Real> LieGroup<3, 2> for Se2<T> {
     fn inverse(&self) -> Self {
         let p = -(self.rotation().transpose() * self.translation());
         Se2::new(p[0], p[1], -self.theta)
-    }
-    fn act(&self, p: &Vector2<T>) -> Vector2<T> {
-        self.rotation() * p + self.translation()
     }
     fn exp(xi: &Vector3<T>) -> Self {
         let p = Self::v_matrix(xi[2]) * Vector2::new(xi[0], xi[1]);
@@ -117,14 +114,6 @@ impl<T: Real> LieGroup<3, 2> for Se2<T> {
             o,
         )
     }
-    fn act_jacobians(&self, p: &Vector2<T>) -> (SMatrix<T, 2, 3>, Matrix2<T>) {
-        // g exp(δ) p ≈ g p + R (δ_v + δ_ω J p), J = [[0, −1], [1, 0]].
-        let r = self.rotation();
-        let rjp = r * Vector2::new(-p[1], p[0]);
-        let jg =
-            SMatrix::<T, 2, 3>::new(r[(0, 0)], r[(0, 1)], rjp[0], r[(1, 0)], r[(1, 1)], rjp[1]);
-        (jg, r)
-    }
     fn re(&self) -> Se2<f64> {
         Se2::new(self.x.re(), self.y.re(), self.theta.re())
     }
@@ -136,5 +125,19 @@ impl<T: Real> LieGroup<3, 2> for Se2<T> {
     }
     fn from_coordinates(c: &[T]) -> Option<Self> {
         (c.len() == 3).then(|| Se2::new(c[0], c[1], c[2]))
+    }
+}
+
+impl<T: Real> GroupAction<3, 2> for Se2<T> {
+    fn act(&self, p: &Vector2<T>) -> Vector2<T> {
+        self.rotation() * p + self.translation()
+    }
+    fn act_jacobians(&self, p: &Vector2<T>) -> (SMatrix<T, 2, 3>, Matrix2<T>) {
+        // g exp(δ) p ≈ g p + R (δ_v + δ_ω J p), J = [[0, −1], [1, 0]].
+        let r = self.rotation();
+        let rjp = r * Vector2::new(-p[1], p[0]);
+        let jg =
+            SMatrix::<T, 2, 3>::new(r[(0, 0)], r[(0, 1)], rjp[0], r[(1, 0)], r[(1, 1)], rjp[1]);
+        (jg, r)
     }
 }

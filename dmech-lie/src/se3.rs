@@ -1,7 +1,7 @@
 //! SE(3), rigid motions of space: `g = (R, p)`, tangent `ξ = (ρ, ω)`.
 
 use crate::scalar::{cosc, se3_alpha3, se3_q_coeff, sinc, sinc3};
-use crate::{hat3, LieGroup, Real, So3};
+use crate::{hat3, GroupAction, LieGroup, Real, So3};
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector3, Vector6};
 
 /// A rigid motion `x ↦ R x + p`, rotation stored as a unit quaternion ([`So3`]).
@@ -36,7 +36,7 @@ impl<T: Real> Se3<T> {
     }
 }
 
-impl<T: Real> LieGroup<6, 3> for Se3<T> {
+impl<T: Real> LieGroup<6> for Se3<T> {
     type Scalar = T;
     type With<U: Real> = Se3<U>;
 
@@ -52,9 +52,6 @@ impl<T: Real> LieGroup<6, 3> for Se3<T> {
     fn inverse(&self) -> Self {
         let ri = self.rotation.inverse();
         Se3::new(ri, -ri.act(&self.translation))
-    }
-    fn act(&self, p: &Vector3<T>) -> Vector3<T> {
-        self.rotation.act(p) + self.translation
     }
     fn exp(xi: &Vector6<T>) -> Self {
         let (rho, omega) = split(xi);
@@ -97,14 +94,6 @@ impl<T: Real> LieGroup<6, 3> for Se3<T> {
         let ji = So3::jl_inv(&omega);
         blocks(ji, -(ji * q * ji), Matrix3::zeros(), ji)
     }
-    fn act_jacobians(&self, p: &Vector3<T>) -> (SMatrix<T, 3, 6>, Matrix3<T>) {
-        // g exp(δ) p ≈ g p + R δ_ρ − R p^ δ_ω.
-        let r = self.rotation.matrix();
-        let mut jg = SMatrix::<T, 3, 6>::zeros();
-        jg.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
-        jg.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-(r * hat3(p))));
-        (jg, r)
-    }
     fn re(&self) -> Se3<f64> {
         Se3::new(self.rotation.re(), self.translation.map(|x| x.re()))
     }
@@ -125,5 +114,19 @@ impl<T: Real> LieGroup<6, 3> for Se3<T> {
             So3::from_coordinates(&c[3..])?,
             Vector3::new(c[0], c[1], c[2]),
         ))
+    }
+}
+
+impl<T: Real> GroupAction<6, 3> for Se3<T> {
+    fn act(&self, p: &Vector3<T>) -> Vector3<T> {
+        self.rotation.act(p) + self.translation
+    }
+    fn act_jacobians(&self, p: &Vector3<T>) -> (SMatrix<T, 3, 6>, Matrix3<T>) {
+        // g exp(δ) p ≈ g p + R δ_ρ − R p^ δ_ω.
+        let r = self.rotation.matrix();
+        let mut jg = SMatrix::<T, 3, 6>::zeros();
+        jg.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+        jg.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-(r * hat3(p))));
+        (jg, r)
     }
 }

@@ -1,7 +1,7 @@
 //! SO(2), planar rotations, stored as an unwrapped angle.
 
 use crate::scalar::wrap_angle;
-use crate::{LieGroup, Real};
+use crate::{GroupAction, LieGroup, Real};
 use nalgebra::{SMatrix, SVector, Vector1, Vector2};
 
 /// A planar rotation by `angle`. The angle is kept unwrapped (composition adds angles), so
@@ -23,7 +23,7 @@ impl<T: Real> So2<T> {
     }
 }
 
-impl<T: Real> LieGroup<1, 2> for So2<T> {
+impl<T: Real> LieGroup<1> for So2<T> {
     type Scalar = T;
     type With<U: Real> = So2<U>;
 
@@ -35,9 +35,6 @@ impl<T: Real> LieGroup<1, 2> for So2<T> {
     }
     fn inverse(&self) -> Self {
         So2::new(-self.angle)
-    }
-    fn act(&self, p: &Vector2<T>) -> Vector2<T> {
-        self.matrix() * p
     }
     fn exp(xi: &Vector1<T>) -> Self {
         So2::new(xi[0])
@@ -57,12 +54,6 @@ impl<T: Real> LieGroup<1, 2> for So2<T> {
     fn dexp_inv(_xi: &Vector1<T>) -> SMatrix<T, 1, 1> {
         SMatrix::identity()
     }
-    fn act_jacobians(&self, p: &Vector2<T>) -> (SMatrix<T, 2, 1>, SMatrix<T, 2, 2>) {
-        // R exp(δ) p ≈ R p + R J p δ with J = [[0, −1], [1, 0]].
-        let r = self.matrix();
-        let jp = Vector2::new(-p[1], p[0]);
-        (r * jp, r)
-    }
     fn re(&self) -> So2<f64> {
         So2::new(self.angle.re())
     }
@@ -74,6 +65,18 @@ impl<T: Real> LieGroup<1, 2> for So2<T> {
     }
     fn from_coordinates(c: &[T]) -> Option<Self> {
         (c.len() == 1).then(|| So2::new(c[0]))
+    }
+}
+
+impl<T: Real> GroupAction<1, 2> for So2<T> {
+    fn act(&self, p: &Vector2<T>) -> Vector2<T> {
+        self.matrix() * p
+    }
+    fn act_jacobians(&self, p: &Vector2<T>) -> (SMatrix<T, 2, 1>, SMatrix<T, 2, 2>) {
+        // R exp(δ) p ≈ R p + R J p δ with J = [[0, −1], [1, 0]].
+        let r = self.matrix();
+        let jp = Vector2::new(-p[1], p[0]);
+        (r * jp, r)
     }
 }
 

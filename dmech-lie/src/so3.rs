@@ -1,7 +1,7 @@
 //! SO(3), rotations of space, stored as a unit quaternion.
 
 use crate::scalar::{atan_over, cos_half, cosc, dexp_inv_coeff, sin_half_over, sinc3};
-use crate::{hat3, LieGroup, Real};
+use crate::{hat3, GroupAction, LieGroup, Real};
 use nalgebra::{Matrix3, Vector3};
 
 /// A rotation as a unit quaternion `w + (x, y, z)`. Our own quaternion arithmetic (not
@@ -52,7 +52,7 @@ impl<T: Real> So3<T> {
     }
 }
 
-impl<T: Real> LieGroup<3, 3> for So3<T> {
+impl<T: Real> LieGroup<3> for So3<T> {
     type Scalar = T;
     type With<U: Real> = So3<U>;
 
@@ -73,11 +73,6 @@ impl<T: Real> LieGroup<3, 3> for So3<T> {
             w: self.w,
             v: -self.v,
         }
-    }
-    fn act(&self, p: &Vector3<T>) -> Vector3<T> {
-        // p + 2w (v × p) + 2 v × (v × p)
-        let t = self.v.cross(p) * T::from(2.0);
-        p + t * self.w + self.v.cross(&t)
     }
     fn exp(omega: &Vector3<T>) -> Self {
         let t = omega.dot(omega);
@@ -116,11 +111,6 @@ impl<T: Real> LieGroup<3, 3> for So3<T> {
     fn dexp_inv(omega: &Vector3<T>) -> Matrix3<T> {
         Self::jl_inv(omega)
     }
-    fn act_jacobians(&self, p: &Vector3<T>) -> (Matrix3<T>, Matrix3<T>) {
-        // R exp(δ) p ≈ R p − R p^ δ.
-        let r = self.matrix();
-        (-(r * hat3(p)), r)
-    }
     fn re(&self) -> So3<f64> {
         So3 {
             w: self.w.re(),
@@ -139,5 +129,18 @@ impl<T: Real> LieGroup<3, 3> for So3<T> {
     }
     fn from_coordinates(c: &[T]) -> Option<Self> {
         (c.len() == 4).then(|| So3::from_quaternion(c[0], c[1], c[2], c[3]))
+    }
+}
+
+impl<T: Real> GroupAction<3, 3> for So3<T> {
+    fn act(&self, p: &Vector3<T>) -> Vector3<T> {
+        // p + 2w (v × p) + 2 v × (v × p)
+        let t = self.v.cross(p) * T::from(2.0);
+        p + t * self.w + self.v.cross(&t)
+    }
+    fn act_jacobians(&self, p: &Vector3<T>) -> (Matrix3<T>, Matrix3<T>) {
+        // R exp(δ) p ≈ R p − R p^ δ.
+        let r = self.matrix();
+        (-(r * hat3(p)), r)
     }
 }

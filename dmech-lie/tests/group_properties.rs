@@ -14,7 +14,7 @@
 //!   at most like `1/cos²(θ/4)` towards θ = π (a factor ≈ 2), so 1e-6 holds with margin.
 //! - `TOL_SERIES = 1e-12`: the bar for derivatives at and near zero.
 
-use dmech_lie::{LieGroup, Rn, Se2, Se3, So2, So3};
+use dmech_lie::{GroupAction, LieGroup, Rn, Se2, Se3, So2, So3};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{jacobian, Dual2SVec64, DualSVec64};
 use proptest::prelude::*;
@@ -27,7 +27,7 @@ const PI: f64 = std::f64::consts::PI;
 type D<const N: usize> = DualSVec64<N>;
 
 /// Which tangent components are rotational (to place samples near θ = π).
-trait Sampled<const DOF: usize, const DIM: usize>: LieGroup<DOF, DIM, Scalar = f64> {
+trait Sampled<const DOF: usize, const DIM: usize>: GroupAction<DOF, DIM, Scalar = f64> {
     const ROT: &'static [usize];
 }
 impl Sampled<1, 2> for So2<f64> {
@@ -87,7 +87,7 @@ fn max_abs<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> f64 {
 }
 
 /// Compare two elements by their action on a few points (insensitive to q vs −q).
-fn same_element<G: LieGroup<DOF, DIM, Scalar = f64>, const DOF: usize, const DIM: usize>(
+fn same_element<G: GroupAction<DOF, DIM, Scalar = f64>, const DOF: usize, const DIM: usize>(
     a: &G,
     b: &G,
 ) -> f64 {
@@ -119,7 +119,7 @@ fn expm<const N: usize>(a: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
 }
 
 /// `Σ_k c_k ad_ξ^k` evaluated in any scalar (the reference series for dexp and dexp⁻¹).
-fn ad_series<G: LieGroup<DOF, DIM>, const DOF: usize, const DIM: usize>(
+fn ad_series<G: LieGroup<DOF>, const DOF: usize>(
     xi: &SVector<G::Scalar, DOF>,
     coeffs: &[f64],
 ) -> SMatrix<G::Scalar, DOF, DOF> {
@@ -155,6 +155,9 @@ fn check_group<G, const DOF: usize, const DIM: usize>(
     pt: &[f64],
 ) where
     G: Sampled<DOF, DIM>,
+    G::With<DualSVec64<DOF>>: GroupAction<DOF, DIM>,
+    G::With<DualSVec64<DIM>>: GroupAction<DOF, DIM>,
+    G::With<Dual2SVec64<DOF>>: GroupAction<DOF, DIM>,
 {
     let x1 = tangent::<G, DOF, DIM>(d1, k1);
     let x2 = tangent::<G, DOF, DIM>(d2, k2);
@@ -195,11 +198,11 @@ fn check_group<G, const DOF: usize, const DIM: usize>(
     assert!(max_abs(&(G::rjac(&x1) * G::rjac_inv(&x1) - i)) < TOL_ALG);
 
     // dexp against dual numbers: d/dδ log(exp(ξ+δ) exp(ξ)⁻¹) at δ = 0.
-    let a_inv_d = <G::With<D<DOF>> as LieGroup<DOF, DIM>>::from_re(&a.inverse().re());
+    let a_inv_d = <G::With<D<DOF>> as LieGroup<DOF>>::from_re(&a.inverse().re());
     let x1d = x1.map(D::<DOF>::from);
     let (_, jd) = jacobian(
         |dl: SVector<D<DOF>, DOF>| {
-            <G::With<D<DOF>> as LieGroup<DOF, DIM>>::exp(&(x1d + dl))
+            <G::With<D<DOF>> as LieGroup<DOF>>::exp(&(x1d + dl))
                 .compose(&a_inv_d)
                 .log()
         },
@@ -222,7 +225,7 @@ fn check_group<G, const DOF: usize, const DIM: usize>(
     );
 
     // Jacobians of compose, inverse and act against dual numbers (right perturbations).
-    let lift = |g: &G| <G::With<D<DOF>> as LieGroup<DOF, DIM>>::from_re(&g.re());
+    let lift = |g: &G| <G::With<D<DOF>> as LieGroup<DOF>>::from_re(&g.re());
     let (ad_, bd_) = (lift(&a), lift(&b));
     let z = SVector::<f64, DOF>::zeros();
     let zinv = lift(&a.compose(&b).inverse());
@@ -249,18 +252,21 @@ fn check_group<G, const DOF: usize, const DIM: usize>(
     let (_, j_act_g) = jacobian(|dl: SVector<D<DOF>, DOF>| ad_.rplus(&dl).act(&pd), &z);
     let (jg, jp) = a.act_jacobians(&p);
     assert!(max_abs(&(j_act_g - jg)) < TOL_ALG, "act J_g");
-    let ap = <G::With<D<DIM>> as LieGroup<DOF, DIM>>::from_re(&a.re());
+    let ap = <G::With<D<DIM>> as LieGroup<DOF>>::from_re(&a.re());
     let (_, j_act_p) = jacobian(|q: SVector<D<DIM>, DIM>| ap.act(&q), &p);
     assert!(max_abs(&(j_act_p - jp)) < TOL_ALG, "act J_p");
 }
 
 /// At and near zero: derivatives of exp, log and dexp⁻¹ by dual numbers (first and second
 /// order) are finite and equal the `ad` power series to 1e-12.
-type W<G, U, const DOF: usize, const DIM: usize> = <G as LieGroup<DOF, DIM>>::With<U>;
+type W<G, U, const DOF: usize, const DIM: usize> = <G as LieGroup<DOF>>::With<U>;
 
 fn check_near_zero<G, const DOF: usize, const DIM: usize>(dir: &[f64], eta: &[f64], scale: f64)
 where
     G: Sampled<DOF, DIM>,
+    G::With<DualSVec64<DOF>>: GroupAction<DOF, DIM>,
+    G::With<DualSVec64<DIM>>: GroupAction<DOF, DIM>,
+    G::With<Dual2SVec64<DOF>>: GroupAction<DOF, DIM>,
 {
     let xi = SVector::<f64, DOF>::from_column_slice(&dir[..DOF]) * scale;
     let eta = SVector::<f64, DOF>::from_column_slice(&eta[..DOF]);
@@ -268,51 +274,47 @@ where
     // First derivatives of ξ ↦ dexp⁻¹_ξ η and ξ ↦ dexp_ξ η: closed form vs series.
     let etad = eta.map(D::<DOF>::from);
     let (v1, j1) = jacobian(
-        |x: SVector<D<DOF>, DOF>| {
-            <W<G, D<DOF>, DOF, DIM> as LieGroup<DOF, DIM>>::dexp_inv(&x) * etad
-        },
+        |x: SVector<D<DOF>, DOF>| <W<G, D<DOF>, DOF, DIM> as LieGroup<DOF>>::dexp_inv(&x) * etad,
         &xi,
     );
     let (v2, j2) = jacobian(
         |x: SVector<D<DOF>, DOF>| {
-            ad_series::<W<G, D<DOF>, DOF, DIM>, DOF, DIM>(&x, &DEXPINV_SERIES) * etad
+            ad_series::<W<G, D<DOF>, DOF, DIM>, DOF>(&x, &DEXPINV_SERIES) * etad
         },
         &xi,
     );
     assert!(j1.iter().all(|x| x.is_finite()));
     assert!(max_abs(&(v1 - v2)) < TOL_SERIES && max_abs(&(j1 - j2)) < TOL_SERIES);
     let (_, j1) = jacobian(
-        |x: SVector<D<DOF>, DOF>| <W<G, D<DOF>, DOF, DIM> as LieGroup<DOF, DIM>>::dexp(&x) * etad,
+        |x: SVector<D<DOF>, DOF>| <W<G, D<DOF>, DOF, DIM> as LieGroup<DOF>>::dexp(&x) * etad,
         &xi,
     );
     let (_, j2) = jacobian(
-        |x: SVector<D<DOF>, DOF>| {
-            ad_series::<W<G, D<DOF>, DOF, DIM>, DOF, DIM>(&x, &DEXP_SERIES) * etad
-        },
+        |x: SVector<D<DOF>, DOF>| ad_series::<W<G, D<DOF>, DOF, DIM>, DOF>(&x, &DEXP_SERIES) * etad,
         &xi,
     );
     assert!(max_abs(&(j1 - j2)) < TOL_SERIES, "dexp' near zero");
 
     // d/dδ log(exp(ξ) exp(δ)) at δ = 0 is J_r(ξ)⁻¹ = dexp⁻¹_{−ξ}: through exp AND log.
-    let g = <W<G, D<DOF>, DOF, DIM> as LieGroup<DOF, DIM>>::from_re(&G::exp(&xi).re());
+    let g = <W<G, D<DOF>, DOF, DIM> as LieGroup<DOF>>::from_re(&G::exp(&xi).re());
     let (_, jl) = jacobian(
         |dl: SVector<D<DOF>, DOF>| {
-            g.compose(&<W<G, D<DOF>, DOF, DIM> as LieGroup<DOF, DIM>>::exp(&dl))
+            g.compose(&<W<G, D<DOF>, DOF, DIM> as LieGroup<DOF>>::exp(&dl))
                 .log()
         },
         &SVector::zeros(),
     );
-    let series = ad_series::<G, DOF, DIM>(&(-xi), &DEXPINV_SERIES);
+    let series = ad_series::<G, DOF>(&(-xi), &DEXPINV_SERIES);
     assert!(max_abs(&(jl - series)) < TOL_SERIES, "log∘exp derivative");
 
     // Second derivatives (Hessian of a scalar projection of dexp⁻¹) finite and = series.
     type H<const N: usize> = Dual2SVec64<N>;
     let etah = eta.map(H::<DOF>::from);
     let f_closed = |x: SVector<H<DOF>, DOF>| {
-        (<W<G, H<DOF>, DOF, DIM> as LieGroup<DOF, DIM>>::dexp_inv(&x) * etah).sum()
+        (<W<G, H<DOF>, DOF, DIM> as LieGroup<DOF>>::dexp_inv(&x) * etah).sum()
     };
     let f_series = |x: SVector<H<DOF>, DOF>| {
-        (ad_series::<W<G, H<DOF>, DOF, DIM>, DOF, DIM>(&x, &DEXPINV_SERIES) * etah).sum()
+        (ad_series::<W<G, H<DOF>, DOF, DIM>, DOF>(&x, &DEXPINV_SERIES) * etah).sum()
     };
     let (_, _, h1) = num_dual::hessian(f_closed, &xi);
     let (_, _, h2) = num_dual::hessian(f_series, &xi);
@@ -324,7 +326,7 @@ where
     // And the Hessian of the exp map's action, through exp's series branch.
     let f_exp = |x: SVector<H<DOF>, DOF>| {
         let p = SVector::<H<DOF>, DIM>::from_element(H::<DOF>::from(0.7));
-        <W<G, H<DOF>, DOF, DIM> as LieGroup<DOF, DIM>>::exp(&x)
+        <W<G, H<DOF>, DOF, DIM> as LieGroup<DOF>>::exp(&x)
             .act(&p)
             .sum()
     };

@@ -22,31 +22,24 @@ use num_dual::{Dual, DualVec};
 type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 
 /// The shape acceleration `v̇ = a(s, v, u)`; `None` if the mass matrix is singular.
-pub fn acceleration<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn acceleration<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
     u: &SVector<T, NU>,
 ) -> Option<SVector<T, NS>>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     T: Real,
 {
-    acceleration_with_force::<S, T, DOF, DIM, NS, NU>(sys, s, v, u, &SVector::zeros())
+    acceleration_with_force::<S, T, DOF, NS, NU>(sys, s, v, u, &SVector::zeros())
 }
 
 /// The shape acceleration with an external generalised force `f_ext` on the shape added to
 /// the system's forcing, for any parameter scalar (dual parameters give derivatives with
 /// respect to parameters). A force `f_b` on the group, in the body frame, enters as
 /// `f_ext = −Aᵀ f_b` (virtual work along the horizontal variations `g⁻¹δg = −A δs`).
-pub fn acceleration_with_force<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn acceleration_with_force<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
@@ -54,7 +47,7 @@ pub fn acceleration_with_force<
     f_ext: &SVector<T, NS>,
 ) -> Option<SVector<T, NS>>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
     Dv<T, DOF>: Lift<S::Param>,
@@ -62,19 +55,19 @@ where
     Dual<T>: Lift<S::Param>,
     Dv<Dual<T>, NS>: Lift<S::Param>,
 {
-    let (m, r0) = mass_and_bias::<S, T, DOF, DIM, NS, NU>(sys, s, v, u);
+    let (m, r0) = mass_and_bias::<S, T, DOF, NS, NU>(sys, s, v, u);
     solve(&m, &(-(r0 - f_ext)))
 }
 
 /// `(𝕄, r₀)` of the equations of motion `𝕄 v̇ + r₀ = 0` (no external force).
-fn mass_and_bias<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+fn mass_and_bias<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
     u: &SVector<T, NU>,
 ) -> (SMatrix<T, NS, NS>, SVector<T, NS>)
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
     Dv<T, DOF>: Lift<S::Param>,
@@ -92,13 +85,13 @@ where
     let (_, m) = value_and_jacobian(
         |vd: &SVector<Dv<T, NS>, NS>| {
             let xid = -(ad_ * vd);
-            pulled_back_gradient::<S, _, DOF, DIM, NS, NU>(sys, &sd, 0.0, vd, &xid, &(-ad_))
+            pulled_back_gradient::<S, _, DOF, NS, NU>(sys, &sd, 0.0, vd, &xid, &(-ad_))
         },
         v,
     );
 
     // r₀ = r(a = 0): the time derivative of P − A(s₀)ᵀμ along (ṡ, v̇) = (v, 0) and the rest.
-    let r0 = motion_residual::<S, T, DOF, DIM, NS, NU>(sys, s, v, &SVector::zeros(), u);
+    let r0 = motion_residual::<S, T, DOF, NS, NU>(sys, s, v, &SVector::zeros(), u);
     (m, r0)
 }
 
@@ -107,7 +100,7 @@ where
 /// along `(ṡ, v̇) = (v, a)` by one dual number in time (so `r = 𝕄 a + r₀`; it vanishes
 /// exactly at [`acceleration`]). Generic over the scalar; [`acceleration_jacobian`] uses it
 /// for the implicit-function derivative of the acceleration.
-pub fn motion_residual<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn motion_residual<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
@@ -115,7 +108,7 @@ pub fn motion_residual<S, T, const DOF: usize, const DIM: usize, const NS: usize
     u: &SVector<T, NU>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
     Dv<T, DOF>: Lift<S::Param>,
@@ -129,11 +122,10 @@ where
     let xit = -(sys.connection(&st) * vt);
     let a0t = a0.map(Dual::from_re);
     let momentum_dot =
-        pulled_back_gradient::<S, _, DOF, DIM, NS, NU>(sys, &st, 0.0, &vt, &xit, &(-a0t))
-            .map(|z| z.eps);
-    let mu = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
-    let ls = dl_ds::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
-    let ad = <S::Group<T> as LieGroup<DOF, DIM>>::ad(&xi);
+        pulled_back_gradient::<S, _, DOF, NS, NU>(sys, &st, 0.0, &vt, &xit, &(-a0t)).map(|z| z.eps);
+    let mu = dl_dxi::<S, T, DOF, NS, NU>(sys, s, v, &xi);
+    let ls = dl_ds::<S, T, DOF, NS, NU>(sys, s, v, &xi);
+    let ad = <S::Group<T> as LieGroup<DOF>>::ad(&xi);
     momentum_dot + a0.transpose() * (ad.transpose() * mu) - ls - sys.forcing(s, v, u)
 }
 
@@ -155,31 +147,25 @@ pub struct AccelerationJacobian<const NS: usize, const NU: usize> {
 /// one evaluation of `F`). Seeding only the blocks `r` reads (not the group coordinates, not
 /// a whole stage vector) is what makes it cheap on a stage.
 /// `None` if the mass matrix is singular.
-pub fn acceleration_jacobian<
-    S,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn acceleration_jacobian<S, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<f64, NS>,
     v: &SVector<f64, NS>,
     u: &SVector<f64, NU>,
 ) -> Option<AccelerationJacobian<NS, NU>>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     // `r` is affine in `a`, `r = 𝕄 a + r₀`: `𝕄` as the momentum's Jacobian in `v`, `r₀` in
     // plain numbers ([`mass_and_bias`]; a pass of `r` seeded in `a` costs more).
     let (sl, vl) = (s.map(Dv::from_re), v.map(Dv::from_re));
     let ul = u.map(Dv::<f64, NS>::from_re);
-    let (m, r0) = mass_and_bias::<S, f64, DOF, DIM, NS, NU>(sys, s, v, u);
+    let (m, r0) = mass_and_bias::<S, f64, DOF, NS, NU>(sys, s, v, u);
     let lu = Lu::new(&m)?;
     let a = lu.solve(&(-r0));
     let ad = a.map(Dv::<f64, NS>::from_re);
-    let r_s = motion_residual::<S, Dv<f64, NS>, DOF, DIM, NS, NU>(sys, &seeded(s), &vl, &ad, &ul);
-    let r_v = motion_residual::<S, Dv<f64, NS>, DOF, DIM, NS, NU>(sys, &sl, &seeded(v), &ad, &ul);
+    let r_s = motion_residual::<S, Dv<f64, NS>, DOF, NS, NU>(sys, &seeded(s), &vl, &ad, &ul);
+    let r_v = motion_residual::<S, Dv<f64, NS>, DOF, NS, NU>(sys, &sl, &seeded(v), &ad, &ul);
     let f_u = sys.forcing(
         &s.map(Dv::<f64, NU>::from_re),
         &v.map(Dv::<f64, NU>::from_re),
@@ -195,17 +181,14 @@ where
 
 /// The rate of the group coordinates (`LieGroup::coordinates`) for body velocity `ξ`:
 /// `d/dt coords(g exp(t ξ))` at `t = 0`, by a dual number.
-pub fn coordinate_rate<G, T, const DOF: usize, const DIM: usize>(
-    g: &G,
-    xi: &SVector<T, DOF>,
-) -> Vec<T>
+pub fn coordinate_rate<G, T, const DOF: usize>(g: &G, xi: &SVector<T, DOF>) -> Vec<T>
 where
-    G: LieGroup<DOF, DIM, Scalar = T>,
+    G: LieGroup<DOF, Scalar = T>,
     T: Real,
 {
     let c: Vec<Dual<T>> = g.coordinates().into_iter().map(Dual::from_re).collect();
-    let gd = <G::With<Dual<T>> as LieGroup<DOF, DIM>>::from_coordinates(&c)
-        .expect("coordinates round-trip");
+    let gd =
+        <G::With<Dual<T>> as LieGroup<DOF>>::from_coordinates(&c).expect("coordinates round-trip");
     let xid = xi.map(|x| Dual::new(T::zero(), x));
     gd.rplus(&xid)
         .coordinates()
@@ -241,38 +224,32 @@ type Deriv<const NS: usize> = (Vec<f64>, SVector<f64, NS>, SVector<f64, NS>);
 
 impl ContinuousModel {
     /// `(d coords(g)/dt, ṡ, v̇)` at a state.
-    pub fn derivative<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    pub fn derivative<S, const DOF: usize, const NS: usize, const NU: usize>(
         sys: &S,
         x: &ContinuousState<S::Group<f64>, NS>,
         u: &SVector<f64, NU>,
     ) -> Result<Deriv<NS>, StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        Self::derivative_with_force::<S, DOF, DIM, NS, NU>(sys, x, u, &|_| SVector::zeros())
+        Self::derivative_with_force::<S, DOF, NS, NU>(sys, x, u, &|_| SVector::zeros())
     }
 
     /// The same with an external generalised force on the shape that depends on the state
     /// (e.g. gravity along an inclined floor), added to the system's forcing as in
     /// [`acceleration_with_force`].
-    pub fn derivative_with_force<
-        S,
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-    >(
+    pub fn derivative_with_force<S, const DOF: usize, const NS: usize, const NU: usize>(
         sys: &S,
         x: &ContinuousState<S::Group<f64>, NS>,
         u: &SVector<f64, NU>,
         f_ext: &ShapeForce<'_, S::Group<f64>, NS>,
     ) -> Result<Deriv<NS>, StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let xi = -(sys.connection(&x.s) * x.v);
-        let gdot = coordinate_rate::<_, f64, DOF, DIM>(&x.g, &xi);
-        let a = acceleration_with_force::<S, f64, DOF, DIM, NS, NU>(sys, &x.s, &x.v, u, &f_ext(x))
+        let gdot = coordinate_rate::<_, f64, DOF>(&x.g, &xi);
+        let a = acceleration_with_force::<S, f64, DOF, NS, NU>(sys, &x.s, &x.v, u, &f_ext(x))
             .ok_or(StepError::Singular)?;
         if !a.iter().all(|z| z.is_finite()) {
             return Err(StepError::NonFinite);
@@ -280,13 +257,13 @@ impl ContinuousModel {
         Ok((gdot, x.v, a))
     }
 
-    fn advance<G, const DOF: usize, const DIM: usize, const NS: usize>(
+    fn advance<G, const DOF: usize, const NS: usize>(
         x: &ContinuousState<G, NS>,
         k: &Deriv<NS>,
         dt: f64,
     ) -> ContinuousState<G, NS>
     where
-        G: LieGroup<DOF, DIM, Scalar = f64>,
+        G: LieGroup<DOF, Scalar = f64>,
     {
         let c: Vec<f64> =
             x.g.coordinates()
@@ -302,7 +279,7 @@ impl ContinuousModel {
     }
 
     /// One explicit Runge–Kutta step of size `h` with the input held constant.
-    pub fn step<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    pub fn step<S, const DOF: usize, const NS: usize, const NU: usize>(
         sys: &S,
         method: RungeKutta,
         h: f64,
@@ -310,20 +287,14 @@ impl ContinuousModel {
         u: &SVector<f64, NU>,
     ) -> Result<ContinuousState<S::Group<f64>, NS>, StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        Self::step_with_force::<S, DOF, DIM, NS, NU>(sys, method, h, x, u, &|_| SVector::zeros())
+        Self::step_with_force::<S, DOF, NS, NU>(sys, method, h, x, u, &|_| SVector::zeros())
     }
 
     /// One explicit Runge–Kutta step with a state-dependent external shape force
     /// ([`ContinuousModel::derivative_with_force`]).
-    pub fn step_with_force<
-        S,
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-    >(
+    pub fn step_with_force<S, const DOF: usize, const NS: usize, const NU: usize>(
         sys: &S,
         method: RungeKutta,
         h: f64,
@@ -332,12 +303,12 @@ impl ContinuousModel {
         f_ext: &ShapeForce<'_, S::Group<f64>, NS>,
     ) -> Result<ContinuousState<S::Group<f64>, NS>, StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let f = |y: &ContinuousState<S::Group<f64>, NS>| {
-            Self::derivative_with_force::<S, DOF, DIM, NS, NU>(sys, y, u, f_ext)
+            Self::derivative_with_force::<S, DOF, NS, NU>(sys, y, u, f_ext)
         };
-        let adv = Self::advance::<S::Group<f64>, DOF, DIM, NS>;
+        let adv = Self::advance::<S::Group<f64>, DOF, NS>;
         let out = match method {
             RungeKutta::Rk1 => adv(x, &f(x)?, h),
             RungeKutta::Rk2 => {

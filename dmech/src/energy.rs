@@ -10,19 +10,19 @@ type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 
 /// `E(s, v) = v·∂ℓ/∂v + ξ·∂ℓ/∂ξ − ℓ` at `ξ = −A(s) v`: the energy (Legendre transform of `ℓ`,
 /// restricted to the constraint). Velocity-linear (gyroscopic) terms of `ℓ` drop out.
-pub fn energy<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn energy<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
 ) -> T
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Real + Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
     Dv<T, DOF>: Lift<S::Param>,
 {
     let xi = -(sys.connection(s) * v);
-    let p = dl_dv::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
-    let mu = dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, s, v, &xi);
+    let p = dl_dv::<S, T, DOF, NS, NU>(sys, s, v, &xi);
+    let mu = dl_dxi::<S, T, DOF, NS, NU>(sys, s, v, &xi);
     v.dot(&p) + xi.dot(&mu) - sys.reduced_lagrangian(s, v, &xi)
 }

@@ -28,7 +28,7 @@
 //! /// Shape (φR, φL); wheel radius r, half-track d; wheel friction c; motor torques u.
 //! struct Drive { m: f64, j: f64, i: f64, r: f64, d: f64, c: f64 }
 //!
-//! impl PrincipalKinematicSystem<3, 2, 2, 2> for Drive {
+//! impl PrincipalKinematicSystem<3, 2, 2> for Drive {
 //!     type Param = f64;
 //!     type Group<T: Real> = Se2<T>;
 //!     fn reduced_lagrangian<T: Lift<f64>>(&self, _s: &SVector<T, 2>, v: &SVector<T, 2>,
@@ -54,7 +54,7 @@
 //!     x = vi.step(&robot, &x, &u, &u).expect("Newton converges").0;
 //! }
 //! assert!(x.g.theta > 0.0 && x.g.x > 0.0);
-//! let e = energy::<_, f64, 3, 2, 2, 2>(&robot, &x.s, &x.v);
+//! let e = energy(&robot, &x.s, &x.v);
 //! assert!(e > 0.0);
 //! ```
 

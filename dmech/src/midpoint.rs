@@ -39,28 +39,21 @@ pub fn interval_midpoint<T: dmech_lie::Real, const NS: usize>(
 }
 
 /// `ξ_k = −A(s_{k+½}) v_k`: the body velocity of interval `k` (the discrete constraint).
-pub fn interval_body_velocity<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn interval_body_velocity<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
 ) -> SVector<T, DOF>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
     -(sys.connection(&interval_midpoint(h, s, v)) * v)
 }
 
 /// `F_{k+½} = F(s_{k+½}, v_k, u_k)`: the force of interval `k`.
-pub fn interval_force<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn interval_force<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s: &SVector<T, NS>,
@@ -68,7 +61,7 @@ pub fn interval_force<S, T, const DOF: usize, const DIM: usize, const NS: usize,
     u: &SVector<T, NU>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
     sys.forcing(&interval_midpoint(h, s, v), v, u)
@@ -78,14 +71,7 @@ where
 /// `∂ℓ_k/∂v − ½h ∂ℓ_k/∂s − A(s_k)ᵀ dexp⁻¹(hξ_k)ᵀ μ_k` at `(s_{k+½}, v_k, ξ_k)`, one
 /// vector-dual evaluation of `ℓ` along `(δs, δv, δξ) = (−½hν, ν, −dexp⁻¹(hξ_k) A(s_k) ν)`.
 /// `a_k = A(s_k)`.
-pub fn midpoint_outgoing_momentum<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn midpoint_outgoing_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s_k: &SVector<T, NS>,
@@ -93,24 +79,17 @@ pub fn midpoint_outgoing_momentum<
     a_k: &SMatrix<T, DOF, NS>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    interval_momentum_at_node::<S, T, DOF, DIM, NS, NU>(sys, h, s_k, v_k, a_k, 1.0)
+    interval_momentum_at_node::<S, T, DOF, NS, NU>(sys, h, s_k, v_k, a_k, 1.0)
 }
 
 /// The discrete momentum arriving at node `k` (forces excluded):
 /// `∂ℓ_{k−1}/∂v + ½h ∂ℓ_{k−1}/∂s − A(s_k)ᵀ dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}` at
 /// `(s_{k−½}, v_{k−1}, ξ_{k−1})`. `a_k = A(s_k)`.
-pub fn midpoint_incoming_momentum<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn midpoint_incoming_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s_prev: &SVector<T, NS>,
@@ -118,25 +97,18 @@ pub fn midpoint_incoming_momentum<
     a_k: &SMatrix<T, DOF, NS>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    interval_momentum_at_node::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, a_k, -1.0)
+    interval_momentum_at_node::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, a_k, -1.0)
 }
 
 /// The momentum an interval (starting at `s_start` with velocity `v`) contributes at one of
 /// its nodes: the one after it (`side = −1`, incoming) or before it (`side = +1`,
 /// outgoing). The two differ only in the side: the shift `−side·½h` of `∂ℓ/∂s` and
 /// `dexp⁻¹(side·hξ)` (the source of the scheme's symmetry).
-fn interval_momentum_at_node<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+fn interval_momentum_at_node<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s_start: &SVector<T, NS>,
@@ -145,15 +117,15 @@ fn interval_momentum_at_node<
     side: f64,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
     let s_mid = interval_midpoint(h, s_start, v);
     let xi = -(sys.connection(&s_mid) * v);
-    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi * T::from(side * h)));
+    let dinv = <S::Group<T> as LieGroup<DOF>>::dexp_inv(&(xi * T::from(side * h)));
     let d = -(dinv * a_node);
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, &s_mid, -0.5 * side * h, v, &xi, &d)
+    pulled_back_gradient::<S, T, DOF, NS, NU>(sys, &s_mid, -0.5 * side * h, v, &xi, &d)
 }
 
 /// The midpoint momentum-matching residual at node `k`, divided by `h` (force units, as
@@ -167,7 +139,6 @@ pub fn midpoint_momentum_matching_residual<
     S,
     T,
     const DOF: usize,
-    const DIM: usize,
     const NS: usize,
     const NU: usize,
 >(
@@ -181,15 +152,15 @@ pub fn midpoint_momentum_matching_residual<
     u_k: &SVector<T, NU>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
     let a_k = sys.connection(s_k);
-    let inc = midpoint_incoming_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, &a_k);
-    let out = midpoint_outgoing_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_k, v_k, &a_k);
-    let f_prev = interval_force::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, u_prev);
-    let f_k = interval_force::<S, T, DOF, DIM, NS, NU>(sys, h, s_k, v_k, u_k);
+    let inc = midpoint_incoming_momentum::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, &a_k);
+    let out = midpoint_outgoing_momentum::<S, T, DOF, NS, NU>(sys, h, s_k, v_k, &a_k);
+    let f_prev = interval_force::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, u_prev);
+    let f_k = interval_force::<S, T, DOF, NS, NU>(sys, h, s_k, v_k, u_k);
     (out - inc) / T::from(h) - (f_prev + f_k) * T::from(0.5)
 }
 
@@ -197,13 +168,7 @@ impl VariationalIntegrator {
     /// One step of the midpoint discretisation (see [`VariationalIntegrator::step_cached`]
     /// for the arguments): `g_{k+1}`, `s_{k+1}` explicitly from `v_k`, then `v_{k+1}` from
     /// the momentum matching at node `k+1`.
-    pub(crate) fn midpoint_step<
-        S,
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-    >(
+    pub(crate) fn midpoint_step<S, const DOF: usize, const NS: usize, const NU: usize>(
         &self,
         sys: &S,
         x: &ViState<S::Group<f64>, NS>,
@@ -213,18 +178,18 @@ impl VariationalIntegrator {
         cache: &mut NewtonCache<NS>,
     ) -> Result<(ViState<S::Group<f64>, NS>, usize), StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let h = self.h;
-        let xi = interval_body_velocity::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v);
+        let xi = interval_body_velocity::<S, f64, DOF, NS, NU>(sys, h, &x.s, &x.v);
         let g_next =
-            x.g.compose(&<S::Group<f64> as LieGroup<DOF, DIM>>::exp(&(xi * h)));
+            x.g.compose(&<S::Group<f64> as LieGroup<DOF>>::exp(&(xi * h)));
         let s_next = x.s + x.v * h;
         // What does not depend on the unknown v_{k+1}: once, in f64.
         let a_next = sys.connection(&s_next);
         let incoming =
-            midpoint_incoming_momentum::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v, &a_next);
-        let f_prev = interval_force::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v, u_k);
+            midpoint_incoming_momentum::<S, f64, DOF, NS, NU>(sys, h, &x.s, &x.v, &a_next);
+        let f_prev = interval_force::<S, f64, DOF, NS, NU>(sys, h, &x.s, &x.v, u_k);
         let known = incoming / h + f_prev * 0.5;
         let (v, it) = self.solve_outgoing(sys, &s_next, u_next, &known, guess, cache)?;
         Ok((
@@ -242,13 +207,7 @@ impl VariationalIntegrator {
     /// at node 0, `outgoing_0(v_0) − ½h F_{½} = P − A(s_0)ᵀ μ` at `(s_0, v(0))`. `v_0` is
     /// the velocity on `[0, h)`, ≈ `v(h/2)`; starting from `v_0 = v(0)` instead would cost
     /// an O(h) error for the whole run (the scheme would be first order).
-    pub(crate) fn midpoint_start<
-        S,
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-    >(
+    pub(crate) fn midpoint_start<S, const DOF: usize, const NS: usize, const NU: usize>(
         &self,
         sys: &S,
         s0: &SVector<f64, NS>,
@@ -256,11 +215,11 @@ impl VariationalIntegrator {
         u0: &SVector<f64, NU>,
     ) -> Result<SVector<f64, NS>, StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let a0 = sys.connection(s0);
         let xi0 = -(a0 * v0);
-        let p0 = pulled_back_gradient::<S, f64, DOF, DIM, NS, NU>(sys, s0, 0.0, v0, &xi0, &-a0);
+        let p0 = pulled_back_gradient::<S, f64, DOF, NS, NU>(sys, s0, 0.0, v0, &xi0, &-a0);
         let known = p0 / self.h;
         let mut cache = NewtonCache::default();
         Ok(self.solve_outgoing(sys, s0, u0, &known, v0, &mut cache)?.0)
@@ -270,7 +229,7 @@ impl VariationalIntegrator {
     /// The Jacobian is taken by vector duals through the whole outgoing side (ℓ's gradient
     /// in nested duals): unlike the first-order scheme, `v` also moves the point `s_{k+½}`
     /// where ℓ, `A` and `F` are evaluated.
-    fn solve_outgoing<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    fn solve_outgoing<S, const DOF: usize, const NS: usize, const NU: usize>(
         &self,
         sys: &S,
         s_k: &SVector<f64, NS>,
@@ -280,7 +239,7 @@ impl VariationalIntegrator {
         cache: &mut NewtonCache<NS>,
     ) -> Result<(SVector<f64, NS>, usize), StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         type D<const N: usize> = DualSVec64<N>;
         let h = self.h;
@@ -288,8 +247,8 @@ impl VariationalIntegrator {
         let outgoing_side = |v: &SVector<D<NS>, NS>| {
             let (sk, ak) = (s_k.map(D::<NS>::from), a_k.map(D::<NS>::from));
             let uk = u_k.map(D::<NS>::from);
-            let out = midpoint_outgoing_momentum::<S, D<NS>, DOF, DIM, NS, NU>(sys, h, &sk, v, &ak);
-            let f = interval_force::<S, D<NS>, DOF, DIM, NS, NU>(sys, h, &sk, v, &uk);
+            let out = midpoint_outgoing_momentum::<S, D<NS>, DOF, NS, NU>(sys, h, &sk, v, &ak);
+            let f = interval_force::<S, D<NS>, DOF, NS, NU>(sys, h, &sk, v, &uk);
             out / D::<NS>::from(h) - f * D::<NS>::from(0.5)
         };
         let full = |v: &SVector<f64, NS>| {
@@ -297,8 +256,8 @@ impl VariationalIntegrator {
             (r - known, j)
         };
         let residual = |v: &SVector<f64, NS>| {
-            let out = midpoint_outgoing_momentum::<S, f64, DOF, DIM, NS, NU>(sys, h, s_k, v, &a_k);
-            let f = interval_force::<S, f64, DOF, DIM, NS, NU>(sys, h, s_k, v, u_k);
+            let out = midpoint_outgoing_momentum::<S, f64, DOF, NS, NU>(sys, h, s_k, v, &a_k);
+            let f = interval_force::<S, f64, DOF, NS, NU>(sys, h, s_k, v, u_k);
             out / h - f * 0.5 - known
         };
         let settings = NewtonSettings {

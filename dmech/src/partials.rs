@@ -20,14 +20,7 @@ type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 /// ([`PrincipalKinematicSystem::closed_form_lagrangian_gradient`]) replace the dual
 /// evaluation of `ℓ` (the WIP's: a third of the `f64` residual's cost, and through the
 /// nested duals of the midpoint scheme's Jacobian, 2.6× its plan).
-pub fn pulled_back_gradient<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn pulled_back_gradient<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     c: f64,
@@ -36,7 +29,7 @@ pub fn pulled_back_gradient<
     d: &SMatrix<T, DOF, NS>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
@@ -108,14 +101,7 @@ pub fn pulled_back_partials_factored<T: Real, const DOF: usize, const NS: usize>
 /// evaluation of `ℓ` in a scalar dual along the fixed direction `ν` (where only the
 /// contraction with `ν` is needed, `NS` times fewer derivative lanes than the gradient).
 /// Its second derivatives in `(s, v, ξ, D)` are the curvature `∇²(νᵀP)` of a momentum.
-pub fn pulled_back_directional<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn pulled_back_directional<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     c: f64,
@@ -125,7 +111,7 @@ pub fn pulled_back_directional<
     nu: &SVector<f64, NS>,
 ) -> T
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dual<T>: Lift<S::Param>,
 {
@@ -155,7 +141,6 @@ where
 pub fn pulled_back_gradient_dual<
     S,
     const DOF: usize,
-    const DIM: usize,
     const NS: usize,
     const NU: usize,
     const N: usize,
@@ -168,7 +153,7 @@ pub fn pulled_back_gradient_dual<
     d: &SMatrix<Dv<f64, N>, DOF, NS>,
 ) -> SVector<Dv<f64, N>, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     // A system's closed-form partials, in first-order duals.
     if let Some(partials) = sys.closed_form_lagrangian_gradient(s, v, xi) {
@@ -200,14 +185,14 @@ where
 }
 
 /// `∂ℓ/∂s` at `(s, v, ξ)`.
-pub fn dl_ds<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn dl_ds<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
     xi: &SVector<T, DOF>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Real,
     Dv<T, NS>: Lift<S::Param>,
 {
@@ -216,14 +201,14 @@ where
 }
 
 /// `∂ℓ/∂v_s` at `(s, v, ξ)`.
-pub fn dl_dv<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn dl_dv<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
     xi: &SVector<T, DOF>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Real,
     Dv<T, NS>: Lift<S::Param>,
 {
@@ -232,14 +217,14 @@ where
 }
 
 /// `μ = ∂ℓ/∂ξ` at `(s, v, ξ)`: the body momentum.
-pub fn dl_dxi<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn dl_dxi<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
     xi: &SVector<T, DOF>,
 ) -> SVector<T, DOF>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Real,
     Dv<T, DOF>: Lift<S::Param>,
 {
@@ -311,20 +296,14 @@ fn split_hd<const M: usize, const N: usize>(
 
 /// Three hyper-dual evaluations of `ℓ` (one per partial), each carrying the first partials
 /// and their `v`-Jacobian in flat arrays: much cheaper than nesting vector duals.
-pub fn momenta_and_jacobians<
-    S,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn momenta_and_jacobians<S, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<f64, NS>,
     v: &SVector<f64, NS>,
     a: &nalgebra::SMatrix<f64, DOF, NS>,
 ) -> MomentaJacobian<DOF, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     // ∂/∂v of ∂ℓ/∂v: v carries both seeds, ξ = −A v only the first.
     let v1 = seed_hd::<NS, NS>(v, true, false);

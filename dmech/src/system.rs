@@ -135,17 +135,11 @@ impl<const K: usize, const N: usize, const M: usize> Lift<DualSVec64<K>>
 ///
 /// Everything is written once over the scalar `T`, so values, gradients and Hessians come
 /// from the same code. Nothing here knows a particular robot.
-pub trait PrincipalKinematicSystem<
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->
-{
+pub trait PrincipalKinematicSystem<const DOF: usize, const NS: usize, const NU: usize> {
     /// Scalar of the model parameters (`f64`, or a dual number for parameter derivatives).
     type Param: Real;
     /// The symmetry group `G` over scalar `T`.
-    type Group<T: Real>: LieGroup<DOF, DIM, Scalar = T>;
+    type Group<T: Real>: LieGroup<DOF, Scalar = T>;
 
     /// The reduced Lagrangian `ℓ(s, v_s, ξ) = L(e, s, ξ, v_s)` (the Lagrangian at `g = e`,
     /// with body velocity `ξ`). All `DOF` components of `ξ` must be kept.

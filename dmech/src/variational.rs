@@ -71,14 +71,7 @@ impl std::str::FromStr for ForcingQuadrature {
 /// *before* it: `∂ℓ_{k−1}/∂v − A(s_k)ᵀ dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}` (the discrete momentum
 /// arriving at node `k`). `a_k = A(s_k)`. One evaluation of `ℓ` along the variation
 /// `(δs, δv, δξ) = (0, ν, −dexp⁻¹(−hξ_{k−1}) A(s_k) ν)`.
-pub fn incoming_momentum<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn incoming_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s_prev: &SVector<T, NS>,
@@ -86,57 +79,50 @@ pub fn incoming_momentum<
     a_k: &SMatrix<T, DOF, NS>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    let (xi_prev, d) = incoming_variation::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, a_k);
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
+    let (xi_prev, d) = incoming_variation::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, a_k);
+    pulled_back_gradient::<S, T, DOF, NS, NU>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
 }
 
 /// `(ξ_{k−1}, dexp⁻¹(−hξ_{k−1}))` of the incoming momentum, `ξ_{k−1} = −A(s_{k−1}) v_{k−1}`:
 /// [`incoming_variation`]'s factors.
-fn incoming_factors<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+fn incoming_factors<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s_prev: &SVector<T, NS>,
     v_prev: &SVector<T, NS>,
 ) -> (SVector<T, DOF>, SMatrix<T, DOF, DOF>)
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
     let xi_prev = -(sys.connection(s_prev) * v_prev);
-    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_prev * T::from(-h)));
+    let dinv = <S::Group<T> as LieGroup<DOF>>::dexp_inv(&(xi_prev * T::from(-h)));
     (xi_prev, dinv)
 }
 
 /// `(ξ_k, dexp⁻¹(hξ_k))` of the outgoing momentum, `ξ_k = −A(s_k) v_k`:
 /// [`outgoing_variation`]'s factors.
-fn outgoing_factors<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+fn outgoing_factors<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     h: f64,
     v_k: &SVector<T, NS>,
     a_k: &SMatrix<T, DOF, NS>,
 ) -> (SVector<T, DOF>, SMatrix<T, DOF, DOF>)
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
     let xi_k = -(a_k * v_k);
-    let dinv = <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(&(xi_k * T::from(h)));
+    let dinv = <S::Group<T> as LieGroup<DOF>>::dexp_inv(&(xi_k * T::from(h)));
     (xi_k, dinv)
 }
 
 /// `(ξ_{k−1}, D)` of the incoming momentum: `ξ_{k−1} = −A(s_{k−1}) v_{k−1}` and the
 /// variation `δξ = D ν`, `D = −dexp⁻¹(−hξ_{k−1}) A(s_k)`.
-pub fn incoming_variation<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn incoming_variation<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s_prev: &SVector<T, NS>,
@@ -144,31 +130,24 @@ pub fn incoming_variation<
     a_k: &SMatrix<T, DOF, NS>,
 ) -> (SVector<T, DOF>, SMatrix<T, DOF, NS>)
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
-    let (xi_prev, dinv) = incoming_factors::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev);
+    let (xi_prev, dinv) = incoming_factors::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev);
     (xi_prev, -(dinv * a_k))
 }
 
 /// `(ξ_k, D)` of the outgoing momentum: `ξ_k = −A(s_k) v_k`, `D = −dexp⁻¹(hξ_k) A(s_k)`.
-pub fn outgoing_variation<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn outgoing_variation<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     h: f64,
     v_k: &SVector<T, NS>,
     a_k: &SMatrix<T, DOF, NS>,
 ) -> (SVector<T, DOF>, SMatrix<T, DOF, NS>)
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
-    let (xi_k, dinv) = outgoing_factors::<S, T, DOF, DIM, NS, NU>(h, v_k, a_k);
+    let (xi_k, dinv) = outgoing_factors::<S, T, DOF, NS, NU>(h, v_k, a_k);
     (xi_k, -(dinv * a_k))
 }
 
@@ -178,7 +157,6 @@ where
 pub fn incoming_momentum_dual<
     S,
     const DOF: usize,
-    const DIM: usize,
     const NS: usize,
     const NU: usize,
     const N: usize,
@@ -190,16 +168,16 @@ pub fn incoming_momentum_dual<
     a_k: &SMatrix<Dv<f64, N>, DOF, NS>,
 ) -> SVector<Dv<f64, N>, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     // `D = −dexp⁻¹ A` is formed only without closed-form partials (with them,
     // `pulled_back_partials_factored` never needs it).
-    let (xi_prev, dinv) = incoming_factors::<S, _, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev);
+    let (xi_prev, dinv) = incoming_factors::<S, _, DOF, NS, NU>(sys, h, s_prev, v_prev);
     if let Some(partials) = sys.closed_form_lagrangian_gradient(s_prev, v_prev, &xi_prev) {
         return pulled_back_partials_factored(partials, 0.0, &dinv, a_k);
     }
     let d = -(dinv * a_k);
-    pulled_back_gradient_dual::<S, DOF, DIM, NS, NU, N>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
+    pulled_back_gradient_dual::<S, DOF, NS, NU, N>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
 }
 
 /// [`outgoing_momentum`] for first-order vector-dual inputs (see
@@ -207,7 +185,6 @@ where
 pub fn outgoing_momentum_dual<
     S,
     const DOF: usize,
-    const DIM: usize,
     const NS: usize,
     const NU: usize,
     const N: usize,
@@ -219,29 +196,22 @@ pub fn outgoing_momentum_dual<
     a_k: &SMatrix<Dv<f64, N>, DOF, NS>,
 ) -> SVector<Dv<f64, N>, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     // `D` formed only without closed-form partials.
-    let (xi_k, dinv) = outgoing_factors::<S, _, DOF, DIM, NS, NU>(h, v_k, a_k);
+    let (xi_k, dinv) = outgoing_factors::<S, _, DOF, NS, NU>(h, v_k, a_k);
     if let Some(partials) = sys.closed_form_lagrangian_gradient(s_k, v_k, &xi_k) {
         return pulled_back_partials_factored(partials, -h, &dinv, a_k);
     }
     let d = -(dinv * a_k);
-    pulled_back_gradient_dual::<S, DOF, DIM, NS, NU, N>(sys, s_k, -h, v_k, &xi_k, &d)
+    pulled_back_gradient_dual::<S, DOF, NS, NU, N>(sys, s_k, -h, v_k, &xi_k, &d)
 }
 
 /// The terms of the momentum-matching equation at node `k` that belong to the interval
 /// *after* it: `∂ℓ_k/∂v − h ∂ℓ_k/∂s − A(s_k)ᵀ dexp⁻¹(hξ_k)ᵀ μ_k` (the discrete momentum
 /// leaving node `k`). One evaluation of `ℓ` along the variation
 /// `(δs, δv, δξ) = (−hν, ν, −dexp⁻¹(hξ_k) A(s_k) ν)`.
-pub fn outgoing_momentum<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn outgoing_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     s_k: &SVector<T, NS>,
@@ -249,17 +219,17 @@ pub fn outgoing_momentum<
     a_k: &SMatrix<T, DOF, NS>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    let (xi_k, d) = outgoing_variation::<S, T, DOF, DIM, NS, NU>(h, v_k, a_k);
-    pulled_back_gradient::<S, T, DOF, DIM, NS, NU>(sys, s_k, -h, v_k, &xi_k, &d)
+    let (xi_k, d) = outgoing_variation::<S, T, DOF, NS, NU>(h, v_k, a_k);
+    pulled_back_gradient::<S, T, DOF, NS, NU>(sys, s_k, -h, v_k, &xi_k, &d)
 }
 
 /// The discrete force at node `k` for the chosen quadrature.
 #[allow(clippy::too_many_arguments)]
-pub fn discrete_force<S, T, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn discrete_force<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     quadrature: ForcingQuadrature,
     s_prev: &SVector<T, NS>,
@@ -270,7 +240,7 @@ pub fn discrete_force<S, T, const DOF: usize, const DIM: usize, const NS: usize,
     u_k: &SVector<T, NU>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
     match quadrature {
@@ -295,14 +265,7 @@ where
 /// (not recomputed as `s_{k−1} + h v_{k−1}`) so that a transcription can keep it as its
 /// own variable. Generic over the scalar: differentiate it with dual numbers.
 #[allow(clippy::too_many_arguments)]
-pub fn momentum_matching_residual<
-    S,
-    T,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NU: usize,
->(
+pub fn momentum_matching_residual<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     quadrature: ForcingQuadrature,
@@ -314,16 +277,15 @@ pub fn momentum_matching_residual<
     u_k: &SVector<T, NU>,
 ) -> SVector<T, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU>,
+    S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
     let a_k = sys.connection(s_k);
-    let inc = incoming_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_prev, v_prev, &a_k);
-    let out = outgoing_momentum::<S, T, DOF, DIM, NS, NU>(sys, h, s_k, v_k, &a_k);
-    let f = discrete_force::<S, T, DOF, DIM, NS, NU>(
-        sys, quadrature, s_prev, v_prev, u_prev, s_k, v_k, u_k,
-    );
+    let inc = incoming_momentum::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, &a_k);
+    let out = outgoing_momentum::<S, T, DOF, NS, NU>(sys, h, s_k, v_k, &a_k);
+    let f =
+        discrete_force::<S, T, DOF, NS, NU>(sys, quadrature, s_prev, v_prev, u_prev, s_k, v_k, u_k);
     (out - inc) / T::from(h) - f
 }
 
@@ -392,7 +354,7 @@ impl VariationalIntegrator {
     /// velocity `v(0)` and input `u_0`. For [`Discretisation::Midpoint`] the discrete
     /// Legendre transform at node 0 (needed for second order: `v_0 ≈ v(h/2)`); for the
     /// first-order scheme `v(0)` itself (its O(h) error is not improved by more).
-    pub fn start<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    pub fn start<S, const DOF: usize, const NS: usize, const NU: usize>(
         &self,
         sys: &S,
         s0: &SVector<f64, NS>,
@@ -400,7 +362,7 @@ impl VariationalIntegrator {
         u0: &SVector<f64, NU>,
     ) -> Result<SVector<f64, NS>, StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         match self.discretisation {
             Discretisation::FirstOrder => Ok(*v0),
@@ -411,7 +373,7 @@ impl VariationalIntegrator {
     /// One step `(g_k, s_k, v_k) → (g_{k+1}, s_{k+1}, v_{k+1})` with `u_k` on `[t_k, t_{k+1})`
     /// and `u_{k+1}` on the next interval, Newton started from `v_k`. Returns the new state
     /// and the number of Newton iterations.
-    pub fn step<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    pub fn step<S, const DOF: usize, const NS: usize, const NU: usize>(
         &self,
         sys: &S,
         x: &ViState<S::Group<f64>, NS>,
@@ -419,7 +381,7 @@ impl VariationalIntegrator {
         u_next: &SVector<f64, NU>,
     ) -> Result<(ViState<S::Group<f64>, NS>, usize), StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         self.step_from(sys, x, u_k, u_next, &x.v)
     }
@@ -432,7 +394,7 @@ impl VariationalIntegrator {
     /// corrections reuse that Jacobian (residual only, in `f64`): from an error ε the chord
     /// step leaves ~ε·|ΔJ| ≈ ε², the same as a full step, for a fraction of the cost. A chord
     /// step that does not contract by 10× falls back to full Newton.
-    pub fn step_from<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    pub fn step_from<S, const DOF: usize, const NS: usize, const NU: usize>(
         &self,
         sys: &S,
         x: &ViState<S::Group<f64>, NS>,
@@ -441,14 +403,14 @@ impl VariationalIntegrator {
         guess: &SVector<f64, NS>,
     ) -> Result<(ViState<S::Group<f64>, NS>, usize), StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         self.step_cached(sys, x, u_k, u_next, guess, &mut NewtonCache::default())
     }
 
     /// [`VariationalIntegrator::step_from`] with a cache that carries the last exact
     /// Jacobian from step to step (used with [`JacobianPolicy::ReuseAcrossSteps`]).
-    pub fn step_cached<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    pub fn step_cached<S, const DOF: usize, const NS: usize, const NU: usize>(
         &self,
         sys: &S,
         x: &ViState<S::Group<f64>, NS>,
@@ -458,7 +420,7 @@ impl VariationalIntegrator {
         cache: &mut NewtonCache<NS>,
     ) -> Result<(ViState<S::Group<f64>, NS>, usize), StepError>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         if self.discretisation == Discretisation::Midpoint {
             return self.midpoint_step(sys, x, u_k, u_next, guess, cache);
@@ -466,12 +428,12 @@ impl VariationalIntegrator {
         let h = self.h;
         let xi = -(sys.connection(&x.s) * x.v);
         let g_next =
-            x.g.compose(&<S::Group<f64> as LieGroup<DOF, DIM>>::exp(&(xi * h)));
+            x.g.compose(&<S::Group<f64> as LieGroup<DOF>>::exp(&(xi * h)));
         let s_next = x.s + x.v * h;
 
         // Everything that does not depend on the unknown v_{k+1} is evaluated once, in f64.
         let a_next = sys.connection(&s_next);
-        let incoming = incoming_momentum::<S, f64, DOF, DIM, NS, NU>(sys, h, &x.s, &x.v, &a_next);
+        let incoming = incoming_momentum::<S, f64, DOF, NS, NU>(sys, h, &x.s, &x.v, &a_next);
         let f_prev = match self.quadrature {
             ForcingQuadrature::Left => sys.forcing(&x.s, &x.v, u_k),
             _ => SVector::zeros(),
@@ -484,16 +446,16 @@ impl VariationalIntegrator {
         // (The dual lifts live here: chord steps, the common case, never need them.)
         let full = |v: &SVector<f64, NS>| {
             let ad = a_next.map(D::<NS>::from);
-            let m = momenta_and_jacobians::<S, DOF, DIM, NS, NU>(sys, &s_next, v, &a_next);
+            let m = momenta_and_jacobians::<S, DOF, NS, NU>(sys, &s_next, v, &a_next);
             let mu_d = m.mu.map(D::<NS>::from);
             let (dinv_mu, d_dinv_mu) = value_and_jacobian(
                 |vd: &SVector<D<NS>, NS>| {
                     let xi = -(ad * vd) * D::<NS>::from(h);
-                    <S::Group<D<NS>> as LieGroup<DOF, DIM>>::dexp_inv(&xi).transpose() * mu_d
+                    <S::Group<D<NS>> as LieGroup<DOF>>::dexp_inv(&xi).transpose() * mu_d
                 },
                 v,
             );
-            let dinv = <S::Group<f64> as LieGroup<DOF, DIM>>::dexp_inv(&(-(a_next * v) * h));
+            let dinv = <S::Group<f64> as LieGroup<DOF>>::dexp_inv(&(-(a_next * v) * h));
             let out = m.p - m.ls * h - at * dinv_mu;
             let d_out = m.dp - m.dls * h - at * (dinv.transpose() * m.dmu + d_dinv_mu);
             let (f, df) = match self.quadrature {
@@ -504,7 +466,7 @@ impl VariationalIntegrator {
                     let up = u_k.map(D::<NS>::from);
                     value_and_jacobian(
                         |vd: &SVector<D<NS>, NS>| {
-                            discrete_force::<S, D<NS>, DOF, DIM, NS, NU>(
+                            discrete_force::<S, D<NS>, DOF, NS, NU>(
                                 sys, q, &sp, &vp, &up, &sk, vd, &uk,
                             )
                         },
@@ -516,10 +478,10 @@ impl VariationalIntegrator {
         };
         // Residual only, in f64.
         let residual = |v: &SVector<f64, NS>| {
-            let out = outgoing_momentum::<S, f64, DOF, DIM, NS, NU>(sys, h, &s_next, v, &a_next);
+            let out = outgoing_momentum::<S, f64, DOF, NS, NU>(sys, h, &s_next, v, &a_next);
             let f = match self.quadrature {
                 ForcingQuadrature::Left => f_prev,
-                q => discrete_force::<S, f64, DOF, DIM, NS, NU>(
+                q => discrete_force::<S, f64, DOF, NS, NU>(
                     sys, q, &x.s, &x.v, u_k, &s_next, v, u_next,
                 ),
             };

@@ -17,7 +17,7 @@ pub struct DifferentialDrive {
     pub d: f64,
 }
 
-impl PrincipalKinematicSystem<3, 2, 2, 0> for DifferentialDrive {
+impl PrincipalKinematicSystem<3, 2, 0> for DifferentialDrive {
     type Param = f64;
     type Group<T: Real> = Se2<T>;
     fn reduced_lagrangian<T: Lift<f64>>(
@@ -63,7 +63,7 @@ pub struct VariableRadiusRobot {
     pub d: f64,
 }
 
-impl PrincipalKinematicSystem<3, 2, 3, 0> for VariableRadiusRobot {
+impl PrincipalKinematicSystem<3, 3, 0> for VariableRadiusRobot {
     type Param = f64;
     type Group<T: Real> = Se2<T>;
     fn reduced_lagrangian<T: Lift<f64>>(
@@ -135,7 +135,7 @@ impl SteeredCar {
     }
 }
 
-impl PrincipalKinematicSystem<3, 2, 2, 2> for SteeredCar {
+impl PrincipalKinematicSystem<3, 2, 2> for SteeredCar {
     type Param = f64;
     type Group<T: Real> = Se2<T>;
     fn reduced_lagrangian<T: Lift<f64>>(

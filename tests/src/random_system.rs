@@ -21,28 +21,28 @@ use nalgebra::{SMatrix, SVector};
 use std::marker::PhantomData;
 
 /// A family of Lie groups over every scalar (the systems' `Group<T>`).
-pub trait GroupFamily<const DOF: usize, const DIM: usize> {
-    type G<T: Real>: LieGroup<DOF, DIM, Scalar = T>;
+pub trait GroupFamily<const DOF: usize> {
+    type G<T: Real>: LieGroup<DOF, Scalar = T>;
     const NAME: &'static str;
 }
 
 /// SE(2): planar rigid motions.
 pub struct Se2Family;
-impl GroupFamily<3, 2> for Se2Family {
+impl GroupFamily<3> for Se2Family {
     type G<T: Real> = Se2<T>;
     const NAME: &'static str = "SE(2)";
 }
 
 /// SO(3): rotations.
 pub struct So3Family;
-impl GroupFamily<3, 3> for So3Family {
+impl GroupFamily<3> for So3Family {
     type G<T: Real> = So3<T>;
     const NAME: &'static str = "SO(3)";
 }
 
 /// SE(3): rigid motions in space.
 pub struct Se3Family;
-impl GroupFamily<6, 3> for Se3Family {
+impl GroupFamily<6> for Se3Family {
     type G<T: Real> = Se3<T>;
     const NAME: &'static str = "SE(3)";
 }
@@ -59,7 +59,7 @@ pub struct RandomSystemSpec {
 }
 
 /// A random system on the group family `F` with `NS` shape variables and `NS` inputs.
-pub struct RandomSystem<F, const DOF: usize, const DIM: usize, const NS: usize> {
+pub struct RandomSystem<F, const DOF: usize, const NS: usize> {
     n: usize,
     c0: Vec<f64>,
     ci: Vec<Vec<f64>>,
@@ -76,11 +76,11 @@ pub struct RandomSystem<F, const DOF: usize, const DIM: usize, const NS: usize> 
 /// A random stage state `x = (coords(g), rest)` for the transcriptions' derivative tests:
 /// `g = exp(ξ)` and `rest` with entries uniform in `[−0.5, 0.5)`, drawn in that order.
 /// Returns `x` and the number of group coordinates.
-pub fn random_stage_state<F, const DOF: usize, const DIM: usize, const NX: usize>(
+pub fn random_stage_state<F, const DOF: usize, const NX: usize>(
     rng: &mut Lcg,
 ) -> (SVector<f64, NX>, usize)
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
     let pose = F::G::<f64>::exp(&SVector::<f64, DOF>::from_fn(|_, _| rng.uniform()));
     let coords = pose.coordinates();
@@ -107,7 +107,7 @@ impl Lcg {
     }
 }
 
-impl<F, const DOF: usize, const DIM: usize, const NS: usize> RandomSystem<F, DOF, DIM, NS> {
+impl<F, const DOF: usize, const NS: usize> RandomSystem<F, DOF, NS> {
     /// Draws a system from `seed`.
     pub fn draw(seed: u64, spec: RandomSystemSpec) -> Self {
         let mut rng = Lcg(seed ^ 0x9E37_79B9_7F4A_7C15);
@@ -179,10 +179,10 @@ impl<F, const DOF: usize, const DIM: usize, const NS: usize> RandomSystem<F, DOF
     }
 }
 
-impl<F, const DOF: usize, const DIM: usize, const NS: usize>
-    PrincipalKinematicSystem<DOF, DIM, NS, NS> for RandomSystem<F, DOF, DIM, NS>
+impl<F, const DOF: usize, const NS: usize> PrincipalKinematicSystem<DOF, NS, NS>
+    for RandomSystem<F, DOF, NS>
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
     type Param = f64;
     type Group<T: Real> = F::G<T>;

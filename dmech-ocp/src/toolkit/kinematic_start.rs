@@ -29,7 +29,7 @@
 //! # use dmech_lie::{Real, Se2};
 //! # use nalgebra::{SMatrix, SVector};
 //! # struct DiffDrive;
-//! # impl PrincipalKinematicSystem<3, 2, 2, 2> for DiffDrive {
+//! # impl PrincipalKinematicSystem<3, 2, 2> for DiffDrive {
 //! #     type Param = f64;
 //! #     type Group<T: Real> = Se2<T>;
 //! #     fn reduced_lagrangian<T: Lift<f64>>(&self, _s: &SVector<T, 2>, v: &SVector<T, 2>, xi: &SVector<T, 3>) -> T {
@@ -45,7 +45,7 @@
 //! let h = 0.02;
 //! let path: Vec<Se2<f64>> = (0..=50).map(|k| Se2::new(0.5 * h * k as f64, 0.0, 0.0)).collect();
 //! let weights = SVector::<f64, 2>::repeat(1e-9);
-//! let (s, v) = shape_motion::<_, 3, 2, 2, 2>(&DiffDrive, h, &path, &SVector::zeros(), &weights)?;
+//! let (s, v) = shape_motion::<_, 3, 2, 2>(&DiffDrive, h, &path, &SVector::zeros(), &weights)?;
 //! assert!(v.iter().all(|vk| (vk[0] - 10.0).abs() < 1e-3 && (vk[1] - 10.0).abs() < 1e-3));
 //! assert!((s[50][0] - 10.0).abs() < 1e-3); // 1 s at 10 rad/s
 //! # Ok::<(), dmech_ocp::toolkit::kinematic_start::KinematicStartError>(())
@@ -59,20 +59,17 @@ use nalgebra::SVector;
 use std::marker::PhantomData;
 
 /// The least-squares problem of the module's documentation: `x_k = s_k`, `w_k = v_k`.
-pub struct KinematicPath<'a, S, const DOF: usize, const DIM: usize, const NU: usize> {
+pub struct KinematicPath<'a, S, const DOF: usize, const NU: usize> {
     pub sys: &'a S,
     pub h: f64,
     /// `ξ̄_k`, one per step.
     pub body_velocities: Vec<SVector<f64, DOF>>,
     pub regularisation: Vec<f64>,
     s0: Vec<f64>,
-    _dim: PhantomData<[(); DIM]>,
     _nu: PhantomData<[(); NU]>,
 }
 
-impl<'a, S, const DOF: usize, const DIM: usize, const NU: usize>
-    KinematicPath<'a, S, DOF, DIM, NU>
-{
+impl<'a, S, const DOF: usize, const NU: usize> KinematicPath<'a, S, DOF, NU> {
     /// The problem for the pose path `poses` (`N + 1` poses at step `h`) from shape `s0`.
     pub fn new<const NS: usize>(
         sys: &'a S,
@@ -82,7 +79,7 @@ impl<'a, S, const DOF: usize, const DIM: usize, const NU: usize>
         regularisation: &SVector<f64, NS>,
     ) -> Self
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let body_velocities = poses
             .windows(2)
@@ -94,16 +91,15 @@ impl<'a, S, const DOF: usize, const DIM: usize, const NU: usize>
             body_velocities,
             regularisation: regularisation.iter().copied().collect(),
             s0: s0.iter().copied().collect(),
-            _dim: PhantomData,
             _nu: PhantomData,
         }
     }
 }
 
-impl<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>
-    StageProblem<NS, NS, 0, 0> for KinematicPath<'_, S, DOF, DIM, NU>
+impl<S, const DOF: usize, const NS: usize, const NU: usize> StageProblem<NS, NS, 0, 0>
+    for KinematicPath<'_, S, DOF, NU>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
 {
     fn horizon(&self) -> usize {
         self.body_velocities.len()
@@ -172,7 +168,7 @@ impl std::error::Error for KinematicStartError {}
 /// Solves [`KinematicPath`] for `poses` and returns the shape path `s_0 … s_N` and the
 /// velocities `v_0 … v_{N−1}`.
 #[allow(clippy::type_complexity)]
-pub fn shape_motion<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn shape_motion<S, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     poses: &[S::Group<f64>],
@@ -180,9 +176,9 @@ pub fn shape_motion<S, const DOF: usize, const DIM: usize, const NS: usize, cons
     regularisation: &SVector<f64, NS>,
 ) -> Result<(Vec<SVector<f64, NS>>, Vec<SVector<f64, NS>>), KinematicStartError>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
 {
-    let problem = KinematicPath::<S, DOF, DIM, NU>::new(sys, h, poses, s0, regularisation);
+    let problem = KinematicPath::<S, DOF, NU>::new(sys, h, poses, s0, regularisation);
     let n = problem.body_velocities.len();
     let opts = IpOptions {
         verbose: false,
@@ -221,7 +217,6 @@ where
 pub fn varint_start_from_path<
     S,
     const DOF: usize,
-    const DIM: usize,
     const NS: usize,
     const NU: usize,
     const NX: usize,
@@ -235,9 +230,9 @@ pub fn varint_start_from_path<
     discretisation: dmech::Discretisation,
 ) -> Result<(Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>), KinematicStartError>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
 {
-    let (s, v) = shape_motion::<S, DOF, DIM, NS, NU>(sys, h, poses, s0, regularisation)?;
+    let (s, v) = shape_motion::<S, DOF, NS, NU>(sys, h, poses, s0, regularisation)?;
     let shift = match discretisation {
         dmech::Discretisation::FirstOrder => 0.0,
         dmech::Discretisation::Midpoint => 0.5 * h,
@@ -261,7 +256,7 @@ where
         xs.push(x);
         if k < v.len() {
             let xi = -(sys.connection(&(s[k] + v[k] * shift)) * v[k]);
-            g = g.compose(&<S::Group<f64> as LieGroup<DOF, DIM>>::exp(&(xi * h)));
+            g = g.compose(&<S::Group<f64> as LieGroup<DOF>>::exp(&(xi * h)));
         }
     }
     let ws = v

@@ -91,27 +91,19 @@ impl std::fmt::Display for FreeTimingError {
 impl std::error::Error for FreeTimingError {}
 
 /// A robot's VI plan with free segment timing. `NW` of the solver is `NS + NU + 2`.
-pub struct FreeTimingTranscription<
-    'a,
-    S,
-    P,
-    const DOF: usize,
-    const DIM: usize,
-    const NP: usize,
-    const NU: usize,
-> {
-    pub plan: VarIntTranscription<'a, S, P, DOF, DIM, NP, NU>,
+pub struct FreeTimingTranscription<'a, S, P, const DOF: usize, const NP: usize, const NU: usize> {
+    pub plan: VarIntTranscription<'a, S, P, DOF, NP, NU>,
     pub timing: FreeTiming,
     /// The segment of each interval `k < N`.
     segment_of: Vec<usize>,
 }
 
-impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: usize>
-    FreeTimingTranscription<'a, S, P, DOF, DIM, NP, NU>
+impl<'a, S, P, const DOF: usize, const NP: usize, const NU: usize>
+    FreeTimingTranscription<'a, S, P, DOF, NP, NU>
 {
     /// `plan` with the timing freedom `timing`.
     pub fn new<const NS: usize, const NC: usize>(
-        plan: VarIntTranscription<'a, S, P, DOF, DIM, NP, NU>,
+        plan: VarIntTranscription<'a, S, P, DOF, NP, NU>,
         timing: FreeTiming,
     ) -> Result<Self, FreeTimingError>
     where
@@ -219,16 +211,15 @@ impl<
         S,
         P,
         const DOF: usize,
-        const DIM: usize,
         const NP: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
         const NW: usize,
         const NC: usize,
-    > StageProblem<NX, NW, NS, NC> for FreeTimingTranscription<'_, S, P, DOF, DIM, NP, NU>
+    > StageProblem<NX, NW, NS, NC> for FreeTimingTranscription<'_, S, P, DOF, NP, NU>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
 {
     fn horizon(&self) -> usize {
@@ -247,13 +238,12 @@ where
         let l = self.plan.stages.layout;
         let sys = self.plan.stages.sys;
         let coords: Vec<T> = (0..l.nc).map(|i| x[i]).collect();
-        let g =
-            <S::Group<T> as LieGroup<DOF, DIM>>::from_coordinates(&coords).expect("layout checked");
+        let g = <S::Group<T> as LieGroup<DOF>>::from_coordinates(&coords).expect("layout checked");
         let s: SVector<T, NS> = segment(x, l.s_at());
         let v: SVector<T, NS> = segment(w, 0);
         let h = w[NW - 1] * self.plan.stages.h;
         let xi = -(sys.connection(&s) * v);
-        let g_next = g.compose(&<S::Group<T> as LieGroup<DOF, DIM>>::exp(&(xi * h)));
+        let g_next = g.compose(&<S::Group<T> as LieGroup<DOF>>::exp(&(xi * h)));
         let mut out = SVector::<T, NX>::zeros();
         for (i, c) in g_next.coordinates().into_iter().enumerate() {
             out[i] = c;
@@ -283,20 +273,19 @@ where
         let (h_prev, h) = (w[NW - 2] * hb, w[NW - 1] * hb);
         let s_prev = s - v_prev * h_prev;
         let a_k = sys.connection(&s);
-        let dexp_inv = |xi: &SVector<T, DOF>| <S::Group<T> as LieGroup<DOF, DIM>>::dexp_inv(xi);
+        let dexp_inv = |xi: &SVector<T, DOF>| <S::Group<T> as LieGroup<DOF>>::dexp_inv(xi);
         // Outgoing: ∂ℓ/∂v − h ∂ℓ/∂s − Aᵀ dexp⁻¹(hξ)ᵀ μ at (s_k, v_k, ξ_k).
         let xi = -(a_k * v);
-        let out = dl_dv::<S, T, DOF, DIM, NS, NU>(sys, &s, &v, &xi)
-            - dl_ds::<S, T, DOF, DIM, NS, NU>(sys, &s, &v, &xi) * h
+        let out = dl_dv::<S, T, DOF, NS, NU>(sys, &s, &v, &xi)
+            - dl_ds::<S, T, DOF, NS, NU>(sys, &s, &v, &xi) * h
             - a_k.transpose()
-                * (dexp_inv(&(xi * h)).transpose()
-                    * dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, &s, &v, &xi));
+                * (dexp_inv(&(xi * h)).transpose() * dl_dxi::<S, T, DOF, NS, NU>(sys, &s, &v, &xi));
         // Incoming: ∂ℓ_{k−1}/∂v − A(s_k)ᵀ dexp⁻¹(−h_{k−1}ξ_{k−1})ᵀ μ_{k−1}.
         let xi_prev = -(sys.connection(&s_prev) * v_prev);
-        let inc = dl_dv::<S, T, DOF, DIM, NS, NU>(sys, &s_prev, &v_prev, &xi_prev)
+        let inc = dl_dv::<S, T, DOF, NS, NU>(sys, &s_prev, &v_prev, &xi_prev)
             - a_k.transpose()
                 * (dexp_inv(&(xi_prev * (-h_prev))).transpose()
-                    * dl_dxi::<S, T, DOF, DIM, NS, NU>(sys, &s_prev, &v_prev, &xi_prev));
+                    * dl_dxi::<S, T, DOF, NS, NU>(sys, &s_prev, &v_prev, &xi_prev));
         (out - inc) / h - sys.forcing(&s, &v, &u)
     }
     /// Inside a segment (both ratios of the stage equal, as the solver keeps the copies of
@@ -334,7 +323,7 @@ where
             h: sigma * st.h,
             ..*st
         };
-        let (ex, mut ew) = at_step.first_order_equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w);
+        let (ex, mut ew) = at_step.first_order_equality_partials::<DOF, NS, NU, NX, NW>(x, w);
         // w's last two entries (the ratios) seeded, the rest constant.
         let ratios_seeded =
             SVector::<DualSVec64<2>, NW>::from_fn(|i, _| match i.checked_sub(NW - 2) {

@@ -30,7 +30,7 @@
 //! use nalgebra::{SMatrix, SVector};
 //!
 //! struct DiffDrive; // mass 1 kg, wheel radius 0.05 m, half-track 0.1 m
-//! impl PrincipalKinematicSystem<3, 2, 2, 2> for DiffDrive {
+//! impl PrincipalKinematicSystem<3, 2, 2> for DiffDrive {
 //!     type Param = f64;
 //!     type Group<T: Real> = Se2<T>;
 //!     fn reduced_lagrangian<T: Lift<f64>>(
@@ -75,7 +75,7 @@
 //! }
 //!
 //! let (n, h) = (100, 0.02);
-//! let p = VarIntTranscription::<_, _, 3, 2, 3, 2>::new::<2>(
+//! let p = VarIntTranscription::<_, _, 3, 3, 2>::new::<2>(
 //!     &DiffDrive, Forward { n }, h, Discretisation::FirstOrder,
 //! );
 //! // NX = 3 + 2·2 + 2 = 9, NW = 2 + 2 = 4, NE = 2, free inputs NW − NE = 2, NC = 0.

@@ -45,7 +45,7 @@ const CAR: Car = Car {
     damping: [0.02, 1e-3],
 };
 
-impl PrincipalKinematicSystem<3, 2, 2, 2> for Car {
+impl PrincipalKinematicSystem<3, 2, 2> for Car {
     type Param = f64;
     type Group<T: Real> = Se2<T>;
     fn reduced_lagrangian<T: Lift<f64>>(
@@ -169,7 +169,7 @@ fn solve(drive_torque: f64, opts: IpOptions) -> (Status, usize, f64, f64) {
 fn solve_problem(problem: ParkDiagonal, opts: IpOptions) -> (Status, usize, f64, f64) {
     let (n, h) = (problem.n, 5.0 / problem.n as f64);
     let disc = Discretisation::FirstOrder;
-    let (xs, ws) = varint_start_from_path::<Car, 3, 2, 2, 2, 9, 4>(
+    let (xs, ws) = varint_start_from_path::<Car, 3, 2, 2, 9, 4>(
         &CAR,
         h,
         &hermite_path(n),
@@ -178,7 +178,7 @@ fn solve_problem(problem: ParkDiagonal, opts: IpOptions) -> (Status, usize, f64,
         disc,
     )
     .expect("a kinematic start");
-    let problem = VarIntTranscription::<_, _, 3, 2, 3, 2>::new::<2>(&CAR, problem, h, disc);
+    let problem = VarIntTranscription::<_, _, 3, 3, 2>::new::<2>(&CAR, problem, h, disc);
     let solver: Solver<9, 4, 2, 2, 3> = Solver::new(&problem, opts);
     let r = solver.solve(solver.initial_iterate(xs, ws));
     (r.status, r.iterations, r.objective, r.max_violation)

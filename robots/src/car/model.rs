@@ -89,7 +89,7 @@ impl Car {
     }
 }
 
-impl PrincipalKinematicSystem<3, 2, NS, NU> for Car {
+impl PrincipalKinematicSystem<3, NS, NU> for Car {
     type Param = f64;
     type Group<T: Real> = Se2<T>;
 

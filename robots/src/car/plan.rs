@@ -287,7 +287,7 @@ pub struct CarMesh<'p> {
 impl<'p> SequencedPlan<NX, NW, NS, NC> for CarSequence<'p> {
     type Mesh = CarMesh<'p>;
     type Problem<'a>
-        = VarIntTranscription<'a, Car, &'a CarPlan<'p>, 3, 2, 3, NU>
+        = VarIntTranscription<'a, Car, &'a CarPlan<'p>, 3, 3, NU>
     where
         Self: 'a;
     fn steps(&self, mesh: &CarMesh) -> usize {
@@ -313,7 +313,7 @@ impl<'p> SequencedPlan<NX, NW, NS, NC> for CarSequence<'p> {
         // δφ = 0.1 rad at 1 m/s: the steering follows the path's curvature, smoothly, on
         // the branch |φ| < π/2 it starts on.
         let weights = SVector::<f64, NS>::new(1e-4, 1e-6, 1e-6);
-        varint_start_from_path::<Car, 3, 2, NS, NU, NX, NW>(
+        varint_start_from_path::<Car, 3, NS, NU, NX, NW>(
             self.car,
             h,
             &path,
@@ -370,12 +370,8 @@ pub fn plan(
     };
     let r = mesh_sequence::<_, NX, NW, NS, NU, NC>(&seq, finest, settings, opts, &progress);
     let problem_on_mesh = CarPlan::new(problem, bounds, h)?;
-    let tr = VarIntTranscription::<_, _, 3, 2, 3, NU>::new::<NS>(
-        car,
-        &problem_on_mesh,
-        h,
-        discretisation,
-    );
+    let tr =
+        VarIntTranscription::<_, _, 3, 3, NU>::new::<NS>(car, &problem_on_mesh, h, discretisation);
     let max_violation = measured_violation(&tr, &r);
     Ok(CarOutcome {
         status: r.status,

@@ -45,7 +45,7 @@ fn with_zero_charges<T: Real>(s: &SVector<T, 3>) -> SVector<T, 5> {
     SVector::<T, 5>::new(s[0], s[1], s[2], T::zero(), T::zero())
 }
 
-impl<P: Real> PrincipalKinematicSystem<3, 2, 3, 2> for WipAlgebraicCurrent<P> {
+impl<P: Real> PrincipalKinematicSystem<3, 3, 2> for WipAlgebraicCurrent<P> {
     type Param = P;
     type Group<T: Real> = Se2<T>;
 

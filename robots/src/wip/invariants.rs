@@ -6,7 +6,7 @@ use nalgebra::SVector;
 /// Energy `E = T + m_b g l cos α` (with `½ L_m i²` in `T`; the back-EMF term of `V` is
 /// velocity-linear and stores no energy), at shape `s` and shape velocity `v`.
 pub fn energy(w: &Wip, s: &SVector<f64, 5>, v: &SVector<f64, 5>) -> f64 {
-    dmech::energy::<Wip, f64, 3, 2, 5, 2>(w, s, v)
+    dmech::energy(w, s, v)
 }
 
 /// The electromechanical momentum (flux linkage) of each side, `L_m i + k_e n_wm (φ − α)`:

@@ -96,7 +96,7 @@ fn body_motion<P: Real, T: Lift<P>>(
     }
 }
 
-impl<P: Real> PrincipalKinematicSystem<3, 2, 5, 2> for Wip<P> {
+impl<P: Real> PrincipalKinematicSystem<3, 5, 2> for Wip<P> {
     type Param = P;
     type Group<T: Real> = Se2<T>;
 

@@ -39,7 +39,7 @@ pub const SMOOTH_FRICTION_SLOPE: f64 = 1.0;
 
 /// A WIP model the planner transcribes: what differs between the current models.
 pub trait PlanModel<const NS: usize>:
-    PrincipalKinematicSystem<3, 2, NS, 2, Param = f64> + Clone + PartialEq + Sync
+    PrincipalKinematicSystem<3, NS, 2, Param = f64> + Clone + PartialEq + Sync
 {
     /// Whether the currents are states with their (stiff) dynamics; if not, the outcome
     /// reconstructs currents and charges from `currents`.
@@ -269,10 +269,10 @@ impl<M: PlanModel<NS>, const NS: usize> PlanningProblem<3, NS, 2, NC> for WipPla
 }
 
 /// The WIP on a variational integrator (first order or midpoint).
-pub type VarIntPlan<'a, M> = VarIntTranscription<'a, M, WipPlan<'a, M>, 3, 2, 3, 2>;
+pub type VarIntPlan<'a, M> = VarIntTranscription<'a, M, WipPlan<'a, M>, 3, 3, 2>;
 
 /// The WIP on a Runge–Kutta step.
-pub type RkPlan<'a, M, const NS: usize> = RkTranscription<'a, M, WipPlan<'a, M>, 3, 2, 3, NS>;
+pub type RkPlan<'a, M, const NS: usize> = RkTranscription<'a, M, WipPlan<'a, M>, 3, 3, NS>;
 
 /// The first-order VI plan of `problem` for `model` (the paper's transcription).
 pub fn varint_plan<'a, M: PlanModel<NS>, const NS: usize>(

@@ -55,17 +55,17 @@ fn structured_equality_jacobian_equals_generic() {
         (Discretisation::FirstOrder, ForcingQuadrature::Midpoint),
         (Discretisation::Midpoint, ForcingQuadrature::Right),
     ] {
-        let st = VarIntStages::new::<3, 2, 5, 2>(&wip, p.h, q).with_discretisation(d);
+        let st = VarIntStages::new::<3, 5, 2>(&wip, p.h, q).with_discretisation(d);
         for k in [0, 1, 700, 2100, 4234] {
             for perturb in [0.0, 0.3] {
                 let x: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
                 let w: SVector<f64, 7> = ws[k].map(|v| v + perturb * rand());
-                let (e, ex, ew) = st.equality_jacobian::<3, 2, 5, 2, 15, 7>(&x, &w);
-                let gx = st.equality::<DualSVec64<15>, 3, 2, 5, 2, 15, 7>(
+                let (e, ex, ew) = st.equality_jacobian::<3, 5, 2, 15, 7>(&x, &w);
+                let gx = st.equality::<DualSVec64<15>, 3, 5, 2, 15, 7>(
                     &seeded(&x),
                     &w.map(DualSVec64::<15>::from_re),
                 );
-                let gw = st.equality::<DualSVec64<7>, 3, 2, 5, 2, 15, 7>(
+                let gw = st.equality::<DualSVec64<7>, 3, 5, 2, 15, 7>(
                     &x.map(DualSVec64::<7>::from_re),
                     &seeded(&w),
                 );
@@ -96,7 +96,7 @@ fn structured_equality_jacobian_equals_generic_on_the_reduced_state() {
     ] {
         let st = VarIntStages {
             layout,
-            ..VarIntStages::new::<3, 2, 5, 2>(&wip, p.h, q)
+            ..VarIntStages::new::<3, 5, 2>(&wip, p.h, q)
         };
         for k in [0, 1, 700, 2100, 4234] {
             for perturb in [0.0, 0.3] {
@@ -104,12 +104,12 @@ fn structured_equality_jacobian_equals_generic_on_the_reduced_state() {
                 let full: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
                 let x = SVector::<f64, 11>::from_fn(|j, _| full[if j < 4 { j } else { j + 4 }]);
                 let w: SVector<f64, 7> = ws[k].map(|v| v + perturb * rand());
-                let got = st.equality_jacobian::<3, 2, 5, 2, 11, 7>(&x, &w);
-                let gx = st.equality::<DualSVec64<11>, 3, 2, 5, 2, 11, 7>(
+                let got = st.equality_jacobian::<3, 5, 2, 11, 7>(&x, &w);
+                let gx = st.equality::<DualSVec64<11>, 3, 5, 2, 11, 7>(
                     &seeded(&x),
                     &w.map(DualSVec64::<11>::from_re),
                 );
-                let gw = st.equality::<DualSVec64<7>, 3, 2, 5, 2, 11, 7>(
+                let gw = st.equality::<DualSVec64<7>, 3, 5, 2, 11, 7>(
                     &x.map(DualSVec64::<7>::from_re),
                     &seeded(&w),
                 );
@@ -134,18 +134,18 @@ fn one_pass_dynamics_jacobian_equals_two_passes() {
     let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
     let mut rand = lcg(2024);
     for d in [Discretisation::FirstOrder, Discretisation::Midpoint] {
-        let st = VarIntStages::new::<3, 2, 5, 2>(&wip, p.h, ForcingQuadrature::Right)
+        let st = VarIntStages::new::<3, 5, 2>(&wip, p.h, ForcingQuadrature::Right)
             .with_discretisation(d);
         for k in [0, 1, 700, 2100, 4234] {
             for perturb in [0.0, 0.3] {
                 let x: SVector<f64, 15> = xs[k].map(|v| v + perturb * rand());
                 let w: SVector<f64, 7> = ws[k].map(|v| v + perturb * rand());
-                let got = st.dynamics_jacobian::<3, 2, 5, 2, 15, 7>(&x, &w);
-                let gx = st.dynamics::<DualSVec64<15>, 3, 2, 5, 2, 15, 7>(
+                let got = st.dynamics_jacobian::<3, 5, 2, 15, 7>(&x, &w);
+                let gx = st.dynamics::<DualSVec64<15>, 3, 5, 2, 15, 7>(
                     &seeded(&x),
                     &w.map(DualSVec64::<15>::from_re),
                 );
-                let gw = st.dynamics::<DualSVec64<7>, 3, 2, 5, 2, 15, 7>(
+                let gw = st.dynamics::<DualSVec64<7>, 3, 5, 2, 15, 7>(
                     &x.map(DualSVec64::<7>::from_re),
                     &seeded(&w),
                 );
@@ -161,7 +161,7 @@ fn one_pass_dynamics_jacobian_equals_two_passes() {
 fn free_timing_plan<'a>(
     wip: &'a Wip,
     p: &'a PlanProblem,
-) -> FreeTimingTranscription<'a, Wip, WipPlan<'a, Wip>, 3, 2, 3, 2> {
+) -> FreeTimingTranscription<'a, Wip, WipPlan<'a, Wip>, 3, 3, 2> {
     let plan = varint_plan::<Wip, 5>(wip, p, PlanBounds::default(), Discretisation::FirstOrder);
     let timing = FreeTiming {
         segment_starts: p.stages[..p.stages.len() - 1].to_vec(),
@@ -278,15 +278,15 @@ where
     M: PlanModel<NS>,
 {
     let p = eight(0.005);
-    let st = RkStages::new::<3, 2, NS, 2>(model, p.h, method);
+    let st = RkStages::new::<3, NS, 2>(model, p.h, method);
     let mut worst = 0.0f64;
     for (_, x, w) in rk_test_points::<M, NS, NX>(model, 777) {
-        let (f, fx, fw) = st.dynamics_jacobian::<3, 2, NS, 2, NX, 2>(&x, &w);
-        let gx = st.dynamics::<DualSVec64<NX>, 3, 2, NS, 2, NX, 2>(
+        let (f, fx, fw) = st.dynamics_jacobian::<3, NS, 2, NX, 2>(&x, &w);
+        let gx = st.dynamics::<DualSVec64<NX>, 3, NS, 2, NX, 2>(
             &seeded(&x),
             &w.map(DualSVec64::<NX>::from_re),
         );
-        let gw = st.dynamics::<DualSVec64<2>, 3, 2, NS, 2, NX, 2>(
+        let gw = st.dynamics::<DualSVec64<2>, 3, NS, 2, NX, 2>(
             &x.map(DualSVec64::<2>::from_re),
             &seeded(&w),
         );
@@ -443,10 +443,10 @@ fn ignorable_shift_effect<S, const NS: usize, const NX: usize, const NW: usize>(
     sys: &S,
 ) -> Vec<(usize, f64, f64)>
 where
-    S: dmech::PrincipalKinematicSystem<3, 2, NS, 2, Param = f64>,
+    S: dmech::PrincipalKinematicSystem<3, NS, 2, Param = f64>,
 {
     let h = 0.005;
-    let st = VarIntStages::new::<3, 2, NS, 2>(sys, h, ForcingQuadrature::Right);
+    let st = VarIntStages::new::<3, NS, 2>(sys, h, ForcingQuadrature::Right);
     let mut rand = lcg(4242);
     sys.ignorable_shape()
         .iter()
@@ -455,10 +455,10 @@ where
             for _ in 0..200 {
                 let x: SVector<f64, NX> = SVector::from_fn(|_, _| rand());
                 let w: SVector<f64, NW> = SVector::from_fn(|_, _| rand());
-                let e0 = st.equality::<f64, 3, 2, NS, 2, NX, NW>(&x, &w);
+                let e0 = st.equality::<f64, 3, NS, 2, NX, NW>(&x, &w);
                 let mut xs = x;
                 xs[3 + j] += 0.37 + rand();
-                let e1 = st.equality::<f64, 3, 2, NS, 2, NX, NW>(&xs, &w);
+                let e1 = st.equality::<f64, 3, NS, 2, NX, NW>(&xs, &w);
                 worst = worst.max((e1 - e0).amax());
                 let size = 1.0 + x.amax().max(xs.amax()).max(w.amax());
                 bound = bound.max(64.0 * f64::EPSILON * size / h);
@@ -489,15 +489,15 @@ fn the_wip_residual_does_not_read_its_ignorable_shape_positions() {
         }
     }
     // The check can fail: the tilt is read.
-    let st = VarIntStages::new::<3, 2, 5, 2>(&wip, 0.005, ForcingQuadrature::Right);
+    let st = VarIntStages::new::<3, 5, 2>(&wip, 0.005, ForcingQuadrature::Right);
     let (x, w) = (
         SVector::<f64, 15>::repeat(0.1),
         SVector::<f64, 7>::repeat(0.2),
     );
     let mut xs = x;
     xs[3] += 0.37;
-    let moved = st.equality::<f64, 3, 2, 5, 2, 15, 7>(&xs, &w)
-        - st.equality::<f64, 3, 2, 5, 2, 15, 7>(&x, &w);
+    let moved =
+        st.equality::<f64, 3, 5, 2, 15, 7>(&xs, &w) - st.equality::<f64, 3, 5, 2, 15, 7>(&x, &w);
     assert!(
         moved.amax() > 1e-3,
         "the tilt moves the residual by {:e}",

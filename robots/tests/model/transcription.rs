@@ -43,8 +43,7 @@ fn vi_trajectory_satisfies_the_vi_transcription() {
 fn vi_trajectory_satisfies_its_transcription(d: Discretisation) {
     let w = Wip::default();
     let h = 0.005;
-    let st =
-        VarIntStages::new::<3, 2, 5, 2>(&w, h, ForcingQuadrature::Right).with_discretisation(d);
+    let st = VarIntStages::new::<3, 5, 2>(&w, h, ForcingQuadrature::Right).with_discretisation(d);
     let x0 = ReducedState::from_column_slice(&[0.5, 0.2, 0.3, 0.05, 0.1, 0.2, 0.3, 0.1, 0.0]);
     let (g, s, v) = from_reduced(&w.params, &x0, [0.0; 4]);
     let vi = VariationalIntegrator::new(h).with_discretisation(d);
@@ -62,9 +61,9 @@ fn vi_trajectory_satisfies_its_transcription(d: Discretisation) {
         let xk = stage_x(&a.g.coordinates(), &a.s, &traj[k - 1].v, &u_at(k - 1));
         let wk = W::from_iterator(a.v.iter().copied().chain(u_at(k).iter().copied()));
         let want = stage_x(&b.g.coordinates(), &b.s, &a.v, &u_at(k));
-        let got = st.dynamics::<f64, 3, 2, 5, 2, 15, 7>(&xk, &wk);
+        let got = st.dynamics::<f64, 3, 5, 2, 15, 7>(&xk, &wk);
         worst_dyn = worst_dyn.max((got - want).amax() / (1.0 + want.amax()));
-        worst_eq = worst_eq.max(st.equality::<f64, 3, 2, 5, 2, 15, 7>(&xk, &wk).amax());
+        worst_eq = worst_eq.max(st.equality::<f64, 3, 5, 2, 15, 7>(&xk, &wk).amax());
     }
     println!("{d:?} transcription: dynamics {worst_dyn:.2e} (relative), equality {worst_eq:.2e}");
     assert!(worst_dyn < 4.0 * f64::EPSILON);
@@ -77,7 +76,7 @@ fn vi_trajectory_satisfies_its_transcription(d: Discretisation) {
 fn rk4_trajectory_satisfies_the_rk4_transcription() {
     let w = Wip::default();
     let h = 0.0005;
-    let st = RkStages::new::<3, 2, 5, 2>(&w, h, RungeKutta::Rk4);
+    let st = RkStages::new::<3, 5, 2>(&w, h, RungeKutta::Rk4);
     let x0 = ReducedState::from_column_slice(&[0.5, 0.2, 0.3, 0.05, 0.1, 0.2, 0.3, 0.1, 0.0]);
     let (g, s, v) = from_reduced(&w.params, &x0, [0.0; 4]);
     let mut y = ContinuousState { g, s, v };
@@ -87,7 +86,7 @@ fn rk4_trajectory_satisfies_the_rk4_transcription() {
         let xk = stage_x(&y.g.coordinates(), &y.s, &y.v, &u_at(k.saturating_sub(1)));
         let next = ContinuousModel::step(&w, RungeKutta::Rk4, h, &y, &u).unwrap();
         let want = stage_x(&next.g.coordinates(), &next.s, &next.v, &u);
-        let got = st.dynamics::<f64, 3, 2, 5, 2, 15, 2>(
+        let got = st.dynamics::<f64, 3, 5, 2, 15, 2>(
             &xk,
             &SVector::<f64, 2>::from_column_slice(u.as_slice()),
         );
@@ -104,7 +103,7 @@ fn rk4_trajectory_satisfies_the_rk4_transcription() {
 fn stage_jacobians_match_central_differences() {
     let w = Wip::default();
     let h = 0.005;
-    let vi = VarIntStages::new::<3, 2, 5, 2>(&w, h, ForcingQuadrature::Right);
+    let vi = VarIntStages::new::<3, 5, 2>(&w, h, ForcingQuadrature::Right);
     let z0 = SVector::<f64, 22>::from_fn(|i, _| 0.3 * ((i as f64) * 1.7).sin() + 0.05 * i as f64);
     type D = DualSVec64<22>;
     let split = |z: &SVector<D, 22>| {
@@ -116,8 +115,8 @@ fn stage_jacobians_match_central_differences() {
     let (_, jd) = dmech_lie::dual::value_and_jacobian(
         |z: &SVector<D, 22>| {
             let (x, wv) = split(z);
-            let f = vi.dynamics::<D, 3, 2, 5, 2, 15, 7>(&x, &wv);
-            let e = vi.equality::<D, 3, 2, 5, 2, 15, 7>(&x, &wv);
+            let f = vi.dynamics::<D, 3, 5, 2, 15, 7>(&x, &wv);
+            let e = vi.equality::<D, 3, 5, 2, 15, 7>(&x, &wv);
             SVector::<D, 20>::from_fn(|i, _| if i < 15 { f[i] } else { e[i - 15] })
         },
         &z0,
@@ -125,8 +124,8 @@ fn stage_jacobians_match_central_differences() {
     let eval = |z: &SVector<f64, 22>| {
         let x = SVector::<f64, 15>::from_fn(|i, _| z[i]);
         let wv = SVector::<f64, 7>::from_fn(|i, _| z[15 + i]);
-        let f = vi.dynamics::<f64, 3, 2, 5, 2, 15, 7>(&x, &wv);
-        let e = vi.equality::<f64, 3, 2, 5, 2, 15, 7>(&x, &wv);
+        let f = vi.dynamics::<f64, 3, 5, 2, 15, 7>(&x, &wv);
+        let e = vi.equality::<f64, 3, 5, 2, 15, 7>(&x, &wv);
         SVector::<f64, 20>::from_fn(|i, _| if i < 15 { f[i] } else { e[i - 15] })
     };
     let mut worst: f64 = 0.0;

@@ -12,8 +12,8 @@ use robots::wip::{Wip, WipParams};
 pub fn generic_xdot(w: &Wip, x: &SVector<f64, 9>, u: &SVector<f64, 2>) -> SVector<f64, 9> {
     let (g, s, v) = from_reduced(&w.params, x, [0.3, -0.2, 0.1, 0.05]);
     let xi = -(w.connection(&s) * v);
-    let gd = coordinate_rate::<_, f64, 3, 2>(&g, &xi);
-    let a = acceleration::<Wip, f64, 3, 2, 5, 2>(w, &s, &v, u).unwrap();
+    let gd = coordinate_rate::<_, f64, 3>(&g, &xi);
+    let a = acceleration::<Wip, f64, 3, 5, 2>(w, &s, &v, u).unwrap();
     let ar = reduced_acceleration(&w.params, &a);
     SVector::<f64, 9>::from_column_slice(&[
         gd[0], gd[1], gd[2], v[0], ar[0], ar[1], ar[2], ar[3], ar[4],
@@ -108,7 +108,7 @@ fn motor_circuit_from_generic_path() {
         let s = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-1.0, 1.0));
         let v = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
         let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
-        let a = acceleration::<Wip, f64, 3, 2, 5, 2>(&w, &s, &v, &u).unwrap();
+        let a = acceleration::<Wip, f64, 3, 5, 2>(&w, &s, &v, &u).unwrap();
         for (side, (iv, phiv)) in [(3usize, 1usize), (4, 2)].into_iter().enumerate() {
             let lhs = p.L_m * a[iv] + p.k_e * p.n_wm * (v[phiv] - v[0]);
             let rhs = u[side] - p.R_m * v[iv];
@@ -141,7 +141,7 @@ fn upright_equilibrium_has_one_unstable_real_eigenvalue() {
             let s =
                 SVector::<D, 5>::new(z[0], D::from(0.0), D::from(0.0), D::from(0.0), D::from(0.0));
             let v = SVector::<D, 5>::new(z[1], vr, vl, z[4], z[5]);
-            let a = acceleration::<Wip, D, 3, 2, 5, 2>(&w, &s, &v, &SVector::zeros()).unwrap();
+            let a = acceleration::<Wip, D, 3, 5, 2>(&w, &s, &v, &SVector::zeros()).unwrap();
             SVector::<D, 6>::new(
                 z[1],
                 a[0],
@@ -187,7 +187,7 @@ fn derivatives_with_respect_to_parameters() {
     let v1 = SVector::<f64, 5>::new(0.5, 5.2, 2.9, 0.25, -0.05);
     let u = SVector::<f64, 2>::new(1.0, -0.5);
     let l = |x: &SVector<f64, 5>| x.map(P::from);
-    let r = momentum_matching_residual::<Wip<P>, P, 3, 2, 5, 2>(
+    let r = momentum_matching_residual::<Wip<P>, P, 3, 5, 2>(
         &wd,
         0.005,
         ForcingQuadrature::Right,
@@ -200,7 +200,7 @@ fn derivatives_with_respect_to_parameters() {
     );
     let fd = |m_b: f64| {
         let w = Wip::new(WipParams { m_b, ..base });
-        momentum_matching_residual::<Wip, f64, 3, 2, 5, 2>(
+        momentum_matching_residual::<Wip, f64, 3, 5, 2>(
             &w,
             0.005,
             ForcingQuadrature::Right,
@@ -269,7 +269,7 @@ fn closed_form_with_extensions_equals_generic_path() {
         let vd = v.map(D2::from);
         let ud = u.map(D2::from);
         let fd = f.map(D2::from);
-        let a = acceleration_with_force::<Wip<D2>, D2, 3, 2, 5, 2>(&w, &sd, &vd, &ud, &fd).unwrap();
+        let a = acceleration_with_force::<Wip<D2>, D2, 3, 5, 2>(&w, &sd, &vd, &ud, &fd).unwrap();
         let b = shape_acceleration(
             &w,
             sd[0],
@@ -328,10 +328,10 @@ fn algebraic_current_model_equals_full_model_at_steady_current() {
                 "{x} vs {y}"
             );
         }
-        let a = acceleration::<WipAlgebraicCurrent, f64, 3, 2, 3, 2>(&alg, &s3, &v3, &u).unwrap();
+        let a = acceleration::<WipAlgebraicCurrent, f64, 3, 3, 2>(&alg, &s3, &v3, &u).unwrap();
         let s5 = SVector::<f64, 5>::new(s3[0], s3[1], s3[2], rng.uniform(-1.0, 1.0), 0.3);
         let v5 = SVector::<f64, 5>::new(v3[0], v3[1], v3[2], i[0], i[1]);
-        let b = acceleration::<Wip, f64, 3, 2, 5, 2>(&full, &s5, &v5, &u).unwrap();
+        let b = acceleration::<Wip, f64, 3, 5, 2>(&full, &s5, &v5, &u).unwrap();
         let c = shape_acceleration(&full, s3[0], [v3[0], v3[1], v3[2]], i, [0.0; 3]).unwrap();
         for j in 0..3 {
             let scale = 1.0 + a[j].abs();
@@ -385,14 +385,14 @@ fn closed_form_acceleration_of_both_models_equals_generic_path() {
         u: &SVector<f64, 2>,
     ) -> f64
     where
-        S: PrincipalKinematicSystem<3, 2, NS, 2, Param = f64>,
+        S: PrincipalKinematicSystem<3, NS, 2, Param = f64>,
     {
         let c = |x: &SVector<f64, NS>| x.map(DualSVec64::<NS>::from_re);
         let cu = |x: &SVector<f64, 2>| x.map(DualSVec64::<NS>::from_re);
         let c2 = |x: &SVector<f64, NS>| x.map(DualSVec64::<2>::from_re);
         let generic = [
-            acceleration::<S, _, 3, 2, NS, 2>(sys, &seeded(s), &c(v), &cu(u)).unwrap(),
-            acceleration::<S, _, 3, 2, NS, 2>(sys, &c(s), &seeded(v), &cu(u)).unwrap(),
+            acceleration::<S, _, 3, NS, 2>(sys, &seeded(s), &c(v), &cu(u)).unwrap(),
+            acceleration::<S, _, 3, NS, 2>(sys, &c(s), &seeded(v), &cu(u)).unwrap(),
         ];
         let closed = [
             sys.closed_form_acceleration(&seeded(s), &c(v), &cu(u))
@@ -400,7 +400,7 @@ fn closed_form_acceleration_of_both_models_equals_generic_path() {
             sys.closed_form_acceleration(&c(s), &seeded(v), &cu(u))
                 .unwrap(),
         ];
-        let gu = acceleration::<S, _, 3, 2, NS, 2>(sys, &c2(s), &c2(v), &seeded(u)).unwrap();
+        let gu = acceleration::<S, _, 3, NS, 2>(sys, &c2(s), &c2(v), &seeded(u)).unwrap();
         let fu = sys
             .closed_form_acceleration(&c2(s), &c2(v), &seeded(u))
             .unwrap();
@@ -464,7 +464,7 @@ fn closed_form_lagrangian_gradient_of_both_models_equals_dual_partials() {
 
     fn compare<S, const NS: usize, const N: usize>(sys: &S, z: &SVector<f64, N>) -> f64
     where
-        S: PrincipalKinematicSystem<3, 2, NS, 2, Param = f64>,
+        S: PrincipalKinematicSystem<3, NS, 2, Param = f64>,
     {
         assert_eq!(N, 2 * NS + 3);
         let seeded = SVector::<DualSVec64<N>, N>::from_fn(|i, _| {
@@ -477,9 +477,9 @@ fn closed_form_lagrangian_gradient_of_both_models_equals_dual_partials() {
         let xi = SVector::<DualSVec64<N>, 3>::from_fn(|i, _| seeded[2 * NS + i]);
         let (ls, lv, lxi) = sys.closed_form_lagrangian_gradient(&s, &v, &xi).unwrap();
         let refs = (
-            dl_ds::<S, _, 3, 2, NS, 2>(sys, &s, &v, &xi),
-            dl_dv::<S, _, 3, 2, NS, 2>(sys, &s, &v, &xi),
-            dl_dxi::<S, _, 3, 2, NS, 2>(sys, &s, &v, &xi),
+            dl_ds::<S, _, 3, NS, 2>(sys, &s, &v, &xi),
+            dl_dv::<S, _, 3, NS, 2>(sys, &s, &v, &xi),
+            dl_dxi::<S, _, 3, NS, 2>(sys, &s, &v, &xi),
         );
         let rel = |a: f64, b: f64| (a - b).abs() / (1.0 + b.abs());
         let mut worst = 0.0f64;

@@ -29,16 +29,14 @@ fn conservative() -> RandomSystemSpec {
 }
 
 /// A start drawn from the same seed: a pose near the identity, shapes and velocities O(1).
-fn random_start<F, const DOF: usize, const DIM: usize, const NS: usize>(
-    seed: u64,
-) -> ViState<F::G<f64>, NS>
+fn random_start<F, const DOF: usize, const NS: usize>(seed: u64) -> ViState<F::G<f64>, NS>
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
     let mut rng = Lcg(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x5DEE_CE66);
     let pose = SVector::<f64, DOF>::from_fn(|_, _| rng.uniform());
     ViState {
-        g: <F::G<f64> as LieGroup<DOF, DIM>>::exp(&pose),
+        g: <F::G<f64> as LieGroup<DOF>>::exp(&pose),
         s: SVector::from_fn(|_, _| rng.uniform()),
         v: SVector::from_fn(|_, _| 1.6 * rng.uniform()),
     }
@@ -46,14 +44,14 @@ where
 
 /// `N` steps of `vi` from the continuous state `x0` (the start's discrete Legendre
 /// transform included), no input. Returns every node.
-fn run<S, const DOF: usize, const DIM: usize, const NS: usize>(
+fn run<S, const DOF: usize, const NS: usize>(
     sys: &S,
     vi: &VariationalIntegrator,
     x0: &ViState<S::Group<f64>, NS>,
     n: usize,
 ) -> Vec<ViState<S::Group<f64>, NS>>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NS, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NS, Param = f64>,
 {
     let u = SVector::<f64, NS>::zeros();
     let mut x = ViState {
@@ -70,12 +68,7 @@ where
 }
 
 /// The distance between two configurations: `|log(a⁻¹b)| + |s_a − s_b|`.
-fn config_distance<
-    G: LieGroup<DOF, DIM, Scalar = f64>,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
->(
+fn config_distance<G: LieGroup<DOF, Scalar = f64>, const DOF: usize, const NS: usize>(
     a: &ViState<G, NS>,
     b: &ViState<G, NS>,
 ) -> f64 {
@@ -90,12 +83,12 @@ fn config_distance<
 /// (midpoint), at every step. The only error is round-off in exp, compose and log: the
 /// product `g_k⁻¹ g_{k+1}` cancels `|g_k|` to leave `h|ξ|`, so the bound is a few ulps of
 /// `(1 + |log g_k|)` divided by `h`.
-fn check_constraint<F, const DOF: usize, const DIM: usize, const NS: usize>(seed: u64)
+fn check_constraint<F, const DOF: usize, const NS: usize>(seed: u64)
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
-    let sys = RandomSystem::<F, DOF, DIM, NS>::draw(seed, conservative());
-    let x0 = random_start::<F, DOF, DIM, NS>(seed);
+    let sys = RandomSystem::<F, DOF, NS>::draw(seed, conservative());
+    let x0 = random_start::<F, DOF, NS>(seed);
     let h = 0.02;
     for disc in BOTH {
         let vi = VariationalIntegrator::new(h).with_discretisation(disc);
@@ -123,9 +116,9 @@ where
 #[test]
 fn the_discrete_constraint_holds_to_round_off() {
     for seed in 0..4 {
-        check_constraint::<Se2Family, 3, 2, 2>(seed);
-        check_constraint::<So3Family, 3, 3, 1>(seed);
-        check_constraint::<Se3Family, 6, 3, 3>(seed);
+        check_constraint::<Se2Family, 3, 2>(seed);
+        check_constraint::<So3Family, 3, 1>(seed);
+        check_constraint::<Se3Family, 6, 3>(seed);
     }
 }
 
@@ -137,15 +130,15 @@ fn the_discrete_constraint_holds_to_round_off() {
 /// T/2048 (its error, ~(h_ref ω)⁴, is below 1e-10 here, under a thousandth of the smallest
 /// VI error). The observed order at `(h, h/2)` is `p + O(hω)`: with ω ≲ 4 rad/s for these
 /// systems the deviation at the last pair (h = 1/64 s) is under 0.1.
-fn observed_orders<F, const DOF: usize, const DIM: usize, const NS: usize>(
+fn observed_orders<F, const DOF: usize, const NS: usize>(
     seed: u64,
     disc: Discretisation,
 ) -> Vec<f64>
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
-    let sys = RandomSystem::<F, DOF, DIM, NS>::draw(seed, conservative());
-    let x0 = random_start::<F, DOF, DIM, NS>(seed);
+    let sys = RandomSystem::<F, DOF, NS>::draw(seed, conservative());
+    let x0 = random_start::<F, DOF, NS>(seed);
     let t_end = 1.0;
     let n_ref = 2048;
     let u = SVector::<f64, NS>::zeros();
@@ -165,15 +158,15 @@ where
     errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect()
 }
 
-fn check_orders<F, const DOF: usize, const DIM: usize, const NS: usize>(seed: u64)
+fn check_orders<F, const DOF: usize, const NS: usize>(seed: u64)
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
     for (disc, p) in [
         (Discretisation::FirstOrder, 1.0),
         (Discretisation::Midpoint, 2.0),
     ] {
-        let orders = observed_orders::<F, DOF, DIM, NS>(seed, disc);
+        let orders = observed_orders::<F, DOF, NS>(seed, disc);
         let last = *orders.last().unwrap();
         println!(
             "{} NS={NS} seed {seed} {disc:?}: observed orders {orders:.3?}",
@@ -190,10 +183,10 @@ where
 #[test]
 fn first_order_and_midpoint_converge_at_orders_one_and_two() {
     for seed in 0..2 {
-        check_orders::<Se2Family, 3, 2, 1>(seed);
-        check_orders::<Se2Family, 3, 2, 2>(seed);
-        check_orders::<So3Family, 3, 3, 2>(seed);
-        check_orders::<Se3Family, 6, 3, 3>(seed);
+        check_orders::<Se2Family, 3, 1>(seed);
+        check_orders::<Se2Family, 3, 2>(seed);
+        check_orders::<So3Family, 3, 2>(seed);
+        check_orders::<Se3Family, 6, 3>(seed);
     }
 }
 
@@ -203,14 +196,14 @@ fn first_order_and_midpoint_converge_at_orders_one_and_two() {
 
 /// `n` steps forward, the velocity of the last interval flipped, `n` steps back: the
 /// distance from the start. (The reversed run starts at node `n` with `−v_{n−1}`.)
-fn return_error<S, const DOF: usize, const DIM: usize, const NS: usize>(
+fn return_error<S, const DOF: usize, const NS: usize>(
     sys: &S,
     vi: &VariationalIntegrator,
     x0: &ViState<S::Group<f64>, NS>,
     n: usize,
 ) -> f64
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NS, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NS, Param = f64>,
 {
     let u = SVector::<f64, NS>::zeros();
     let forward = run(sys, vi, x0, n);
@@ -231,12 +224,12 @@ where
 /// to its start velocity) is measured by finite differences; 2n such perturbations add up
 /// to at most `2n K τ`, taken ×4 for the other round-off. The first-order scheme misses the
 /// start by O(h): far outside that bound.
-fn check_reversibility<F, const DOF: usize, const DIM: usize, const NS: usize>(seed: u64)
+fn check_reversibility<F, const DOF: usize, const NS: usize>(seed: u64)
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
-    let sys = RandomSystem::<F, DOF, DIM, NS>::draw(seed, conservative());
-    let x0 = random_start::<F, DOF, DIM, NS>(seed);
+    let sys = RandomSystem::<F, DOF, NS>::draw(seed, conservative());
+    let x0 = random_start::<F, DOF, NS>(seed);
     let (h, n) = (0.02, 150);
     let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::Midpoint);
 
@@ -274,9 +267,9 @@ where
 #[test]
 fn the_midpoint_scheme_is_reversible() {
     for seed in 0..4 {
-        check_reversibility::<Se2Family, 3, 2, 2>(seed);
-        check_reversibility::<So3Family, 3, 3, 1>(seed);
-        check_reversibility::<Se3Family, 6, 3, 3>(seed);
+        check_reversibility::<Se2Family, 3, 2>(seed);
+        check_reversibility::<So3Family, 3, 1>(seed);
+        check_reversibility::<Se3Family, 6, 3>(seed);
     }
 }
 
@@ -287,7 +280,7 @@ fn the_midpoint_scheme_is_reversible() {
 /// The largest relative energy error in each tenth of `n` steps. The midpoint scheme's
 /// energy is read at the interval midpoint `(s_k + ½h v_k, v_k)`, where `v_k` is a
 /// second-order velocity; the first-order scheme's at `(s_k, v_k)`.
-pub fn energy_envelope<S, const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+pub fn energy_envelope<S, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     disc: Discretisation,
     h: f64,
@@ -295,10 +288,10 @@ pub fn energy_envelope<S, const DOF: usize, const DIM: usize, const NS: usize, c
     x0: &ViState<S::Group<f64>, NS>,
 ) -> [f64; 10]
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     let u = SVector::<f64, NU>::zeros();
-    let e0 = energy::<_, f64, DOF, DIM, NS, NU>(sys, &x0.s, &x0.v);
+    let e0 = energy::<_, f64, DOF, NS, NU>(sys, &x0.s, &x0.v);
     let vi = VariationalIntegrator::new(h)
         .with_discretisation(disc)
         .with_jacobian(JacobianPolicy::ReuseAcrossSteps);
@@ -318,7 +311,7 @@ where
             Discretisation::FirstOrder => x.s,
             Discretisation::Midpoint => interval_midpoint(h, &x.s, &x.v),
         };
-        let e = energy::<_, f64, DOF, DIM, NS, NU>(sys, &s, &x.v);
+        let e = energy::<_, f64, DOF, NS, NU>(sys, &s, &x.v);
         let tenth = &mut envelope[k * 10 / n];
         *tenth = tenth.max(((e - e0) / e0).abs());
     }
@@ -338,15 +331,15 @@ pub fn envelope_growth(envelope: &[f64; 10]) -> f64 {
 /// reversible map near the identity keeps invariant curves near it (reversible KAM): the
 /// midpoint scheme's energy error stays bounded. The first-order scheme is not reversible;
 /// with a shape-dependent connection its error drifts.
-fn check_energy<F, const DOF: usize, const DIM: usize>(seed: u64)
+fn check_energy<F, const DOF: usize>(seed: u64)
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
-    let sys = RandomSystem::<F, DOF, DIM, 1>::draw(seed, conservative());
-    let x0 = random_start::<F, DOF, DIM, 1>(seed);
+    let sys = RandomSystem::<F, DOF, 1>::draw(seed, conservative());
+    let x0 = random_start::<F, DOF, 1>(seed);
     let (h, n) = (0.02, 100_000);
-    let mid = energy_envelope::<_, DOF, DIM, 1, 1>(&sys, Discretisation::Midpoint, h, n, &x0);
-    let first = energy_envelope::<_, DOF, DIM, 1, 1>(&sys, Discretisation::FirstOrder, h, n, &x0);
+    let mid = energy_envelope::<_, DOF, 1, 1>(&sys, Discretisation::Midpoint, h, n, &x0);
+    let first = energy_envelope::<_, DOF, 1, 1>(&sys, Discretisation::FirstOrder, h, n, &x0);
     let (g_mid, g_first) = (envelope_growth(&mid), envelope_growth(&first));
     println!(
         "{} seed {seed}: midpoint envelope {:.2e} → {:.2e} (growth {g_mid:.2}), first order \
@@ -372,9 +365,9 @@ where
 #[test]
 fn midpoint_energy_stays_bounded_over_1e5_steps_where_first_order_drifts() {
     for seed in 0..2 {
-        check_energy::<Se2Family, 3, 2>(seed);
-        check_energy::<So3Family, 3, 3>(seed);
-        check_energy::<Se3Family, 6, 3>(seed);
+        check_energy::<Se2Family, 3>(seed);
+        check_energy::<So3Family, 3>(seed);
+        check_energy::<Se3Family, 6>(seed);
     }
 }
 
@@ -386,16 +379,16 @@ fn midpoint_energy_stays_bounded_over_1e5_steps_where_first_order_drifts() {
 /// the momentum-matching equation's component 0 reads `P_{k} − P_{k−1} = h u₀` for both
 /// schemes (`P = ∂ℓ/∂v_0` at the point where the scheme evaluates ℓ), so
 /// `P_N = P_start + N h u₀` exactly, up to Newton's tolerance and round-off per step.
-fn check_cyclic_momentum<F, const DOF: usize, const DIM: usize, const NS: usize>(seed: u64)
+fn check_cyclic_momentum<F, const DOF: usize, const NS: usize>(seed: u64)
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
     let spec = RandomSystemSpec {
         cyclic_first: true,
         ..conservative()
     };
-    let sys = RandomSystem::<F, DOF, DIM, NS>::draw(seed, spec);
-    let x0 = random_start::<F, DOF, DIM, NS>(seed);
+    let sys = RandomSystem::<F, DOF, NS>::draw(seed, spec);
+    let x0 = random_start::<F, DOF, NS>(seed);
     let mut u = SVector::<f64, NS>::zeros();
     u[0] = 0.3;
     let (h, n) = (0.02, 500);
@@ -407,7 +400,7 @@ where
                 Discretisation::Midpoint => interval_midpoint(h, &x.s, &x.v),
             };
             let xi = -(sys.connection(&s) * x.v);
-            dl_dv::<_, f64, DOF, DIM, NS, NS>(&sys, &s, &x.v, &xi)[0]
+            dl_dv::<_, f64, DOF, NS, NS>(&sys, &s, &x.v, &xi)[0]
         };
         let mut x = ViState {
             g: x0.g,
@@ -437,9 +430,9 @@ where
 #[test]
 fn a_cyclic_shape_momentum_follows_its_input_exactly() {
     for seed in 0..4 {
-        check_cyclic_momentum::<Se2Family, 3, 2, 2>(seed);
-        check_cyclic_momentum::<So3Family, 3, 3, 3>(seed);
-        check_cyclic_momentum::<Se3Family, 6, 3, 2>(seed);
+        check_cyclic_momentum::<Se2Family, 3, 2>(seed);
+        check_cyclic_momentum::<So3Family, 3, 3>(seed);
+        check_cyclic_momentum::<Se3Family, 6, 2>(seed);
     }
 }
 
@@ -475,8 +468,8 @@ fn variable_radius_robot_first_order_drifts_midpoint_stays_bounded() {
     let (h, n) = (0.005, 100_000);
     for eps in [0.0, 0.3] {
         let sys = robot(eps);
-        let first = energy_envelope::<_, 3, 2, 3, 0>(&sys, Discretisation::FirstOrder, h, n, &x0);
-        let mid = energy_envelope::<_, 3, 2, 3, 0>(&sys, Discretisation::Midpoint, h, n, &x0);
+        let first = energy_envelope::<_, 3, 3, 0>(&sys, Discretisation::FirstOrder, h, n, &x0);
+        let mid = energy_envelope::<_, 3, 3, 0>(&sys, Discretisation::Midpoint, h, n, &x0);
         println!(
             "ε = {eps}: first order {:.2e} → {:.2e}, midpoint {:.2e} → {:.2e}",
             first[0], first[9], mid[0], mid[9]
@@ -519,7 +512,7 @@ fn steered_car_energy_figures() {
         let car = SteeredCar::new(k, [0.0, 0.0]);
         for h in [0.005, 0.001] {
             for disc in BOTH {
-                let env = energy_envelope::<_, 3, 2, 2, 2>(&car, disc, h, 100_000, &x0);
+                let env = energy_envelope::<_, 3, 2, 2>(&car, disc, h, 100_000, &x0);
                 let env: Vec<String> = env.iter().map(|e| format!("{e:.1e}")).collect();
                 println!(
                     "k = {k}, h = {h}, {disc:?}: per-tenth envelope {}",
@@ -531,10 +524,9 @@ fn steered_car_energy_figures() {
     // Two shape variables: the reduced motion is four-dimensional, not necessarily
     // quasi-periodic.
     for seed in 0..4 {
-        let sys = RandomSystem::<Se2Family, 3, 2, 2>::draw(seed, conservative());
-        let x0 = random_start::<Se2Family, 3, 2, 2>(seed);
-        let env =
-            energy_envelope::<_, 3, 2, 2, 2>(&sys, Discretisation::Midpoint, 0.02, 100_000, &x0);
+        let sys = RandomSystem::<Se2Family, 3, 2>::draw(seed, conservative());
+        let x0 = random_start::<Se2Family, 3, 2>(seed);
+        let env = energy_envelope::<_, 3, 2, 2>(&sys, Discretisation::Midpoint, 0.02, 100_000, &x0);
         let env: Vec<String> = env.iter().map(|e| format!("{e:.1e}")).collect();
         println!(
             "SE(2), NS = 2, seed {seed}, h = 0.02, midpoint: per-tenth envelope {}",

@@ -15,20 +15,20 @@ use dmech_tests::random_system::{
 use nalgebra::SVector;
 
 /// `λᵀf + νᵀe` through the transcription's generic functions.
-struct Lagrangian<'s, 'a, S, const DOF: usize, const DIM: usize, const NS: usize, const NX: usize> {
+struct Lagrangian<'s, 'a, S, const DOF: usize, const NS: usize, const NX: usize> {
     stages: &'s VarIntStages<'a, S>,
     lambda: SVector<f64, NX>,
     nu: SVector<f64, NS>,
 }
 
-impl<F, const DOF: usize, const DIM: usize, const NS: usize, const NX: usize, const NW: usize>
-    StageScalar<NX, NW> for Lagrangian<'_, '_, RandomSystem<F, DOF, DIM, NS>, DOF, DIM, NS, NX>
+impl<F, const DOF: usize, const NS: usize, const NX: usize, const NW: usize> StageScalar<NX, NW>
+    for Lagrangian<'_, '_, RandomSystem<F, DOF, NS>, DOF, NS, NX>
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
     fn eval<T: Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
-        let f = self.stages.dynamics::<T, DOF, DIM, NS, NS, NX, NW>(x, w);
-        let e = self.stages.equality::<T, DOF, DIM, NS, NS, NX, NW>(x, w);
+        let f = self.stages.dynamics::<T, DOF, NS, NS, NX, NW>(x, w);
+        let e = self.stages.equality::<T, DOF, NS, NS, NX, NW>(x, w);
         let mut v = T::zero();
         for i in 0..NX {
             v += f[i] * self.lambda[i];
@@ -42,27 +42,20 @@ where
 
 /// The worst difference between the two, relative to `512 ε` times the largest entry:
 /// both are exact second derivatives rounded along different operation orders.
-fn worst_ratio<
-    F,
-    const DOF: usize,
-    const DIM: usize,
-    const NS: usize,
-    const NX: usize,
-    const NW: usize,
->(
+fn worst_ratio<F, const DOF: usize, const NS: usize, const NX: usize, const NW: usize>(
     seed: u64,
 ) -> f64
 where
-    F: GroupFamily<DOF, DIM>,
+    F: GroupFamily<DOF>,
 {
     let spec = RandomSystemSpec {
         damping: 0.3,
         cyclic_first: false,
         shape_dependence: 0.5,
     };
-    let sys = RandomSystem::<F, DOF, DIM, NS>::draw(seed, spec);
+    let sys = RandomSystem::<F, DOF, NS>::draw(seed, spec);
     let mut rng = Lcg(seed.wrapping_mul(0x5851_F42D) ^ 0x1234);
-    let (x, nc) = random_stage_state::<F, DOF, DIM, NX>(&mut rng);
+    let (x, nc) = random_stage_state::<F, DOF, NX>(&mut rng);
     assert_eq!(
         (NX, NW),
         (nc + 3 * NS, 2 * NS),
@@ -77,11 +70,11 @@ where
         ForcingQuadrature::Right,
         ForcingQuadrature::Midpoint,
     ] {
-        let stages = VarIntStages::new::<DOF, DIM, NS, NS>(&sys, 0.05, quadrature);
+        let stages = VarIntStages::new::<DOF, NS, NS>(&sys, 0.05, quadrature);
         let (hxx, hxw, hww) = stages
-            .constraint_curvature::<DOF, DIM, NS, NS, NX, NW>(&x, &w, &lambda, &nu)
+            .constraint_curvature::<DOF, NS, NS, NX, NW>(&x, &w, &lambda, &nu)
             .expect("first-order scheme");
-        let reference = Lagrangian::<_, DOF, DIM, NS, NX> {
+        let reference = Lagrangian::<_, DOF, NS, NX> {
             stages: &stages,
             lambda,
             nu,
@@ -105,10 +98,10 @@ where
 fn block_curvature_equals_generic_on_random_systems() {
     for seed in 0..3 {
         let worst = [
-            worst_ratio::<Se2Family, 3, 2, 1, 6, 2>(seed),
-            worst_ratio::<Se2Family, 3, 2, 2, 9, 4>(seed),
-            worst_ratio::<So3Family, 3, 3, 2, 10, 4>(seed),
-            worst_ratio::<Se3Family, 6, 3, 3, 16, 6>(seed),
+            worst_ratio::<Se2Family, 3, 1, 6, 2>(seed),
+            worst_ratio::<Se2Family, 3, 2, 9, 4>(seed),
+            worst_ratio::<So3Family, 3, 2, 10, 4>(seed),
+            worst_ratio::<Se3Family, 6, 3, 16, 6>(seed),
         ];
         for r in worst {
             assert!(r <= 1.0, "seed {seed}: error {r:.2} × its round-off bound");

@@ -24,7 +24,7 @@ const NW: usize = 8;
 /// (`NXR = 15 − ignored.len()`), the decision, and where the full state's kept entries and
 /// shape block sit.
 struct Case<const NXR: usize> {
-    sys: RandomSystem<Se2Family, 3, 2, NS>,
+    sys: RandomSystem<Se2Family, 3, NS>,
     x: SVector<f64, NX>,
     xr: SVector<f64, NXR>,
     w: SVector<f64, NW>,
@@ -38,9 +38,9 @@ fn case<const NXR: usize>(seed: u64, ignored: &[usize]) -> Case<NXR> {
         cyclic_first: false,
         shape_dependence: 0.5,
     };
-    let sys = RandomSystem::<Se2Family, 3, 2, NS>::draw(seed, spec);
+    let sys = RandomSystem::<Se2Family, 3, NS>::draw(seed, spec);
     let mut rng = Lcg(seed ^ 0xC0FFEE);
-    let (mut x, nc) = random_stage_state::<Se2Family, 3, 2, NX>(&mut rng);
+    let (mut x, nc) = random_stage_state::<Se2Family, 3, NX>(&mut rng);
     for &i in ignored {
         x[nc + i] = 0.0;
     }
@@ -74,14 +74,14 @@ fn carried_columns_match<const NXR: usize>(seed: u64, ignored: &[usize]) {
         ForcingQuadrature::Right,
         ForcingQuadrature::Midpoint,
     ] {
-        let full = VarIntStages::new::<3, 2, NS, NS>(&sys, 0.05, quadrature);
+        let full = VarIntStages::new::<3, NS, NS>(&sys, 0.05, quadrature);
         let reduced = VarIntStages {
             layout: full.layout.ignoring(ignored),
             ..full
         };
-        let (e, ex, ew) = full.equality_jacobian::<3, 2, NS, NS, NX, NW>(&x, &w);
-        let (er, exr, ewr) = reduced.equality_jacobian::<3, 2, NS, NS, NXR, NW>(&xr, &w);
-        let (exp, ewp) = reduced.equality_partials::<3, 2, NS, NS, NXR, NW>(&xr, &w);
+        let (e, ex, ew) = full.equality_jacobian::<3, NS, NS, NX, NW>(&x, &w);
+        let (er, exr, ewr) = reduced.equality_jacobian::<3, NS, NS, NXR, NW>(&xr, &w);
+        let (exp, ewp) = reduced.equality_partials::<3, NS, NS, NXR, NW>(&xr, &w);
         assert_eq!(e, er, "{ignored:?} {quadrature:?}: the residual");
         assert_eq!(ew, ewr, "{ignored:?} {quadrature:?}: E_w");
         assert_eq!((exr, ewr), (exp, ewp), "{ignored:?}: the partials alone");
@@ -124,17 +124,17 @@ fn structured_partials_match<const NXR: usize>(seed: u64, ignored: &[usize]) {
         ForcingQuadrature::Right,
         ForcingQuadrature::Midpoint,
     ] {
-        let full = VarIntStages::new::<3, 2, NS, NS>(&sys, 0.05, quadrature);
+        let full = VarIntStages::new::<3, NS, NS>(&sys, 0.05, quadrature);
         let st = VarIntStages {
             layout: full.layout.ignoring(ignored),
             ..full
         };
-        let (_, ex, ew) = st.equality_jacobian::<3, 2, NS, NS, NXR, NW>(&xr, &w);
-        let gx = st.equality::<DualSVec64<NXR>, 3, 2, NS, NS, NXR, NW>(
+        let (_, ex, ew) = st.equality_jacobian::<3, NS, NS, NXR, NW>(&xr, &w);
+        let gx = st.equality::<DualSVec64<NXR>, 3, NS, NS, NXR, NW>(
             &seeded(&xr),
             &w.map(DualSVec64::<NXR>::from_re),
         );
-        let gw = st.equality::<DualSVec64<NW>, 3, 2, NS, NS, NXR, NW>(
+        let gw = st.equality::<DualSVec64<NW>, 3, NS, NS, NXR, NW>(
             &xr.map(DualSVec64::<NW>::from_re),
             &seeded(&w),
         );

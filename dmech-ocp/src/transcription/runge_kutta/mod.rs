@@ -19,29 +19,20 @@ pub use stages::RkStages;
 
 /// A robot's problem on an explicit Runge–Kutta step of the continuous model:
 /// `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`, no stage equality.
-pub struct RkTranscription<
-    'a,
-    S,
-    P,
-    const DOF: usize,
-    const DIM: usize,
-    const NP: usize,
-    const NS: usize,
-> {
+pub struct RkTranscription<'a, S, P, const DOF: usize, const NP: usize, const NS: usize> {
     pub stages: RkStages<'a, S>,
     pub problem: P,
     _sizes: PhantomData<[(); DOF]>,
-    _dim: PhantomData<[(); DIM]>,
 }
 
-impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NS: usize>
-    RkTranscription<'a, S, P, DOF, DIM, NP, NS>
+impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize>
+    RkTranscription<'a, S, P, DOF, NP, NS>
 {
     pub fn new<const NU: usize>(sys: &'a S, problem: P, h: f64, method: RungeKutta) -> Self
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        let stages = RkStages::new::<DOF, DIM, NS, NU>(sys, h, method);
+        let stages = RkStages::new::<DOF, NS, NU>(sys, h, method);
         assert_eq!(
             stages.layout.nc, NP,
             "NP must be the group's number of coordinates"
@@ -50,7 +41,6 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NS: us
             stages,
             problem,
             _sizes: PhantomData,
-            _dim: PhantomData,
         }
     }
 
@@ -90,15 +80,14 @@ impl<
         S,
         P,
         const DOF: usize,
-        const DIM: usize,
         const NP: usize,
         const NS: usize,
         const NX: usize,
         const NU: usize,
         const NC: usize,
-    > StageProblem<NX, NU, 0, NC> for RkTranscription<'_, S, P, DOF, DIM, NP, NS>
+    > StageProblem<NX, NU, 0, NC> for RkTranscription<'_, S, P, DOF, NP, NS>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
 {
     fn horizon(&self) -> usize {
@@ -114,7 +103,7 @@ where
         x: &SVector<T, NX>,
         u: &SVector<T, NU>,
     ) -> SVector<T, NX> {
-        self.stages.dynamics::<T, DOF, DIM, NS, NU, NX, NU>(x, u)
+        self.stages.dynamics::<T, DOF, NS, NU, NX, NU>(x, u)
     }
     fn dynamics_jacobian(
         &self,
@@ -122,8 +111,7 @@ where
         x: &SVector<f64, NX>,
         u: &SVector<f64, NU>,
     ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NU>) {
-        self.stages
-            .dynamics_jacobian::<DOF, DIM, NS, NU, NX, NU>(x, u)
+        self.stages.dynamics_jacobian::<DOF, NS, NU, NX, NU>(x, u)
     }
     fn equality<T: Real>(
         &self,

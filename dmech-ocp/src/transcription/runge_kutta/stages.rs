@@ -23,15 +23,15 @@ pub struct RkStages<'a, S> {
 }
 
 impl<'a, S> RkStages<'a, S> {
-    pub fn new<const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    pub fn new<const DOF: usize, const NS: usize, const NU: usize>(
         sys: &'a S,
         h: f64,
         method: RungeKutta,
     ) -> Self
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        let nc = <S::Group<f64> as LieGroup<DOF, DIM>>::identity()
+        let nc = <S::Group<f64> as LieGroup<DOF>>::identity()
             .coordinates()
             .len();
         RkStages {
@@ -44,30 +44,22 @@ impl<'a, S> RkStages<'a, S> {
 
     /// The time derivative of the state at constant input (zero in the `u_{k−1}` slots).
     /// A singular mass matrix gives NaN, which a solver reports as a failed evaluation.
-    fn rate<
-        T: Real,
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-        const NX: usize,
-    >(
+    fn rate<T: Real, const DOF: usize, const NS: usize, const NU: usize, const NX: usize>(
         &self,
         x: &SVector<T, NX>,
         u: &SVector<T, NU>,
         acceleration: &Accel<T, NS, NU>,
     ) -> SVector<T, NX>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         let coords: Vec<T> = (0..l.nc).map(|i| x[i]).collect();
-        let g =
-            <S::Group<T> as LieGroup<DOF, DIM>>::from_coordinates(&coords).expect("layout checked");
+        let g = <S::Group<T> as LieGroup<DOF>>::from_coordinates(&coords).expect("layout checked");
         let s: SVector<T, NS> = segment(x, l.s_at());
         let v: SVector<T, NS> = segment(x, l.v_at());
         let xi = -(self.sys.connection(&s) * v);
-        let gdot = coordinate_rate::<_, T, DOF, DIM>(&g, &xi);
+        let gdot = coordinate_rate::<_, T, DOF>(&g, &xi);
         let a = acceleration(&s, &v, u).unwrap_or_else(|| SVector::from_element(T::from(f64::NAN)));
         let mut out = SVector::<T, NX>::zeros();
         for (i, c) in gdot.into_iter().enumerate() {
@@ -84,7 +76,6 @@ impl<'a, S> RkStages<'a, S> {
     pub fn dynamics<
         T: Real,
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -95,12 +86,12 @@ impl<'a, S> RkStages<'a, S> {
         w: &SVector<T, NW>,
     ) -> SVector<T, NX>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        self.dynamics_with::<T, DOF, DIM, NS, NU, NX, NW>(x, w, &|s, v, u| {
+        self.dynamics_with::<T, DOF, NS, NU, NX, NW>(x, w, &|s, v, u| {
             self.sys
                 .closed_form_acceleration(s, v, u)
-                .or_else(|| acceleration::<S, T, DOF, DIM, NS, NU>(self.sys, s, v, u))
+                .or_else(|| acceleration::<S, T, DOF, NS, NU>(self.sys, s, v, u))
         })
     }
 
@@ -114,7 +105,6 @@ impl<'a, S> RkStages<'a, S> {
     #[allow(clippy::type_complexity)]
     pub fn dynamics_jacobian<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -125,13 +115,13 @@ impl<'a, S> RkStages<'a, S> {
         w: &SVector<f64, NW>,
     ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>)
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         l.check(NX, NW, NU);
         let u: SVector<f64, NU> = segment(w, 0);
         let h = self.h;
-        let rate = |y: &SVector<f64, NX>| self.rate_jacobian::<DOF, DIM, NS, NU, NX>(y, &u);
+        let rate = |y: &SVector<f64, NX>| self.rate_jacobian::<DOF, NS, NU, NX>(y, &u);
         let eye = SMatrix::<f64, NX, NX>::identity();
         // (K, dK/dx, dK/du) of one stage at Y = x + c·Σ, from the stage point's derivatives.
         let stage =
@@ -185,26 +175,20 @@ impl<'a, S> RkStages<'a, S> {
     /// in `u`) or else from [`acceleration_jacobian`]. `None` if the generic mass matrix is
     /// singular (a closed form reports it as NaN).
     #[allow(clippy::type_complexity)]
-    fn rate_jacobian<
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-        const NX: usize,
-    >(
+    fn rate_jacobian<const DOF: usize, const NS: usize, const NU: usize, const NX: usize>(
         &self,
         x: &SVector<f64, NX>,
         u: &SVector<f64, NU>,
     ) -> Option<(SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NU>)>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         let s: SVector<f64, NS> = segment(x, l.s_at());
         let v: SVector<f64, NS> = segment(x, l.v_at());
         let xd = seeded(x);
         let coords: Vec<DualSVec64<NX>> = (0..l.nc).map(|i| xd[i]).collect();
-        let g = <S::Group<DualSVec64<NX>> as LieGroup<DOF, DIM>>::from_coordinates(&coords)
+        let g = <S::Group<DualSVec64<NX>> as LieGroup<DOF>>::from_coordinates(&coords)
             .expect("layout checked");
         let sd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.s_at());
         let vd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.v_at());
@@ -221,14 +205,14 @@ impl<'a, S> RkStages<'a, S> {
         let (a, a_x, a_u) = match closed {
             Some((ax, au)) => (ax.map(|d| d.re), jacobian_part(&ax), jacobian_part(&au)),
             None => {
-                let acc = acceleration_jacobian::<S, DOF, DIM, NS, NU>(self.sys, &s, &v, u)?;
+                let acc = acceleration_jacobian::<S, DOF, NS, NU>(self.sys, &s, &v, u)?;
                 let mut a_x = SMatrix::<f64, NS, NX>::zeros();
                 a_x.fixed_columns_mut::<NS>(l.s_at()).copy_from(&acc.a_s);
                 a_x.fixed_columns_mut::<NS>(l.v_at()).copy_from(&acc.a_v);
                 (acc.a, a_x, acc.a_u)
             }
         };
-        let gdot = coordinate_rate::<_, _, DOF, DIM>(&g, &(-(self.sys.connection(&sd) * vd)));
+        let gdot = coordinate_rate::<_, _, DOF>(&g, &(-(self.sys.connection(&sd) * vd)));
         let mut f = SVector::<f64, NX>::zeros();
         let mut fx = SMatrix::<f64, NX, NX>::zeros();
         let mut fu = SMatrix::<f64, NX, NU>::zeros();
@@ -251,7 +235,6 @@ impl<'a, S> RkStages<'a, S> {
     fn dynamics_with<
         T: Real,
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -263,14 +246,14 @@ impl<'a, S> RkStages<'a, S> {
         acceleration: &Accel<T, NS, NU>,
     ) -> SVector<T, NX>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         l.check(NX, NW, NU);
         let u: SVector<T, NU> = segment(w, 0);
         let h = T::from(self.h);
         let half = T::from(0.5);
-        let f = |y: &SVector<T, NX>| self.rate::<T, DOF, DIM, NS, NU, NX>(y, &u, acceleration);
+        let f = |y: &SVector<T, NX>| self.rate::<T, DOF, NS, NU, NX>(y, &u, acceleration);
         let mut next = match self.method {
             RungeKutta::Rk1 => x + f(x) * h,
             RungeKutta::Rk2 => {

@@ -34,23 +34,16 @@ struct DynamicsPart<'s, 'a, S, const NX: usize> {
 }
 
 /// The sizes a [`DynamicsPart`] is evaluated at (a marker: the impl needs them named).
-struct Sizes<const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>;
+struct Sizes<const DOF: usize, const NS: usize, const NU: usize>;
 
-impl<
-        S,
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-        const NX: usize,
-        const NW: usize,
-    > StageScalar<NX, NW> for (DynamicsPart<'_, '_, S, NX>, Sizes<DOF, DIM, NS, NU>)
+impl<S, const DOF: usize, const NS: usize, const NU: usize, const NX: usize, const NW: usize>
+    StageScalar<NX, NW> for (DynamicsPart<'_, '_, S, NX>, Sizes<DOF, NS, NU>)
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     fn eval<T: Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         let part = &self.0;
-        let f = part.stages.dynamics::<T, DOF, DIM, NS, NU, NX, NW>(x, w);
+        let f = part.stages.dynamics::<T, DOF, NS, NU, NX, NW>(x, w);
         let mut v = T::zero();
         for i in 0..NX {
             if part.lambda[i] != 0.0 {
@@ -67,7 +60,6 @@ impl<S> VarIntStages<'_, S> {
     fn contracted_equality<
         T: Real,
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NW: usize,
@@ -80,7 +72,7 @@ impl<S> VarIntStages<'_, S> {
         nu: &SVector<f64, NS>,
     ) -> T
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let ht = T::from(self.h);
         let (v_prev, u_prev): (SVector<T, NS>, SVector<T, NU>) = (segment(p, 0), segment(p, NS));
@@ -88,22 +80,21 @@ impl<S> VarIntStages<'_, S> {
         let a_k = self.sys.connection(s);
         let mut r = T::zero();
         if terms.outgoing {
-            let (xi, d) = outgoing_variation::<S, T, DOF, DIM, NS, NU>(self.h, &v, &a_k);
-            r += pulled_back_directional::<S, T, DOF, DIM, NS, NU>(
-                self.sys, s, -self.h, &v, &xi, &d, nu,
-            ) / ht;
+            let (xi, d) = outgoing_variation::<S, T, DOF, NS, NU>(self.h, &v, &a_k);
+            r +=
+                pulled_back_directional::<S, T, DOF, NS, NU>(self.sys, s, -self.h, &v, &xi, &d, nu)
+                    / ht;
         }
         let s_prev = s - v_prev * ht;
         if terms.incoming {
-            let (xi, d) = incoming_variation::<S, T, DOF, DIM, NS, NU>(
-                self.sys, self.h, &s_prev, &v_prev, &a_k,
-            );
-            r -= pulled_back_directional::<S, T, DOF, DIM, NS, NU>(
+            let (xi, d) =
+                incoming_variation::<S, T, DOF, NS, NU>(self.sys, self.h, &s_prev, &v_prev, &a_k);
+            r -= pulled_back_directional::<S, T, DOF, NS, NU>(
                 self.sys, &s_prev, 0.0, &v_prev, &xi, &d, nu,
             ) / ht;
         }
         if terms.force {
-            let f = discrete_force::<S, T, DOF, DIM, NS, NU>(
+            let f = discrete_force::<S, T, DOF, NS, NU>(
                 self.sys,
                 self.quadrature,
                 &s_prev,
@@ -125,7 +116,6 @@ impl<S> VarIntStages<'_, S> {
     /// (module documentation). Checked against the generic path in a test.
     pub fn equality_curvature<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -137,7 +127,7 @@ impl<S> VarIntStages<'_, S> {
         nu: &SVector<f64, NS>,
     ) -> HessianBlocks<NX, NW>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
@@ -150,21 +140,21 @@ impl<S> VarIntStages<'_, S> {
         let prev = Terms::previous_interval(left);
         let cur = Terms::current_interval(right);
         type D2<const N: usize> = Dual2SVec64<N>;
-        let hss = hess2(&self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+        let hss = hess2(&self.contracted_equality::<_, DOF, NS, NU, NW>(
             every,
             &seed2(&s),
             &p.map(D2::<NS>::from_re),
             &q.map(D2::<NS>::from_re),
             nu,
         ));
-        let hpp = hess2(&self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+        let hpp = hess2(&self.contracted_equality::<_, DOF, NS, NU, NW>(
             prev,
             &s.map(D2::<NW>::from_re),
             &seed2(&p),
             &q.map(D2::<NW>::from_re),
             nu,
         ));
-        let hqq = hess2(&self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+        let hqq = hess2(&self.contracted_equality::<_, DOF, NS, NU, NW>(
             cur,
             &s.map(D2::<NW>::from_re),
             &p.map(D2::<NW>::from_re),
@@ -174,7 +164,7 @@ impl<S> VarIntStages<'_, S> {
         type Hd<const A: usize, const B: usize> = HyperDualSVec64<A, B>;
         let mixed = |h: Hd<NS, NW>| h.eps1eps2.0.unwrap_or_else(SMatrix::zeros);
         let (sh, ph) = seed_hyper(&s, &p);
-        let hsp = mixed(self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+        let hsp = mixed(self.contracted_equality::<_, DOF, NS, NU, NW>(
             prev,
             &sh,
             &ph,
@@ -182,7 +172,7 @@ impl<S> VarIntStages<'_, S> {
             nu,
         ));
         let (sh, qh) = seed_hyper(&s, &q);
-        let hsq = mixed(self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+        let hsq = mixed(self.contracted_equality::<_, DOF, NS, NU, NW>(
             cur,
             &sh,
             &p.map(Hd::<NS, NW>::from_re),
@@ -193,7 +183,7 @@ impl<S> VarIntStages<'_, S> {
         let hpq = if left && right {
             let force = Terms::FORCE;
             let (ph, qh) = seed_hyper(&p, &q);
-            self.contracted_equality::<_, DOF, DIM, NS, NU, NW>(
+            self.contracted_equality::<_, DOF, NS, NU, NW>(
                 force,
                 &s.map(Hd::<NW, NW>::from_re),
                 &ph,
@@ -235,7 +225,6 @@ impl<S> VarIntStages<'_, S> {
     #[allow(clippy::type_complexity)]
     pub fn constraint_curvature<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -252,7 +241,7 @@ impl<S> VarIntStages<'_, S> {
         SMatrix<f64, NW, NW>,
     )>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         if self.discretisation != dmech::Discretisation::FirstOrder {
             return None;
@@ -262,10 +251,10 @@ impl<S> VarIntStages<'_, S> {
                 stages: self,
                 lambda,
             },
-            Sizes::<DOF, DIM, NS, NU>,
+            Sizes::<DOF, NS, NU>,
         );
         let (fxx, fxw, fww) = block_hessian(&part, x, w, true);
-        let (exx, exw, eww) = self.equality_curvature::<DOF, DIM, NS, NU, NX, NW>(x, w, nu);
+        let (exx, exw, eww) = self.equality_curvature::<DOF, NS, NU, NX, NW>(x, w, nu);
         Some((fxx + exx, fxw + exw, fww + eww))
     }
 }

@@ -20,23 +20,14 @@ pub use stages::VarIntStages;
 /// A robot's problem on a variational integrator (first order or midpoint):
 /// `x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`, `w_k = (v_k, u_k)`, stage equality = the
 /// momentum matching of node `k`.
-pub struct VarIntTranscription<
-    'a,
-    S,
-    P,
-    const DOF: usize,
-    const DIM: usize,
-    const NP: usize,
-    const NU: usize,
-> {
+pub struct VarIntTranscription<'a, S, P, const DOF: usize, const NP: usize, const NU: usize> {
     pub stages: VarIntStages<'a, S>,
     pub problem: P,
     _sizes: PhantomData<[(); DOF]>,
-    _dim: PhantomData<[(); DIM]>,
 }
 
-impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: usize>
-    VarIntTranscription<'a, S, P, DOF, DIM, NP, NU>
+impl<'a, S, P, const DOF: usize, const NP: usize, const NU: usize>
+    VarIntTranscription<'a, S, P, DOF, NP, NU>
 {
     /// `problem` on `sys` at step `h`, right-point forcing (the first-order scheme's
     /// default), with the given discretisation.
@@ -47,9 +38,9 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
         discretisation: Discretisation,
     ) -> Self
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        let stages = VarIntStages::new::<DOF, DIM, NS, NU>(sys, h, ForcingQuadrature::Right)
+        let stages = VarIntStages::new::<DOF, NS, NU>(sys, h, ForcingQuadrature::Right)
             .with_discretisation(discretisation);
         assert_eq!(
             stages.layout.nc, NP,
@@ -59,7 +50,6 @@ impl<'a, S, P, const DOF: usize, const DIM: usize, const NP: usize, const NU: us
             stages,
             problem,
             _sizes: PhantomData,
-            _dim: PhantomData,
         }
     }
 
@@ -127,16 +117,15 @@ impl<
         S,
         P,
         const DOF: usize,
-        const DIM: usize,
         const NP: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
         const NW: usize,
         const NC: usize,
-    > StageProblem<NX, NW, NS, NC> for VarIntTranscription<'_, S, P, DOF, DIM, NP, NU>
+    > StageProblem<NX, NW, NS, NC> for VarIntTranscription<'_, S, P, DOF, NP, NU>
 where
-    S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64> + Sync,
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
 {
     fn horizon(&self) -> usize {
@@ -152,7 +141,7 @@ where
         x: &SVector<T, NX>,
         w: &SVector<T, NW>,
     ) -> SVector<T, NX> {
-        self.stages.dynamics::<T, DOF, DIM, NS, NU, NX, NW>(x, w)
+        self.stages.dynamics::<T, DOF, NS, NU, NX, NW>(x, w)
     }
     fn equality<T: Real>(
         &self,
@@ -160,7 +149,7 @@ where
         x: &SVector<T, NX>,
         w: &SVector<T, NW>,
     ) -> SVector<T, NS> {
-        self.stages.equality::<T, DOF, DIM, NS, NU, NX, NW>(x, w)
+        self.stages.equality::<T, DOF, NS, NU, NX, NW>(x, w)
     }
     fn dynamics_jacobian(
         &self,
@@ -168,8 +157,7 @@ where
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
     ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
-        self.stages
-            .dynamics_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w)
+        self.stages.dynamics_jacobian::<DOF, NS, NU, NX, NW>(x, w)
     }
     fn equality_jacobian(
         &self,
@@ -177,8 +165,7 @@ where
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
     ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
-        self.stages
-            .equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w)
+        self.stages.equality_jacobian::<DOF, NS, NU, NX, NW>(x, w)
     }
     fn equality_partials(
         &self,
@@ -186,8 +173,7 @@ where
         x: &SVector<f64, NX>,
         w: &SVector<f64, NW>,
     ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
-        self.stages
-            .equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w)
+        self.stages.equality_partials::<DOF, NS, NU, NX, NW>(x, w)
     }
     fn constraint_curvature(
         &self,
@@ -198,7 +184,7 @@ where
         nu: &SVector<f64, NS>,
     ) -> HessianBlocks<NX, NW> {
         self.stages
-            .constraint_curvature::<DOF, DIM, NS, NU, NX, NW>(x, w, lambda, nu)
+            .constraint_curvature::<DOF, NS, NU, NX, NW>(x, w, lambda, nu)
             .unwrap_or_else(|| {
                 generic_constraint_curvature::<Self, NX, NW, NS, NC>(self, k, x, w, lambda, nu)
             })

@@ -24,7 +24,6 @@ impl<S> VarIntStages<'_, S> {
     #[allow(clippy::type_complexity)]
     pub fn equality_jacobian<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -35,16 +34,16 @@ impl<S> VarIntStages<'_, S> {
         w: &SVector<f64, NW>,
     ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>)
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         if self.discretisation == Discretisation::Midpoint {
-            return self.midpoint_equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w);
+            return self.midpoint_equality_jacobian::<DOF, NS, NU, NX, NW>(x, w);
         }
         // The value as the line search measures it (`equality` in f64): the residual the
         // Newton step removes must be the one the filter sees, to the last bit (the s-pass's
         // real parts differ by round-off, and the iteration count is sensitive to it).
-        let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
-        let (ex, ew) = self.equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w);
+        let e = self.equality::<f64, DOF, NS, NU, NX, NW>(x, w);
+        let (ex, ew) = self.equality_partials::<DOF, NS, NU, NX, NW>(x, w);
         (e, ex, ew)
     }
 
@@ -53,7 +52,6 @@ impl<S> VarIntStages<'_, S> {
     #[allow(clippy::type_complexity)]
     pub fn equality_partials<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -64,14 +62,14 @@ impl<S> VarIntStages<'_, S> {
         w: &SVector<f64, NW>,
     ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>)
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         if self.discretisation == Discretisation::Midpoint {
-            let (_, ex, ew) = self.midpoint_equality_jacobian::<DOF, DIM, NS, NU, NX, NW>(x, w);
+            let (_, ex, ew) = self.midpoint_equality_jacobian::<DOF, NS, NU, NX, NW>(x, w);
             return (ex, ew);
         }
         self.layout.check(NX, NW, NS + NU);
-        self.first_order_equality_partials::<DOF, DIM, NS, NU, NX, NW>(x, w)
+        self.first_order_equality_partials::<DOF, NS, NU, NX, NW>(x, w)
     }
 
     /// `(E_x, E_w)` of the first-order scheme's residual at this step, each block of
@@ -81,7 +79,6 @@ impl<S> VarIntStages<'_, S> {
     #[allow(clippy::type_complexity)]
     pub fn first_order_equality_partials<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -92,7 +89,7 @@ impl<S> VarIntStages<'_, S> {
         w: &SVector<f64, NW>,
     ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>)
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         assert!(
             self.discretisation == Discretisation::FirstOrder && NW >= NS + NU,
@@ -116,10 +113,10 @@ impl<S> VarIntStages<'_, S> {
         let lanes = NS + l.ns_kept();
         let blocks = (&mut ex, &mut ew);
         match (left && right, lanes) {
-            (false, 0..=4) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 4>(left, &p, blocks),
-            (false, 5..=6) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 6>(left, &p, blocks),
-            (false, 7..=8) => self.interval_passes::<DOF, DIM, NS, NU, NX, NW, 8>(left, &p, blocks),
-            _ => self.separate_passes::<DOF, DIM, NS, NU, NX, NW>((left, right), &p, blocks),
+            (false, 0..=4) => self.interval_passes::<DOF, NS, NU, NX, NW, 4>(left, &p, blocks),
+            (false, 5..=6) => self.interval_passes::<DOF, NS, NU, NX, NW, 6>(left, &p, blocks),
+            (false, 7..=8) => self.interval_passes::<DOF, NS, NU, NX, NW, 8>(left, &p, blocks),
+            _ => self.separate_passes::<DOF, NS, NU, NX, NW>((left, right), &p, blocks),
         }
         // The inputs enter through the force only.
         let (ls, lvp, lup, lv, lu) = (
@@ -130,7 +127,7 @@ impl<S> VarIntStages<'_, S> {
             lift_vec(&p.u),
         );
         if left {
-            let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
+            let r = self.equality_terms::<DOF, NS, NU, _>(
                 Terms::FORCE,
                 &ls,
                 &lvp,
@@ -141,7 +138,7 @@ impl<S> VarIntStages<'_, S> {
             put_columns(&mut ex, l.u_at(), &r);
         }
         if right {
-            let r = self.equality_terms::<DOF, DIM, NS, NU, _>(
+            let r = self.equality_terms::<DOF, NS, NU, _>(
                 Terms::FORCE,
                 &ls,
                 &lvp,
@@ -161,7 +158,6 @@ impl<S> VarIntStages<'_, S> {
     #[allow(clippy::type_complexity)]
     fn interval_passes<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -173,7 +169,7 @@ impl<S> VarIntStages<'_, S> {
         p: &NodePoint<f64, NS, NU>,
         (ex, ew): (&mut SMatrix<f64, NS, NX>, &mut SMatrix<f64, NS, NW>),
     ) where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         let kept = l.ns_kept();
@@ -188,7 +184,7 @@ impl<S> VarIntStages<'_, S> {
             lift_vec(&p.v),
             lift_vec(&p.u),
         );
-        let previous = self.equality_terms::<DOF, DIM, NS, NU, N>(
+        let previous = self.equality_terms::<DOF, NS, NU, N>(
             Terms::previous_interval(left),
             &sd,
             &seeded_from(&p.v_prev, 0),
@@ -196,7 +192,7 @@ impl<S> VarIntStages<'_, S> {
             &lv,
             &lu,
         );
-        let current = self.equality_terms::<DOF, DIM, NS, NU, N>(
+        let current = self.equality_terms::<DOF, NS, NU, N>(
             Terms::current_interval(!left),
             &sd,
             &lvp,
@@ -222,7 +218,6 @@ impl<S> VarIntStages<'_, S> {
     #[allow(clippy::type_complexity)]
     fn separate_passes<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -233,7 +228,7 @@ impl<S> VarIntStages<'_, S> {
         p: &NodePoint<f64, NS, NU>,
         (ex, ew): (&mut SMatrix<f64, NS, NX>, &mut SMatrix<f64, NS, NW>),
     ) where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         let kept = l.ns_kept();
@@ -247,7 +242,7 @@ impl<S> VarIntStages<'_, S> {
         // s_k: every term, seeded in the carried coordinates only (an ignored one's column
         // has no place in the state).
         if kept > 0 {
-            let r = self.equality_terms::<DOF, DIM, NS, NU, NS>(
+            let r = self.equality_terms::<DOF, NS, NU, NS>(
                 Terms::ALL,
                 &carried_shape_seeded::<NS, NS>(l, &p.s, 0),
                 &lvp,
@@ -258,7 +253,7 @@ impl<S> VarIntStages<'_, S> {
             put_columns_by(ex, &r, |j| (j < kept).then_some(l.s_at() + j));
         }
         // v_{k−1}: the incoming momentum, and the force if it reads the previous interval.
-        let r = self.equality_terms::<DOF, DIM, NS, NU, NS>(
+        let r = self.equality_terms::<DOF, NS, NU, NS>(
             Terms::previous_interval(left),
             &ls,
             &seeded(&p.v_prev),
@@ -268,7 +263,7 @@ impl<S> VarIntStages<'_, S> {
         );
         put_columns(ex, l.v_at(), &r);
         // v_k: the outgoing momentum, and the force if it reads the current interval.
-        let r = self.equality_terms::<DOF, DIM, NS, NU, NS>(
+        let r = self.equality_terms::<DOF, NS, NU, NS>(
             Terms::current_interval(right),
             &ls,
             &lvp,
@@ -287,7 +282,6 @@ impl<S> VarIntStages<'_, S> {
     #[allow(clippy::type_complexity)]
     fn midpoint_equality_jacobian<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -298,7 +292,7 @@ impl<S> VarIntStages<'_, S> {
         w: &SVector<f64, NW>,
     ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>)
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
@@ -309,7 +303,7 @@ impl<S> VarIntStages<'_, S> {
             v,
             u,
         } = NodePoint::<f64, NS, NU>::of(l, x, w);
-        let e = self.equality::<f64, DOF, DIM, NS, NU, NX, NW>(x, w);
+        let e = self.equality::<f64, DOF, NS, NU, NX, NW>(x, w);
         let mut ex = SMatrix::<f64, NS, NX>::zeros();
         let mut ew = SMatrix::<f64, NS, NW>::zeros();
         let h = self.h;
@@ -327,18 +321,17 @@ impl<S> VarIntStages<'_, S> {
             let a_k = self.sys.connection(s);
             let mut r = SVector::<D<NS>, NS>::zeros();
             if outgoing {
-                let out = midpoint_outgoing_momentum::<S, D<NS>, DOF, DIM, NS, NU>(
-                    self.sys, h, s, v, &a_k,
-                );
-                let f = interval_force::<S, D<NS>, DOF, DIM, NS, NU>(self.sys, h, s, v, u);
+                let out =
+                    midpoint_outgoing_momentum::<S, D<NS>, DOF, NS, NU>(self.sys, h, s, v, &a_k);
+                let f = interval_force::<S, D<NS>, DOF, NS, NU>(self.sys, h, s, v, u);
                 r += out / ht - f * half;
             }
             if incoming {
                 let s_prev = s - vp * ht;
-                let inc = midpoint_incoming_momentum::<S, D<NS>, DOF, DIM, NS, NU>(
+                let inc = midpoint_incoming_momentum::<S, D<NS>, DOF, NS, NU>(
                     self.sys, h, &s_prev, vp, &a_k,
                 );
-                let f = interval_force::<S, D<NS>, DOF, DIM, NS, NU>(self.sys, h, &s_prev, vp, up);
+                let f = interval_force::<S, D<NS>, DOF, NS, NU>(self.sys, h, &s_prev, vp, up);
                 r -= inc / ht + f * half;
             }
             r
@@ -366,7 +359,7 @@ impl<S> VarIntStages<'_, S> {
             &terms(false, true, &ls, &lvp, &lup, &seeded(&v), &lu),
         );
         // The inputs enter through the interval forces only: one pass with both seeded.
-        let r = self.midpoint_input_columns::<DOF, DIM, NS, NU>(&s, &v_prev, &u_prev, &v, &u);
+        let r = self.midpoint_input_columns::<DOF, NS, NU>(&s, &v_prev, &u_prev, &v, &u);
         for i in 0..NS {
             for j in 0..NU {
                 ex[(i, l.u_at() + j)] = r.0[(i, j)];
@@ -378,12 +371,7 @@ impl<S> VarIntStages<'_, S> {
 
     /// `∂e/∂u_{k−1}` and `∂e/∂u_k` of the midpoint residual: `−½ ∂F/∂u` at each interval's
     /// midpoint, by one dual pass per interval.
-    fn midpoint_input_columns<
-        const DOF: usize,
-        const DIM: usize,
-        const NS: usize,
-        const NU: usize,
-    >(
+    fn midpoint_input_columns<const DOF: usize, const NS: usize, const NU: usize>(
         &self,
         s: &SVector<f64, NS>,
         v_prev: &SVector<f64, NS>,
@@ -392,12 +380,12 @@ impl<S> VarIntStages<'_, S> {
         u: &SVector<f64, NU>,
     ) -> (SMatrix<f64, NS, NU>, SMatrix<f64, NS, NU>)
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let h = self.h;
         let column =
             |s_start: &SVector<f64, NS>, vel: &SVector<f64, NS>, inp: &SVector<f64, NU>| {
-                let f = dmech::midpoint::interval_force::<S, D<NU>, DOF, DIM, NS, NU>(
+                let f = dmech::midpoint::interval_force::<S, D<NU>, DOF, NS, NU>(
                     self.sys,
                     h,
                     &lift_vec(s_start),

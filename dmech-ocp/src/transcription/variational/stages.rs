@@ -106,15 +106,15 @@ pub struct VarIntStages<'a, S> {
 }
 
 impl<'a, S> VarIntStages<'a, S> {
-    pub fn new<const DOF: usize, const DIM: usize, const NS: usize, const NU: usize>(
+    pub fn new<const DOF: usize, const NS: usize, const NU: usize>(
         sys: &'a S,
         h: f64,
         quadrature: ForcingQuadrature,
     ) -> Self
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        let nc = <S::Group<f64> as LieGroup<DOF, DIM>>::identity()
+        let nc = <S::Group<f64> as LieGroup<DOF>>::identity()
             .coordinates()
             .len();
         VarIntStages {
@@ -136,7 +136,6 @@ impl<'a, S> VarIntStages<'a, S> {
     pub fn dynamics<
         T: Real,
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -147,11 +146,11 @@ impl<'a, S> VarIntStages<'a, S> {
         w: &SVector<T, NW>,
     ) -> SVector<T, NX>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
-        let g_next = self.group_step::<T, DOF, DIM, NS, NU, NX, NW>(x, w);
+        let g_next = self.group_step::<T, DOF, NS, NU, NX, NW>(x, w);
         let s: SVector<T, NS> = l.shape(x);
         let v: SVector<T, NS> = segment(w, 0);
         let u: SVector<T, NU> = segment(w, NS);
@@ -175,7 +174,6 @@ impl<'a, S> VarIntStages<'a, S> {
     fn group_step<
         T: Real,
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -186,20 +184,20 @@ impl<'a, S> VarIntStages<'a, S> {
         w: &SVector<T, NW>,
     ) -> S::Group<T>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
-        let g = <S::Group<T> as LieGroup<DOF, DIM>>::from_coordinates(&x.as_slice()[..l.nc])
+        let g = <S::Group<T> as LieGroup<DOF>>::from_coordinates(&x.as_slice()[..l.nc])
             .expect("layout checked");
         let s: SVector<T, NS> = l.shape(x);
         let v: SVector<T, NS> = segment(w, 0);
         let xi = match self.discretisation {
             Discretisation::FirstOrder => -(self.sys.connection(&s) * v),
             Discretisation::Midpoint => {
-                interval_body_velocity::<S, T, DOF, DIM, NS, NU>(self.sys, self.h, &s, &v)
+                interval_body_velocity::<S, T, DOF, NS, NU>(self.sys, self.h, &s, &v)
             }
         };
-        g.compose(&<S::Group<T> as LieGroup<DOF, DIM>>::exp(
+        g.compose(&<S::Group<T> as LieGroup<DOF>>::exp(
             &(xi * T::from(self.h)),
         ))
     }
@@ -215,7 +213,6 @@ impl<'a, S> VarIntStages<'a, S> {
     #[allow(clippy::type_complexity)]
     pub fn dynamics_jacobian<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -226,7 +223,7 @@ impl<'a, S> VarIntStages<'a, S> {
         w: &SVector<f64, NW>,
     ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>)
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
         l.check(NX, NW, NS + NU);
@@ -241,7 +238,7 @@ impl<'a, S> VarIntStages<'a, S> {
             }
         });
         let wd = seeded_from::<f64, NX, NW>(w, at);
-        let g_next = self.group_step::<D<NX>, DOF, DIM, NS, NU, NX, NW>(&xd, &wd);
+        let g_next = self.group_step::<D<NX>, DOF, NS, NU, NX, NW>(&xd, &wd);
         let mut f = SVector::<f64, NX>::zeros();
         let mut fx = SMatrix::<f64, NX, NX>::zeros();
         let mut fw = SMatrix::<f64, NX, NW>::zeros();
@@ -275,7 +272,6 @@ impl<'a, S> VarIntStages<'a, S> {
     pub fn equality<
         T: Real,
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const NX: usize,
@@ -286,7 +282,7 @@ impl<'a, S> VarIntStages<'a, S> {
         w: &SVector<T, NW>,
     ) -> SVector<T, NS>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         self.layout.check(NX, NW, NS + NU);
         let NodePoint {
@@ -298,11 +294,11 @@ impl<'a, S> VarIntStages<'a, S> {
         } = NodePoint::<T, NS, NU>::of(self.layout, x, w);
         let s_prev = s - v_prev * T::from(self.h);
         if self.discretisation == Discretisation::Midpoint {
-            return midpoint_momentum_matching_residual::<S, T, DOF, DIM, NS, NU>(
+            return midpoint_momentum_matching_residual::<S, T, DOF, NS, NU>(
                 self.sys, self.h, &s_prev, &v_prev, &u_prev, &s, &v, &u,
             );
         }
-        momentum_matching_residual::<S, T, DOF, DIM, NS, NU>(
+        momentum_matching_residual::<S, T, DOF, NS, NU>(
             self.sys,
             self.h,
             self.quadrature,
@@ -320,7 +316,6 @@ impl<'a, S> VarIntStages<'a, S> {
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn equality_terms<
         const DOF: usize,
-        const DIM: usize,
         const NS: usize,
         const NU: usize,
         const N: usize,
@@ -334,23 +329,22 @@ impl<'a, S> VarIntStages<'a, S> {
         u: &SVector<D<N>, NU>,
     ) -> SVector<D<N>, NS>
     where
-        S: PrincipalKinematicSystem<DOF, DIM, NS, NU, Param = f64>,
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let ht = D::<N>::from(self.h);
         let a_k = self.sys.connection(s);
         let mut r = SVector::<D<N>, NS>::zeros();
         if terms.outgoing {
-            r +=
-                outgoing_momentum_dual::<S, DOF, DIM, NS, NU, N>(self.sys, self.h, s, v, &a_k) / ht;
+            r += outgoing_momentum_dual::<S, DOF, NS, NU, N>(self.sys, self.h, s, v, &a_k) / ht;
         }
         let s_prev = s - v_prev * ht;
         if terms.incoming {
-            r -= incoming_momentum_dual::<S, DOF, DIM, NS, NU, N>(
+            r -= incoming_momentum_dual::<S, DOF, NS, NU, N>(
                 self.sys, self.h, &s_prev, v_prev, &a_k,
             ) / ht;
         }
         if terms.force {
-            r -= discrete_force::<S, D<N>, DOF, DIM, NS, NU>(
+            r -= discrete_force::<S, D<N>, DOF, NS, NU>(
                 self.sys,
                 self.quadrature,
                 &s_prev,

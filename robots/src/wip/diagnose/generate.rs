@@ -147,7 +147,7 @@ impl Truth<'_> {
         u: &SVector<f64, 2>,
         f: &SVector<f64, 5>,
     ) -> Result<SVector<f64, 5>, String> {
-        acceleration_with_force::<Wip<f64>, f64, 3, 2, 5, 2>(&self.sys, &y.s, &y.v, u, f)
+        acceleration_with_force(&self.sys, &y.s, &y.v, u, f)
             .ok_or_else(|| "the true model's mass matrix is singular".to_string())
     }
 
@@ -220,15 +220,8 @@ impl Truth<'_> {
                 .map(|r| r.0)
                 .unwrap_or_else(|_| SVector::from_element(f64::NAN))
         };
-        ContinuousModel::step_with_force::<Wip<f64>, 3, 2, 5, 2>(
-            &self.sys,
-            RungeKutta::Rk4,
-            dt,
-            x,
-            &u,
-            &force,
-        )
-        .map_err(|e| format!("the true model failed: {e:?}"))
+        ContinuousModel::step_with_force(&self.sys, RungeKutta::Rk4, dt, x, &u, &force)
+            .map_err(|e| format!("the true model failed: {e:?}"))
     }
 
     /// One step of the true model; under the stick-slip law a switch within the step (a

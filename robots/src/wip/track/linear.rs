@@ -22,7 +22,7 @@ pub fn vector_field<T: Real>(wip: &Wip, w: &SVector<T, { NZ + NIN }>) -> Option<
     let s = SVector::<T, 5>::new(alpha, T::zero(), T::zero(), T::zero(), T::zero());
     let v = SVector::<T, 5>::new(va, (vd + dd * vt) / r, (vd - dd * vt) / r, ir, il);
     let u = SVector::<T, 2>::new(w[8], w[9]);
-    let a = acceleration::<Wip, T, 3, 2, 5, 2>(wip, &s, &v, &u)?;
+    let a = acceleration(wip, &s, &v, &u)?;
     let two = T::from(2.0);
     Some(SVector::<T, NZ>::from_column_slice(&[
         vd,
