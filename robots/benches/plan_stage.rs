@@ -57,7 +57,14 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("constraint_curvature_generic", |b| {
         b.iter(|| {
-            generic_constraint_curvature::<_, 15, 7, 5, 8>(&plan, 700, black_box(&x), &w, &lam, &nu)
+            generic_constraint_curvature::<_, 15, 7, 5, 2, 8>(
+                &plan,
+                700,
+                black_box(&x),
+                &w,
+                &lam,
+                &nu,
+            )
         })
     });
     g.bench_function("stage_derivatives_exact", |b| {

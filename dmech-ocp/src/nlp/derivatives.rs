@@ -70,14 +70,21 @@ impl<const NX: usize, const NW: usize, const NC: usize> ConstantsTable<NX, NW, N
 }
 
 /// `ℓ_k` and `c_k` in vector duals seeded in `x`: their values and state gradients.
-pub(crate) fn state_pass<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+pub(crate) fn state_pass<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
     p: &P,
     k: usize,
     x: &SVector<f64, NX>,
     w: &SVector<f64, NW>,
 ) -> (DualSVec64<NX>, SVector<DualSVec64<NX>, NC>)
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let xd = seed(x);
     let wc = w.map(DualSVec64::<NX>::from_re);
@@ -169,6 +176,7 @@ pub fn cost_and_inequalities<
     const NX: usize,
     const NW: usize,
     const NE: usize,
+    const NF: usize,
     const NC: usize,
 >(
     p: &P,
@@ -179,7 +187,7 @@ pub fn cost_and_inequalities<
     w: &SVector<T, NW>,
 ) -> T
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
     T: dmech_lie::Real,
 {
     let c = p.constraints(k, x, w);
@@ -258,7 +266,14 @@ struct CostPart<'a, P, const NC: usize> {
 /// The Hessian blocks of `s ℓ_k + ζᵀc_k` at `(x, w)` over the whole stage (`with_state =
 /// false`: the `ww` block only).
 #[allow(clippy::too_many_arguments)]
-fn cost_part_hessian<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+fn cost_part_hessian<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
     p: &P,
     k: usize,
     x: &SVector<f64, NX>,
@@ -268,7 +283,7 @@ fn cost_part_hessian<P, const NX: usize, const NW: usize, const NE: usize, const
     with_state: bool,
 ) -> HessianBlocks<NX, NW>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let part = (
         CostPart {
@@ -277,19 +292,23 @@ where
             cost_scale,
             zeta,
         },
-        std::marker::PhantomData::<[(); NE]>,
+        std::marker::PhantomData::<([(); NE], [(); NF])>,
     );
     block_hessian(&part, x, w, with_state)
 }
 
-impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize> StageScalar<NX, NW>
-    for (CostPart<'_, P, NC>, std::marker::PhantomData<[(); NE]>)
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    StageScalar<NX, NW>
+    for (
+        CostPart<'_, P, NC>,
+        std::marker::PhantomData<([(); NE], [(); NF])>,
+    )
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     fn eval<T: dmech_lie::Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         let c = &self.0;
-        cost_and_inequalities::<P, T, NX, NW, NE, NC>(c.p, c.k, c.cost_scale, c.zeta, x, w)
+        cost_and_inequalities(c.p, c.k, c.cost_scale, c.zeta, x, w)
     }
 }
 
@@ -302,13 +321,14 @@ pub struct ConstraintPart<'a, P, const NX: usize, const NE: usize> {
     pub nu: &'a SVector<f64, NE>,
 }
 
-impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize> StageScalar<NX, NW>
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    StageScalar<NX, NW>
     for (
         ConstraintPart<'_, P, NX, NE>,
-        std::marker::PhantomData<[(); NC]>,
+        std::marker::PhantomData<([(); NF], [(); NC])>,
     )
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     fn eval<T: dmech_lie::Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         let c = &self.0;
@@ -335,6 +355,7 @@ pub fn generic_constraint_curvature<
     const NX: usize,
     const NW: usize,
     const NE: usize,
+    const NF: usize,
     const NC: usize,
 >(
     p: &P,
@@ -345,11 +366,11 @@ pub fn generic_constraint_curvature<
     nu: &SVector<f64, NE>,
 ) -> HessianBlocks<NX, NW>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let part = (
         ConstraintPart { p, k, lambda, nu },
-        std::marker::PhantomData::<[(); NC]>,
+        std::marker::PhantomData::<([(); NF], [(); NC])>,
     );
     block_hessian(&part, x, w, true)
 }
@@ -367,7 +388,14 @@ pub struct Precomputed<'a, const NX: usize, const NW: usize, const NE: usize, co
 }
 
 /// All derivatives of stage `k` at `(x, w)`, with inequality multipliers `ζ = z_hi − z_lo`.
-pub fn stage_derivatives<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+pub fn stage_derivatives<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
     p: &P,
     k: usize,
     x: &SVector<f64, NX>,
@@ -376,7 +404,7 @@ pub fn stage_derivatives<P, const NX: usize, const NW: usize, const NE: usize, c
     lambda: Option<&SVector<f64, NX>>,
 ) -> StageDerivatives<NX, NW, NE, NC>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let mut d = StageDerivatives::zeros();
     stage_derivatives_into(&mut d, p, k, x, w, zeta, lambda, Precomputed::default());
@@ -394,6 +422,7 @@ pub fn stage_derivatives_into<
     const NX: usize,
     const NW: usize,
     const NE: usize,
+    const NF: usize,
     const NC: usize,
 >(
     d: &mut StageDerivatives<NX, NW, NE, NC>,
@@ -405,7 +434,7 @@ pub fn stage_derivatives_into<
     lambda: Option<&SVector<f64, NX>>,
     known: Precomputed<'_, NX, NW, NE, NC>,
 ) where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     stage_first_derivatives_into(d, p, k, x, w, known);
     // Second order of `ℓ + ζᵀc` (only its `ww` block when the problem declares itself affine
@@ -435,6 +464,7 @@ pub fn stage_first_derivatives_into<
     const NX: usize,
     const NW: usize,
     const NE: usize,
+    const NF: usize,
     const NC: usize,
 >(
     d: &mut StageDerivatives<NX, NW, NE, NC>,
@@ -444,7 +474,7 @@ pub fn stage_first_derivatives_into<
     w: &SVector<f64, NW>,
     known: Precomputed<'_, NX, NW, NE, NC>,
 ) where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     (d.f, d.fx, d.fw) = p.dynamics_jacobian(k, x, w);
     match known.equality {
@@ -489,6 +519,7 @@ pub fn generic_equality_jacobian<
     const NX: usize,
     const NW: usize,
     const NE: usize,
+    const NF: usize,
     const NC: usize,
 >(
     p: &P,
@@ -497,7 +528,7 @@ pub fn generic_equality_jacobian<
     w: &SVector<f64, NW>,
 ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>)
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let ex = p.equality(k, &seed(x), &w.map(DualSVec64::<NX>::from_re));
     let ew = p.equality(k, &x.map(DualSVec64::<NW>::from_re), &seed(w));
@@ -512,6 +543,7 @@ pub fn generic_cost_curvature<
     const NX: usize,
     const NW: usize,
     const NE: usize,
+    const NF: usize,
     const NC: usize,
 >(
     p: &P,
@@ -522,14 +554,21 @@ pub fn generic_cost_curvature<
     zeta: &SVector<f64, NC>,
 ) -> HessianBlocks<NX, NW>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     cost_part_hessian(p, k, x, w, cost_scale, zeta, !p.affine_in_state())
 }
 
 /// The `xx` and `xw` blocks of the Hessian of `ℓ_k + ζᵀc_k` at `(x, w)`: what
 /// [`StageProblem::affine_in_state`] declares to be zero.
-pub fn state_curvature<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+pub fn state_curvature<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
     p: &P,
     k: usize,
     x: &SVector<f64, NX>,
@@ -537,7 +576,7 @@ pub fn state_curvature<P, const NX: usize, const NW: usize, const NE: usize, con
     zeta: &SVector<f64, NC>,
 ) -> (SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>)
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let (hxx, hxw, _) = cost_part_hessian(p, k, x, w, 1.0, zeta, true);
     (hxx, hxw)
@@ -552,14 +591,21 @@ pub struct StageValues<const NX: usize, const NE: usize, const NC: usize> {
     pub c: SVector<f64, NC>,
 }
 
-pub fn stage_values<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+pub fn stage_values<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
     p: &P,
     k: usize,
     x: &SVector<f64, NX>,
     w: &SVector<f64, NW>,
 ) -> StageValues<NX, NE, NC>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     StageValues {
         f: p.dynamics(k, x, w),
@@ -577,12 +623,19 @@ pub struct TerminalDerivatives<const NX: usize> {
     pub hxx: SMatrix<f64, NX, NX>,
 }
 
-pub fn terminal_derivatives<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>(
+pub fn terminal_derivatives<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
     p: &P,
     x: &SVector<f64, NX>,
 ) -> TerminalDerivatives<NX>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let v = p.terminal_cost(&seed2(x));
     TerminalDerivatives {

@@ -124,8 +124,13 @@ impl Globals {
 }
 
 /// The problem. `NX` state, `NW` stage decision, `NE` stage equalities, `NC` inequalities.
-pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const NC: usize>:
-    Sync
+pub trait StageProblem<
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>: Sync
 {
     /// The number of stages `N` (decisions `w_0 … w_{N−1}`, states `x_0 … x_N`).
     fn horizon(&self) -> usize;
@@ -184,9 +189,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     where
         Self: Sized,
     {
-        crate::nlp::derivatives::generic_cost_curvature::<Self, NX, NW, NE, NC>(
-            self, k, x, w, cost_scale, zeta,
-        )
+        crate::nlp::derivatives::generic_cost_curvature(self, k, x, w, cost_scale, zeta)
     }
     /// The curvature of the constraints, `(∇²_xx, ∇²_xw, ∇²_ww)` of `λᵀf + νᵀe` at
     /// `(x, w)` (the exact Hessian's part beyond the cost and the inequalities). The default
@@ -204,9 +207,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     where
         Self: Sized,
     {
-        crate::nlp::derivatives::generic_constraint_curvature::<Self, NX, NW, NE, NC>(
-            self, k, x, w, lambda, nu,
-        )
+        crate::nlp::derivatives::generic_constraint_curvature(self, k, x, w, lambda, nu)
     }
     /// The global variables, if the problem has any (default: none, the pure stage
     /// structure). The last `per_stage` entries of every `w_k` are then the globals' copies
@@ -243,7 +244,7 @@ pub trait StageProblem<const NX: usize, const NW: usize, const NE: usize, const 
     where
         Self: Sized,
     {
-        crate::nlp::derivatives::generic_equality_jacobian::<Self, NX, NW, NE, NC>(self, k, x, w)
+        crate::nlp::derivatives::generic_equality_jacobian(self, k, x, w)
     }
     /// `(E_x, E_w)` alone, for a caller that has the value already (the solver measured
     /// `e` at this point in its line search). The default drops the value of

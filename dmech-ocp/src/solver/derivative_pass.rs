@@ -14,12 +14,12 @@ pub(super) struct Workspace<
     const NX: usize,
     const NW: usize,
     const NE: usize,
-    const NU: usize,
+    const NF: usize,
     const NC: usize,
 > {
     pub(super) ders: Vec<StageDerivatives<NX, NW, NE, NC>>,
-    pub(super) lq: Vec<LqStage<NX, NU>>,
-    pub(super) elim: Vec<Elimination<NX, NW, NU>>,
+    pub(super) lq: Vec<LqStage<NX, NF>>,
+    pub(super) elim: Vec<Elimination<NX, NW, NF>>,
     pub(super) aux: Vec<StageAux<NX, NE, NC>>,
     pub(super) qn: Vec<QuasiNewton<NX, NW, NE>>,
     /// What is computed once per stage when the problem declares its cost curvature
@@ -28,9 +28,9 @@ pub(super) struct Workspace<
     pub(super) terminal: TerminalDerivatives<NX>,
     /// The Riccati sweep of the Newton step, its buffers kept from one iteration to the next
     /// (empty until the first restart: the sparse KKT path never sweeps).
-    pub(super) sweep: BackwardSweep<NX, NU>,
+    pub(super) sweep: BackwardSweep<NX, NF>,
     /// Each stage's coupling to the globals (empty without them; `globals.rs`).
-    pub(super) couplings: Vec<kkt::globals::StageCoupling<NX, NW, NU>>,
+    pub(super) couplings: Vec<kkt::globals::StageCoupling<NX, NW, NF>>,
 }
 
 /// Inside [`reuse_workspaces`] on this thread: the stage capacity of new workspaces, and
@@ -68,8 +68,8 @@ pub fn reuse_workspaces<R>(stages: usize, f: impl FnOnce() -> R) -> R {
     f()
 }
 
-impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Workspace<NX, NW, NE, NU, NC>
+impl<const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Workspace<NX, NW, NE, NF, NC>
 {
     /// Every per-stage array for `n` stages, built on `threads` threads, in the buffers a
     /// finished solve left if there are some ([`reuse_workspaces`]).
@@ -137,8 +137,8 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NU: usize, const N
     }
 }
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// Every stage's derivatives at `it`, with, while they are in cache, its SR1 update, its
     /// part of the KKT error and its values (reading the 36 MB of derivatives again for
@@ -149,7 +149,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         &self,
         it: &Iterate<NX, NW, NC>,
         vals: &[StageValues<NX, NE, NC>],
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         tm: &mut Timings,
     ) {
         let o = &self.opts;

@@ -36,13 +36,13 @@ pub struct SolveResult<const NX: usize, const NW: usize, const NC: usize> {
 
 /// How a stage's decision step follows from the condensed one: `δw = w0 + wx δx + wu δu`.
 #[derive(Clone, Debug)]
-pub(super) struct Elimination<const NX: usize, const NW: usize, const NU: usize> {
+pub(super) struct Elimination<const NX: usize, const NW: usize, const NF: usize> {
     pub(super) w0: SVector<f64, NW>,
     pub(super) wx: SMatrix<f64, NW, NX>,
-    pub(super) wu: SMatrix<f64, NW, NU>,
+    pub(super) wu: SMatrix<f64, NW, NF>,
 }
 
-impl<const NX: usize, const NW: usize, const NU: usize> Elimination<NX, NW, NU> {
+impl<const NX: usize, const NW: usize, const NF: usize> Elimination<NX, NW, NF> {
     pub(super) fn zeros() -> Self {
         Elimination {
             w0: SVector::zeros(),

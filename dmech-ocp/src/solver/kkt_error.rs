@@ -44,8 +44,8 @@ pub(super) struct KktError {
     pub(super) s_d: f64,
 }
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// Stage `k`'s part of the KKT error at the iterate, from its derivatives `d` (with
     /// `d.nu` set): computed in the derivative pass, while `d` is still in cache.

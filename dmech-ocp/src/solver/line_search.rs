@@ -4,8 +4,8 @@
 use super::filter::Acceptance;
 use super::*;
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// The largest steps `(α_p, α_d)` in `(0, 1]` that keep the slacks and the bound
     /// multipliers a fraction `τ` away from zero.
@@ -143,8 +143,8 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
     }
 }
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// IPOPT's filter line search along `step` from `it` (measures `m`): backtracking from
     /// the largest step the boundary allows, with second-order corrections after a
@@ -156,7 +156,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         it: &Iterate<NX, NW, NC>,
         m: &Measures,
         step: &mut Step<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         filter: &mut Filter,
         mu: f64,
         dc: f64,
@@ -270,7 +270,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         &self,
         it: &Iterate<NX, NW, NC>,
         step: &Step<NX, NW, NC>,
-        ws: &Workspace<NX, NW, NE, NU, NC>,
+        ws: &Workspace<NX, NW, NE, NF, NC>,
         mu: f64,
     ) -> f64 {
         let mut dphi = 0.0;

@@ -3,8 +3,8 @@
 
 use super::*;
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// Every stage's values at `it`, built on the stage threads (each written once: a
     /// zero-filled vector first was a serial pass and the page faults of 0.9 MB per trial).

@@ -153,13 +153,13 @@ pub struct Solver<
     const NX: usize,
     const NW: usize,
     const NE: usize,
-    const NU: usize,
+    const NF: usize,
     const NC: usize,
 > {
-    p: &'a dyn oracle::StageOracle<NX, NW, NE, NC>,
+    p: &'a dyn oracle::StageOracle<NX, NW, NE, NF, NC>,
     /// The problems derived from `p` (scaled, restoration); `None` for a restoration
     /// problem's own solver, which derives none.
-    derived: Option<&'a dyn oracle::DerivedProblems<NX, NW, NE, NC>>,
+    derived: Option<&'a dyn oracle::DerivedProblems<NX, NW, NE, NF, NC>>,
     n: usize,
     opts: IpOptions,
     bounds: Vec<Bounds<NC>>,
@@ -171,20 +171,20 @@ pub struct Solver<
     sparse: std::sync::OnceLock<Result<crate::solver::kkt::sparse_ldlt::SparseKkt, String>>,
 }
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
-    /// The solver of `p`. Panics if the sizes do not fit (`NU` must be `NW − NE`, less the
+    /// The solver of `p`. Panics if the sizes do not fit (`NF` must be `NW − NE`, less the
     /// globals' copies per stage) or the problem's globals are inconsistent: programming
     /// errors of the problem's definition, reported with both sides.
-    pub fn new<P: StageProblem<NX, NW, NE, NC>>(p: &'a P, opts: IpOptions) -> Self {
+    pub fn new<P: StageProblem<NX, NW, NE, NF, NC>>(p: &'a P, opts: IpOptions) -> Self {
         Self::of_oracle(p, Some(p), opts)
     }
 
     /// [`Solver::new`] once the problem's type is erased.
     fn of_oracle(
-        p: &'a dyn oracle::StageOracle<NX, NW, NE, NC>,
-        derived: Option<&'a dyn oracle::DerivedProblems<NX, NW, NE, NC>>,
+        p: &'a dyn oracle::StageOracle<NX, NW, NE, NF, NC>,
+        derived: Option<&'a dyn oracle::DerivedProblems<NX, NW, NE, NF, NC>>,
         opts: IpOptions,
     ) -> Self {
         let n = p.horizon();
@@ -196,9 +196,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         });
         let nt = globals.as_ref().map_or(0, |g| g.g.per_stage);
         assert_eq!(
-            NE + NU + nt,
+            NE + NF + nt,
             NW,
-            "NU must be NW − NE − (globals per stage {nt})"
+            "NF must be NW − NE − (globals per stage {nt})"
         );
         let bounds = (0..n)
             .map(|k| {
@@ -288,10 +288,10 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     /// and state equalities), with `globals` and `opts`.
     fn variant<'b>(
         &'b self,
-        p: &'b dyn oracle::StageOracle<NX, NW, NE, NC>,
+        p: &'b dyn oracle::StageOracle<NX, NW, NE, NF, NC>,
         globals: Option<GlobalSpec>,
         opts: IpOptions,
-    ) -> Solver<'b, NX, NW, NE, NU, NC> {
+    ) -> Solver<'b, NX, NW, NE, NF, NC> {
         Solver {
             p,
             derived: self.derived,
@@ -504,7 +504,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     fn restart_after_restoration(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         filter: &mut Filter,
         entry: &Measures,
         mu: f64,

@@ -8,7 +8,7 @@
 //! derivatives the dual numbers give, and the two derived problems. [`StageOracle`] and
 //! [`DerivedProblems`] say exactly that, without a scalar parameter, and every
 //! [`StageProblem`] implements both. The engine is then compiled once per set of sizes
-//! `(NX, NW, NE, NU, NC)`; what stays per problem type is its own derivative code, which
+//! `(NX, NW, NE, NF, NC)`; what stays per problem type is its own derivative code, which
 //! is all that differs between problems. One virtual call per stage and pass is nothing
 //! beside the dual-number work behind it.
 
@@ -23,8 +23,13 @@ use crate::nlp::{Globals, StageProblem, StateEquality};
 use nalgebra::{SMatrix, SVector};
 
 /// A problem's `f64` face: what the engine evaluates, stage by stage.
-pub(super) trait StageOracle<const NX: usize, const NW: usize, const NE: usize, const NC: usize>:
-    Sync
+pub(super) trait StageOracle<
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>: Sync
 {
     fn horizon(&self) -> usize;
     fn initial_state(&self) -> SVector<f64, NX>;
@@ -96,8 +101,9 @@ pub(super) trait RestorationOracle<
     const NX: usize,
     const NW: usize,
     const NE: usize,
+    const NF: usize,
     const NC: usize,
->: StageOracle<NX, NW, NE, NC>
+>: StageOracle<NX, NW, NE, NF, NC>
 {
     /// `ζ = √μ`; `true` if it changed.
     fn follow(&self, mu: f64) -> bool;
@@ -117,24 +123,29 @@ pub(super) struct RestorationSetup<'s, const NX: usize, const NW: usize> {
 /// type is still known. A trait of its own rather than methods of [`StageOracle`]: the
 /// derived problems are oracles too, and a `scaled` in their vtables would ask for the
 /// scaled problem of the scaled problem, without end.
-pub(super) trait DerivedProblems<const NX: usize, const NW: usize, const NE: usize, const NC: usize>:
-    Sync
+pub(super) trait DerivedProblems<
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>: Sync
 {
     /// The problem with its cost times `c` (`scaling.rs`).
-    fn scaled(&self, c: f64) -> Box<dyn StageOracle<NX, NW, NE, NC> + '_>;
+    fn scaled(&self, c: f64) -> Box<dyn StageOracle<NX, NW, NE, NF, NC> + '_>;
     /// The restoration problem around `setup`'s point, its proximity weight first `zeta`
     /// (`restoration.rs`). The same for the scaled problem: it drops the cost.
     fn restoration<'s>(
         &'s self,
         setup: RestorationSetup<'s, NX, NW>,
         zeta: f64,
-    ) -> Box<dyn RestorationOracle<NX, NW, NE, NC> + 's>;
+    ) -> Box<dyn RestorationOracle<NX, NW, NE, NF, NC> + 's>;
 }
 
-impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>
-    StageOracle<NX, NW, NE, NC> for P
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    StageOracle<NX, NW, NE, NF, NC> for P
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     fn horizon(&self) -> usize {
         StageProblem::horizon(self)
@@ -236,19 +247,19 @@ where
     }
 }
 
-impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>
-    DerivedProblems<NX, NW, NE, NC> for P
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    DerivedProblems<NX, NW, NE, NF, NC> for P
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
-    fn scaled(&self, c: f64) -> Box<dyn StageOracle<NX, NW, NE, NC> + '_> {
+    fn scaled(&self, c: f64) -> Box<dyn StageOracle<NX, NW, NE, NF, NC> + '_> {
         Box::new(ScaledCost { p: self, c })
     }
     fn restoration<'s>(
         &'s self,
         s: RestorationSetup<'s, NX, NW>,
         zeta: f64,
-    ) -> Box<dyn RestorationOracle<NX, NW, NE, NC> + 's> {
+    ) -> Box<dyn RestorationOracle<NX, NW, NE, NF, NC> + 's> {
         Box::new(Restoration::new(self, s, zeta))
     }
 }

@@ -4,8 +4,8 @@
 
 use super::*;
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// If the problem declares its cost and inequalities affine in the state, check it at
     /// the first, middle and last stage of the start (with unit inequality multipliers).
@@ -130,8 +130,8 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
-        elim: &[Elimination<NX, NW, NU>],
-        sol: LqSolution<NX, NU>,
+        elim: &[Elimination<NX, NW, NF>],
+        sol: LqSolution<NX, NF>,
         mu: f64,
         dc: f64,
         dw_globals: Option<&[SVector<f64, NW>]>,

@@ -95,10 +95,10 @@ impl<'a, P, const NX: usize, const NW: usize> Restoration<'a, P, NX, NW> {
     }
 }
 
-impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>
-    StageProblem<NX, NW, NE, NC> for Restoration<'_, P, NX, NW>
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    StageProblem<NX, NW, NE, NF, NC> for Restoration<'_, P, NX, NW>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     fn horizon(&self) -> usize {
         self.p.horizon()
@@ -188,10 +188,10 @@ where
     }
 }
 
-impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>
-    RestorationOracle<NX, NW, NE, NC> for Restoration<'_, P, NX, NW>
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    RestorationOracle<NX, NW, NE, NF, NC> for Restoration<'_, P, NX, NW>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     fn follow(&self, mu: f64) -> bool {
         let new = mu.sqrt().to_bits();
@@ -209,8 +209,8 @@ pub(super) enum Restored<const NX: usize, const NW: usize, const NC: usize> {
     Stop(Status, Iterate<NX, NW, NC>),
 }
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// `Σ_j |x_{k_j}[i_j] − v_j|`, the state equalities' part of `θ`.
     pub(super) fn state_equality_violation(&self, it: &Iterate<NX, NW, NC>) -> f64 {
@@ -248,7 +248,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                 },
                 mu_r.sqrt(),
             );
-        let solver: Solver<NX, NW, NE, NU, NC> = Solver::of_oracle(
+        let solver: Solver<NX, NW, NE, NF, NC> = Solver::of_oracle(
             &*problem,
             None,
             IpOptions {

@@ -28,10 +28,10 @@ pub(super) struct ScaledCost<'a, P> {
     pub(super) c: f64,
 }
 
-impl<P, const NX: usize, const NW: usize, const NE: usize, const NC: usize>
-    StageProblem<NX, NW, NE, NC> for ScaledCost<'_, P>
+impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    StageProblem<NX, NW, NE, NF, NC> for ScaledCost<'_, P>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     fn horizon(&self) -> usize {
         self.p.horizon()
@@ -141,9 +141,10 @@ pub(super) fn objective_scale<
     const NX: usize,
     const NW: usize,
     const NE: usize,
+    const NF: usize,
     const NC: usize,
 >(
-    p: &dyn super::oracle::StageOracle<NX, NW, NE, NC>,
+    p: &dyn super::oracle::StageOracle<NX, NW, NE, NF, NC>,
     it: &Iterate<NX, NW, NC>,
 ) -> Option<f64> {
     let n = it.w.len();

@@ -12,8 +12,8 @@ use super::*;
 /// RK2 algebraic 39 → 40 (`docs/ocp.md`).
 const WARM_MULT_FLOOR: f64 = 1e-2;
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// An iterate from primal values: slacks pushed into the interior, unit bound
     /// multipliers, zero equality multipliers.

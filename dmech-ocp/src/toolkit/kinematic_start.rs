@@ -96,7 +96,7 @@ impl<'a, S, const DOF: usize, const NU: usize> KinematicPath<'a, S, DOF, NU> {
     }
 }
 
-impl<S, const DOF: usize, const NS: usize, const NU: usize> StageProblem<NS, NS, 0, 0>
+impl<S, const DOF: usize, const NS: usize, const NU: usize> StageProblem<NS, NS, 0, NS, 0>
     for KinematicPath<'_, S, DOF, NU>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,

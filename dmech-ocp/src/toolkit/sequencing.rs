@@ -21,7 +21,7 @@ pub fn continuation<
     const NX: usize,
     const NW: usize,
     const NE: usize,
-    const NU: usize,
+    const NF: usize,
     const NC: usize,
 >(
     problems: &[P],
@@ -30,7 +30,7 @@ pub fn continuation<
     opts: IpOptions,
 ) -> SolveResult<NX, NW, NC>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let intermediate_tol = (10.0 * opts.warm_mu_init()).max(opts.tol);
     let last = problems.len() - 1;
@@ -49,7 +49,7 @@ where
         if j > 0 {
             o.mu_init = intermediate_tol;
         }
-        let s: Solver<NX, NW, NE, NU, NC> = Solver::new(p, o);
+        let s: Solver<NX, NW, NE, NF, NC> = Solver::new(p, o);
         let r = match &done {
             None => {
                 let (xs, ws) = start.take().expect("only the first problem starts cold");
@@ -76,7 +76,7 @@ pub fn direct_or_continuation<
     const NX: usize,
     const NW: usize,
     const NE: usize,
-    const NU: usize,
+    const NF: usize,
     const NC: usize,
 >(
     problems: &[P],
@@ -85,17 +85,17 @@ pub fn direct_or_continuation<
     opts: IpOptions,
 ) -> SolveResult<NX, NW, NC>
 where
-    P: StageProblem<NX, NW, NE, NC>,
+    P: StageProblem<NX, NW, NE, NF, NC>,
 {
     let last = &problems[problems.len() - 1..];
-    let direct = continuation::<_, NX, NW, NE, NU, NC>(last, xs.clone(), ws.clone(), opts.clone());
+    let direct = continuation::<_, NX, NW, NE, NF, NC>(last, xs.clone(), ws.clone(), opts.clone());
     // With one problem the continuation is the direct solve: nothing to fall back to.
     if direct.status == Status::Solved || problems.len() == 1 {
         return direct;
     }
     let o = time_left(&opts, &direct);
     merge(
-        continuation::<_, NX, NW, NE, NU, NC>(problems, xs, ws, o),
+        continuation::<_, NX, NW, NE, NF, NC>(problems, xs, ws, o),
         &direct,
     )
 }
@@ -131,11 +131,18 @@ pub fn merge<const NX: usize, const NW: usize, const NC: usize>(
 /// A plan on meshes of different steps, for [`mesh_sequence`]: a variational
 /// transcription (the refinement knows its layout) whose problem on a mesh may come in
 /// continuation phases (`phases()` problems, the last being the plan itself).
-pub trait SequencedPlan<const NX: usize, const NW: usize, const NE: usize, const NC: usize> {
+pub trait SequencedPlan<
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>
+{
     /// A mesh: the problem's data at one step (horizon, step, the stages of its conditions).
     type Mesh;
     /// The transcribed problem on a mesh.
-    type Problem<'a>: StageProblem<NX, NW, NE, NC>
+    type Problem<'a>: StageProblem<NX, NW, NE, NF, NC>
     where
         Self: 'a;
     /// The number of steps and the step of `mesh`.
@@ -185,7 +192,7 @@ pub fn mesh_sequence<
     const NX: usize,
     const NW: usize,
     const NE: usize,
-    const NU: usize,
+    const NF: usize,
     const NC: usize,
 >(
     plan: &P,
@@ -195,10 +202,10 @@ pub fn mesh_sequence<
     progress: &dyn Fn(&str),
 ) -> SolveResult<NX, NW, NC>
 where
-    P: SequencedPlan<NX, NW, NE, NC>,
+    P: SequencedPlan<NX, NW, NE, NF, NC>,
 {
     crate::solver::reuse_workspaces(plan.steps(&finest), || {
-        sequence_meshes::<P, NX, NW, NE, NU, NC>(plan, finest, settings, opts, progress)
+        sequence_meshes::<P, NX, NW, NE, NF, NC>(plan, finest, settings, opts, progress)
     })
 }
 
@@ -207,7 +214,7 @@ fn sequence_meshes<
     const NX: usize,
     const NW: usize,
     const NE: usize,
-    const NU: usize,
+    const NF: usize,
     const NC: usize,
 >(
     plan: &P,
@@ -217,7 +224,7 @@ fn sequence_meshes<
     progress: &dyn Fn(&str),
 ) -> SolveResult<NX, NW, NC>
 where
-    P: SequencedPlan<NX, NW, NE, NC>,
+    P: SequencedPlan<NX, NW, NE, NF, NC>,
 {
     // Coarsest first, the problem itself last.
     let mut meshes = vec![finest];
@@ -247,7 +254,7 @@ where
         let problems: Vec<_> = (0..plan.phases())
             .map(|ph| plan.problem(mesh, ph))
             .collect();
-        continuation::<_, NX, NW, NE, NU, NC>(&problems, xs, ws, o)
+        continuation::<_, NX, NW, NE, NF, NC>(&problems, xs, ws, o)
     };
     announce(0);
     let mut o = opts.clone();
@@ -279,7 +286,7 @@ where
         let mut o = time_left(&opts, &r);
         o.final_barrier = final_barrier(j);
         o.mu_init = settings.restart_barrier;
-        let s: Solver<NX, NW, NE, NU, NC> = Solver::new(&problem, o);
+        let s: Solver<NX, NW, NE, NF, NC> = Solver::new(&problem, o);
         r = merge(s.solve(s.warm_iterate(start)), &r);
     }
     if last > 0 && r.status != Status::Solved {

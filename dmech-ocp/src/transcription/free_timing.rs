@@ -91,19 +91,29 @@ impl std::fmt::Display for FreeTimingError {
 impl std::error::Error for FreeTimingError {}
 
 /// A robot's VI plan with free segment timing. `NW` of the solver is `NS + NU + 2`.
-pub struct FreeTimingTranscription<'a, S, P, const DOF: usize, const NP: usize, const NU: usize> {
-    pub plan: VarIntTranscription<'a, S, P, DOF, NP, NU>,
+pub struct FreeTimingTranscription<
+    'a,
+    S,
+    P,
+    const DOF: usize,
+    const NP: usize,
+    const NS: usize,
+    const NU: usize,
+> {
+    /// The fixed-timing plan it frees.
+    pub plan: VarIntTranscription<'a, S, P, DOF, NP, NS, NU>,
+    /// The timing freedom.
     pub timing: FreeTiming,
     /// The segment of each interval `k < N`.
     segment_of: Vec<usize>,
 }
 
-impl<'a, S, P, const DOF: usize, const NP: usize, const NU: usize>
-    FreeTimingTranscription<'a, S, P, DOF, NP, NU>
+impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usize>
+    FreeTimingTranscription<'a, S, P, DOF, NP, NS, NU>
 {
     /// `plan` with the timing freedom `timing`.
-    pub fn new<const NS: usize, const NC: usize>(
-        plan: VarIntTranscription<'a, S, P, DOF, NP, NU>,
+    pub fn new<const NC: usize>(
+        plan: VarIntTranscription<'a, S, P, DOF, NP, NS, NU>,
         timing: FreeTiming,
     ) -> Result<Self, FreeTimingError>
     where
@@ -196,14 +206,14 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NU: usize>
 
     /// The solution as a [`PlannedTrajectory`] at the nominal step (the fixed
     /// transcription's reading of the stages: the ratios trail `w`), with its stage times.
-    pub fn trajectory<const NS: usize, const NX: usize, const NW: usize, const NC: usize>(
+    pub fn trajectory<const NX: usize, const NW: usize, const NC: usize>(
         &self,
         it: &Iterate<NX, NW, NC>,
     ) -> (PlannedTrajectory<NP, NS, NU>, Vec<f64>)
     where
         P: PlanningProblem<NP, NS, NU, NC>,
     {
-        (self.plan.trajectory::<NS, NX, NW, NC>(it), self.times(it).1)
+        (self.plan.trajectory(it), self.times(it).1)
     }
 }
 
@@ -217,7 +227,7 @@ impl<
         const NX: usize,
         const NW: usize,
         const NC: usize,
-    > StageProblem<NX, NW, NS, NC> for FreeTimingTranscription<'_, S, P, DOF, NP, NU>
+    > StageProblem<NX, NW, NS, NU, NC> for FreeTimingTranscription<'_, S, P, DOF, NP, NS, NU>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
@@ -315,7 +325,7 @@ where
     ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
         let (sigma_prev, sigma) = (w[NW - 2], w[NW - 1]);
         if sigma_prev != sigma {
-            let (_, ex, ew) = generic_equality_jacobian::<Self, NX, NW, NS, NC>(self, k, x, w);
+            let (_, ex, ew) = generic_equality_jacobian(self, k, x, w);
             return (ex, ew);
         }
         let st = &self.plan.stages;
@@ -357,9 +367,9 @@ where
         zeta: &SVector<f64, NC>,
     ) -> HessianBlocks<NX, NW> {
         if !self.plan.problem.affine_in_configuration() {
-            return generic_cost_curvature::<Self, NX, NW, NS, NC>(self, k, x, w, cost_scale, zeta);
+            return generic_cost_curvature(self, k, x, w, cost_scale, zeta);
         }
-        let hww = hess2(&cost_and_inequalities::<Self, _, NX, NW, NS, NC>(
+        let hww = hess2(&cost_and_inequalities(
             self,
             k,
             cost_scale,
@@ -375,15 +385,14 @@ where
                 None => HyperDualSVec64::<NX, 2>::from_re(w[i]),
             });
         let mut hxw = SMatrix::<f64, NX, NW>::zeros();
-        let xr =
-            cost_and_inequalities::<Self, _, NX, NW, NS, NC>(self, k, cost_scale, zeta, &xh, &wh);
+        let xr = cost_and_inequalities(self, k, cost_scale, zeta, &xh, &wh);
         if let Some(hxr) = xr.eps1eps2.0 {
             hxw.fixed_columns_mut::<2>(NW - 2).copy_from(&hxr);
         }
         (SMatrix::zeros(), hxw, hww)
     }
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
-        let stage = self.plan.stage::<T, NS, NX, NW>(x, w);
+        let stage = self.plan.stage(x, w);
         self.plan.problem.cost_at_step(k, &stage, w[NW - 1])
     }
     fn constraints<T: Real>(
@@ -392,7 +401,7 @@ where
         x: &SVector<T, NX>,
         w: &SVector<T, NW>,
     ) -> SVector<T, NC> {
-        let stage = self.plan.stage::<T, NS, NX, NW>(x, w);
+        let stage = self.plan.stage(x, w);
         self.plan.problem.constraints_at_step(k, &stage, w[NW - 1])
     }
     fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {

@@ -84,7 +84,7 @@
 //! // Any start: `initial_iterate` puts the problem's start state into x_0.
 //! let r = solver.solve(solver.initial_iterate(vec![SVector::zeros(); n + 1], vec![SVector::zeros(); n]));
 //! assert_eq!(r.status, Status::Solved);
-//! let plan = p.trajectory::<2, 9, 4, 0>(&r.iterate);
+//! let plan = p.trajectory(&r.iterate);
 //! assert!((plan.stages[n].pose[0] - 1.0).abs() < 1e-8);
 //! ```
 

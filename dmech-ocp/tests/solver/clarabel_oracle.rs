@@ -25,7 +25,7 @@ struct LinearQuadratic {
     target: f64,
 }
 
-impl StageProblem<2, 1, 0, 2> for LinearQuadratic {
+impl StageProblem<2, 1, 0, 1, 2> for LinearQuadratic {
     fn horizon(&self) -> usize {
         self.n
     }
@@ -163,7 +163,7 @@ fn interior_point_equals_clarabel_on_a_constrained_lq_problem() {
             target: 1.0,
         };
         let tol = 1e-10;
-        let s: Solver<2, 1, 0, 1, 2> = Solver::new(
+        let s = Solver::new(
             &p,
             IpOptions {
                 tol,

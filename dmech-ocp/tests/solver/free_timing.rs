@@ -27,7 +27,7 @@ impl TwoPhase {
     }
 }
 
-impl StageProblem<2, 2, 0, 0> for TwoPhase {
+impl StageProblem<2, 2, 0, 1, 0> for TwoPhase {
     fn horizon(&self) -> usize {
         self.n1 + self.n2
     }
@@ -155,7 +155,7 @@ fn solve_with(pr: &TwoPhase, tol: f64, kkt: KktMethod) -> (f64, f64, usize) {
         kkt,
         ..Default::default()
     };
-    let s: Solver<2, 2, 0, 1, 0> = Solver::new(pr, opts);
+    let s = Solver::new(pr, opts);
     let n = pr.horizon();
     let h = pr.nominal();
     let start = s.initial_iterate(
@@ -236,7 +236,7 @@ const SPEED_LIMIT: f64 = 1.0;
 /// The same double integrator with the timing fixed (no globals): `w = u`.
 struct Fixed(TwoPhase);
 
-impl StageProblem<2, 1, 0, 1> for Fixed {
+impl StageProblem<2, 1, 0, 1, 1> for Fixed {
     fn horizon(&self) -> usize {
         self.0.horizon()
     }
@@ -304,7 +304,7 @@ fn sparse_ldlt_and_riccati_solve_alike() {
             kkt,
             ..Default::default()
         };
-        let s: Solver<2, 1, 0, 1, 1> = Solver::new(&fixed, opts);
+        let s = Solver::new(&fixed, opts);
         let r =
             s.solve(s.initial_iterate(vec![SVector::zeros(); n + 1], vec![SVector::zeros(); n]));
         assert_eq!(r.status, Status::Solved);

@@ -37,7 +37,7 @@ impl DoubleIntegrator {
     }
 }
 
-impl StageProblem<3, 1, 0, 2> for DoubleIntegrator {
+impl StageProblem<3, 1, 0, 1, 2> for DoubleIntegrator {
     fn horizon(&self) -> usize {
         self.n
     }
@@ -103,7 +103,7 @@ fn double_integrator_converges() {
             nonlinear,
             ..DoubleIntegrator::to_unit_position(100, 0.05)
         };
-        let s: Solver<3, 1, 0, 1, 2> = Solver::new(
+        let s = Solver::new(
             &p,
             IpOptions {
                 verbose: true,
@@ -125,7 +125,7 @@ fn double_integrator_converges() {
 fn threads_do_not_change_the_iterates() {
     let p = DoubleIntegrator::to_unit_position(1001, 0.01);
     let solve = |threads| {
-        let s: Solver<3, 1, 0, 1, 2> = Solver::new(
+        let s = Solver::new(
             &p,
             IpOptions {
                 threads,
@@ -163,7 +163,7 @@ fn a_final_barrier_stops_where_the_full_solve_leaves_it() {
             ..Default::default()
         };
         let visited = 0.2 * o.mu_init;
-        let s: Solver<3, 1, 0, 1, 2> = Solver::new(&p, o);
+        let s = Solver::new(&p, o);
         let start = s.initial_iterate(vec![SVector::zeros(); 201], vec![SVector::zeros(); 200]);
         (s.solve(start), visited)
     };
@@ -221,7 +221,7 @@ fn small_objectives_are_solved_scale_invariantly() {
             cost_scale,
             ..DoubleIntegrator::to_unit_position(200, 0.05)
         };
-        let s: Solver<3, 1, 0, 1, 2> = Solver::new(&p, IpOptions::default());
+        let s = Solver::new(&p, IpOptions::default());
         let start = s.initial_iterate(
             vec![SVector::zeros(); 201],
             vec![SVector::repeat(0.01); 200],
@@ -271,7 +271,7 @@ fn a_declared_constant_curvature_gives_the_same_iterates() {
                 exact_hessian,
                 ..Default::default()
             };
-            let s: Solver<3, 1, 0, 1, 2> = Solver::new(&p, opts);
+            let s = Solver::new(&p, opts);
             let start = s.initial_iterate(vec![SVector::zeros(); 151], vec![SVector::zeros(); 150]);
             s.solve(start)
         };

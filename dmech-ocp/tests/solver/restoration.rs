@@ -22,7 +22,7 @@ struct RestToRest {
     target: f64,
 }
 
-impl StageProblem<2, 1, 0, 1> for RestToRest {
+impl StageProblem<2, 1, 0, 1, 1> for RestToRest {
     fn horizon(&self) -> usize {
         self.n
     }
@@ -114,7 +114,7 @@ fn least_violation(p: &RestToRest, tol: f64) -> f64 {
 }
 
 fn solve(p: &RestToRest) -> dmech_ocp::solver::SolveResult<2, 1, 1> {
-    let s: Solver<2, 1, 0, 1, 1> = Solver::new(p, IpOptions::default());
+    let s = Solver::new(p, IpOptions::default());
     s.solve(s.initial_iterate(vec![SVector::zeros(); p.n + 1], vec![SVector::zeros(); p.n]))
 }
 
@@ -199,7 +199,7 @@ fn a_final_barrier_does_not_end_a_restoration() {
         u_max: 1.0,
         target: 10.0,
     };
-    let s: Solver<2, 1, 0, 1, 1> = Solver::new(
+    let s = Solver::new(
         &far,
         IpOptions {
             final_barrier: Some(1e-4),

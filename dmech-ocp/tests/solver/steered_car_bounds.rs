@@ -178,8 +178,8 @@ fn solve_problem(problem: ParkDiagonal, opts: IpOptions) -> (Status, usize, f64,
         disc,
     )
     .expect("a kinematic start");
-    let problem = VarIntTranscription::<_, _, 3, 3, 2>::new::<2>(&CAR, problem, h, disc);
-    let solver: Solver<9, 4, 2, 2, 3> = Solver::new(&problem, opts);
+    let problem = VarIntTranscription::new(&CAR, problem, h, disc);
+    let solver = Solver::new(&problem, opts);
     let r = solver.solve(solver.initial_iterate(xs, ws));
     (r.status, r.iterations, r.objective, r.max_violation)
 }

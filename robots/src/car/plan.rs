@@ -284,10 +284,10 @@ pub struct CarMesh<'p> {
     pub plan: CarPlan<'p>,
 }
 
-impl<'p> SequencedPlan<NX, NW, NS, NC> for CarSequence<'p> {
+impl<'p> SequencedPlan<NX, NW, NS, NU, NC> for CarSequence<'p> {
     type Mesh = CarMesh<'p>;
     type Problem<'a>
-        = VarIntTranscription<'a, Car, &'a CarPlan<'p>, 3, 3, NU>
+        = VarIntTranscription<'a, Car, &'a CarPlan<'p>, 3, 3, NS, NU>
     where
         Self: 'a;
     fn steps(&self, mesh: &CarMesh) -> usize {
@@ -302,7 +302,7 @@ impl<'p> SequencedPlan<NX, NW, NS, NC> for CarSequence<'p> {
             .map(|plan| CarMesh { plan })
     }
     fn problem<'a>(&'a self, mesh: &'a CarMesh<'p>, _phase: usize) -> Self::Problem<'a> {
-        VarIntTranscription::new::<NS>(self.car, &mesh.plan, mesh.plan.h, self.disc)
+        VarIntTranscription::new(self.car, &mesh.plan, mesh.plan.h, self.disc)
     }
     fn start(&self, mesh: &CarMesh) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
         let h = mesh.plan.h;
@@ -370,8 +370,7 @@ pub fn plan(
     };
     let r = mesh_sequence::<_, NX, NW, NS, NU, NC>(&seq, finest, settings, opts, &progress);
     let problem_on_mesh = CarPlan::new(problem, bounds, h)?;
-    let tr =
-        VarIntTranscription::<_, _, 3, 3, NU>::new::<NS>(car, &problem_on_mesh, h, discretisation);
+    let tr = VarIntTranscription::new(car, &problem_on_mesh, h, discretisation);
     let max_violation = measured_violation(&tr, &r);
     Ok(CarOutcome {
         status: r.status,
@@ -381,13 +380,16 @@ pub fn plan(
         solve_time_s: r.timings.total,
         h,
         stages,
-        trajectory: tr.trajectory::<NS, NX, NW, NC>(&r.iterate),
+        trajectory: tr.trajectory(&r.iterate),
     })
 }
 
 /// Every constraint of `p` evaluated on the returned iterate: dynamics, stage equality,
 /// bounds, state equalities; the largest violation.
-fn measured_violation<P: StageProblem<NX, NW, NS, NC>>(p: &P, r: &SolveResult<NX, NW, NC>) -> f64 {
+fn measured_violation<P: StageProblem<NX, NW, NS, NU, NC>>(
+    p: &P,
+    r: &SolveResult<NX, NW, NC>,
+) -> f64 {
     let (x, w) = (&r.iterate.x, &r.iterate.w);
     let mut worst = 0.0f64;
     for k in 0..w.len() {

@@ -201,7 +201,7 @@ fn plan_model<
         Transcription::VarInt(disc) => {
             let r = varint_solve::<M, NS, NXV, NW>(model, models, problem, bounds, disc, opts);
             let traj = varint_plan_sized::<M, NS, NXV>(model, problem, bounds, disc)
-                .trajectory::<NS, NXV, NW, NC>(&r.iterate);
+                .trajectory(&r.iterate);
             outcome::<M, NS, NXV, NW>(model, r, traj, true)
         }
         Transcription::Rk(rk) => {
@@ -224,7 +224,7 @@ fn plan_model<
                 direct_or_continuation::<_, NX, 2, 0, 2, NC>(&plans, xs, ws, opts)
             };
             let own = plans.last().expect("the model's own plan is last");
-            let traj = own.trajectory::<2, NX, NC>(&r.iterate);
+            let traj = own.trajectory(&r.iterate);
             outcome::<M, NS, NX, 2>(model, r, traj, false)
         }
     }

@@ -269,10 +269,11 @@ impl<M: PlanModel<NS>, const NS: usize> PlanningProblem<3, NS, 2, NC> for WipPla
 }
 
 /// The WIP on a variational integrator (first order or midpoint).
-pub type VarIntPlan<'a, M> = VarIntTranscription<'a, M, WipPlan<'a, M>, 3, 3, 2>;
+pub type VarIntPlan<'a, M, const NS: usize> =
+    VarIntTranscription<'a, M, WipPlan<'a, M>, 3, 3, NS, 2>;
 
 /// The WIP on a Runge–Kutta step.
-pub type RkPlan<'a, M, const NS: usize> = RkTranscription<'a, M, WipPlan<'a, M>, 3, 3, NS>;
+pub type RkPlan<'a, M, const NS: usize> = RkTranscription<'a, M, WipPlan<'a, M>, 3, 3, NS, 2>;
 
 /// The first-order VI plan of `problem` for `model` (the paper's transcription).
 pub fn varint_plan<'a, M: PlanModel<NS>, const NS: usize>(
@@ -280,13 +281,13 @@ pub fn varint_plan<'a, M: PlanModel<NS>, const NS: usize>(
     problem: &'a PlanProblem,
     bounds: PlanBounds,
     discretisation: Discretisation,
-) -> VarIntPlan<'a, M> {
+) -> VarIntPlan<'a, M, NS> {
     let plan = WipPlan {
         model,
         problem,
         bounds,
     };
-    VarIntTranscription::new::<NS>(model, plan, problem.h, discretisation)
+    VarIntTranscription::new(model, plan, problem.h, discretisation)
 }
 
 /// The VI stage layout for state size `NX`: every shape position (`NX = 2 NS + 5`), or
@@ -313,7 +314,7 @@ pub fn varint_plan_sized<'a, M: PlanModel<NS>, const NS: usize, const NX: usize>
     problem: &'a PlanProblem,
     bounds: PlanBounds,
     discretisation: Discretisation,
-) -> VarIntPlan<'a, M> {
+) -> VarIntPlan<'a, M, NS> {
     let plan = varint_plan::<M, NS>(model, problem, bounds, discretisation);
     let layout = varint_layout::<M, NS, NX>(model);
     if layout.ignored == 0 {
@@ -334,5 +335,5 @@ pub fn rk_plan<'a, M: PlanModel<NS>, const NS: usize>(
         problem,
         bounds,
     };
-    RkTranscription::new::<2>(model, plan, problem.h, rk)
+    RkTranscription::new(model, plan, problem.h, rk)
 }

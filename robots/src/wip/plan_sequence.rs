@@ -69,13 +69,13 @@ struct WipSequence<'m, M> {
 }
 
 impl<M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>
-    SequencedPlan<NX, NW, NS, NC> for WipSequence<'_, M>
+    SequencedPlan<NX, NW, NS, 2, NC> for WipSequence<'_, M>
 where
     M: PlanModel<NS>,
 {
     type Mesh = PlanProblem;
     type Problem<'a>
-        = VarIntPlan<'a, M>
+        = VarIntPlan<'a, M, NS>
     where
         Self: 'a;
     fn steps(&self, mesh: &PlanProblem) -> usize {
@@ -87,7 +87,7 @@ where
     fn coarser(&self, mesh: &PlanProblem) -> Option<PlanProblem> {
         mesh.at_step(mesh.h * 2.0)
     }
-    fn problem<'a>(&'a self, mesh: &'a PlanProblem, phase: usize) -> VarIntPlan<'a, M> {
+    fn problem<'a>(&'a self, mesh: &'a PlanProblem, phase: usize) -> VarIntPlan<'a, M, NS> {
         varint_plan_sized::<M, NS, NX>(&self.models[phase], mesh, self.bounds, self.disc)
     }
     fn phases(&self) -> usize {

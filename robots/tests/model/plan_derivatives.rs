@@ -161,14 +161,14 @@ fn one_pass_dynamics_jacobian_equals_two_passes() {
 fn free_timing_plan<'a>(
     wip: &'a Wip,
     p: &'a PlanProblem,
-) -> FreeTimingTranscription<'a, Wip, WipPlan<'a, Wip>, 3, 3, 2> {
+) -> FreeTimingTranscription<'a, Wip, WipPlan<'a, Wip>, 3, 3, 5, 2> {
     let plan = varint_plan::<Wip, 5>(wip, p, PlanBounds::default(), Discretisation::FirstOrder);
     let timing = FreeTiming {
         segment_starts: p.stages[..p.stages.len() - 1].to_vec(),
         ratio_bounds: (0.5, 2.0),
         total: TotalTime::Fixed,
     };
-    FreeTimingTranscription::new::<5, NC>(plan, timing).unwrap()
+    FreeTimingTranscription::new(plan, timing).unwrap()
 }
 
 /// The free-timing transcription's equality Jacobian (inside a segment: the fixed step's
@@ -204,14 +204,14 @@ fn free_timing_equality_jacobian_equals_generic() {
                 8 => sigma,
                 _ => ws[k][i] + perturb * rand(),
             });
-            let (e, ex, ew) = StageProblem::<15, 9, 5, NC>::equality_jacobian(&ft, k, &x, &w);
-            let gx = StageProblem::<15, 9, 5, NC>::equality(
+            let (e, ex, ew) = StageProblem::<15, 9, 5, 2, NC>::equality_jacobian(&ft, k, &x, &w);
+            let gx = StageProblem::<15, 9, 5, 2, NC>::equality(
                 &ft,
                 k,
                 &seeded(&x),
                 &w.map(DualSVec64::<15>::from_re),
             );
-            let gw = StageProblem::<15, 9, 5, NC>::equality(
+            let gw = StageProblem::<15, 9, 5, 2, NC>::equality(
                 &ft,
                 k,
                 &x.map(DualSVec64::<9>::from_re),
@@ -250,9 +250,9 @@ fn free_timing_cost_curvature_equals_generic() {
             let zeta = SVector::<f64, NC>::from_fn(|_, _| 10.0 * rand());
             let scale = 0.5 + rand();
             let (hxx, hxw, hww) =
-                StageProblem::<15, 9, 5, NC>::cost_curvature(&ft, k, &x, &w, scale, &zeta);
+                StageProblem::<15, 9, 5, 2, NC>::cost_curvature(&ft, k, &x, &w, scale, &zeta);
             let (rxx, rxw, rww) =
-                generic_cost_curvature::<_, 15, 9, 5, NC>(&ft, k, &x, &w, scale, &zeta);
+                generic_cost_curvature::<_, 15, 9, 5, 2, NC>(&ft, k, &x, &w, scale, &zeta);
             let size = rxx.amax().max(rxw.amax()).max(rww.amax()).max(1.0);
             let err = (hxx - rxx)
                 .amax()
@@ -382,8 +382,9 @@ fn block_constraint_curvature_equals_generic() {
                 let lam = SVector::<f64, 15>::from_fn(|_, _| 10.0 * rand());
                 let nu = SVector::<f64, 5>::from_fn(|_, _| 10.0 * rand());
                 let (hxx, hxw, hww) = plan_q.constraint_curvature(k, &x, &w, &lam, &nu);
-                let (rxx, rxw, rww) =
-                    generic_constraint_curvature::<_, 15, 7, 5, 8>(&plan_q, k, &x, &w, &lam, &nu);
+                let (rxx, rxw, rww) = generic_constraint_curvature::<_, 15, 7, 5, 2, 8>(
+                    &plan_q, k, &x, &w, &lam, &nu,
+                );
                 let scale = rxx.amax().max(rxw.amax()).max(rww.amax());
                 let err = (hxx - rxx)
                     .amax()
@@ -421,7 +422,7 @@ fn rk_cost_curvature_equals_generic() {
             let scale = 2.0 + rand();
             let (a, b, c) = plan.cost_curvature(k, &x, &u, scale, &zeta);
             let (ra, rb, rc) =
-                generic_cost_curvature::<_, NX, 2, 0, 8>(&plan, k, &x, &u, scale, &zeta);
+                generic_cost_curvature::<_, NX, 2, 0, 2, 8>(&plan, k, &x, &u, scale, &zeta);
             let size = ra.amax().max(rb.amax()).max(rc.amax()).max(1.0);
             let err = (a - ra).amax().max((b - rb).amax()).max((c - rc).amax());
             worst = worst.max(err / size);

@@ -32,15 +32,15 @@ type Cols<const R: usize> = OMatrix<f64, Const<R>, Dyn>;
 
 /// Stage `k`'s coupling to its `NT` global entries `θ_k = S_k p` (unused columns zero).
 #[derive(Clone, Debug)]
-pub struct LqCoupling<const NX: usize, const NU: usize, const NT: usize> {
+pub struct LqCoupling<const NX: usize, const NF: usize, const NT: usize> {
     pub s_xt: SMatrix<f64, NX, NT>,
-    pub s_ut: SMatrix<f64, NU, NT>,
+    pub s_ut: SMatrix<f64, NF, NT>,
     pub r_tt: SMatrix<f64, NT, NT>,
     pub q_t: SVector<f64, NT>,
     pub b_t: SMatrix<f64, NX, NT>,
 }
 
-impl<const NX: usize, const NU: usize, const NT: usize> LqCoupling<NX, NU, NT> {
+impl<const NX: usize, const NF: usize, const NT: usize> LqCoupling<NX, NF, NT> {
     pub fn zeros() -> Self {
         LqCoupling {
             s_xt: SMatrix::zeros(),
@@ -119,18 +119,18 @@ fn scatter_columns<const R: usize, const NT: usize>(
 /// The backward pass of the globals' columns over a complete plain `sweep` of `stages`
 /// (with its shift), from `x_0 = x0`. `support(k)` lists the globals of stage `k`'s first
 /// `support(k).len()` coupling columns.
-pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
-    sweep: &BackwardSweep<NX, NU>,
-    stages: &[LqStage<NX, NU>],
-    couplings: &[LqCoupling<NX, NU, NT>],
+pub fn global_sweep<'s, const NX: usize, const NF: usize, const NT: usize>(
+    sweep: &BackwardSweep<NX, NF>,
+    stages: &[LqStage<NX, NF>],
+    couplings: &[LqCoupling<NX, NF, NT>],
     support: &dyn Fn(usize) -> &'s [usize],
     ng: usize,
     x0: &SVector<f64, NX>,
-) -> Result<GlobalSchur<NX, NU>, RiccatiError> {
+) -> Result<GlobalSchur<NX, NF>, RiccatiError> {
     let n = stages.len();
-    let eye_u = SMatrix::<f64, NU, NU>::identity() * sweep.shift();
+    let eye_u = SMatrix::<f64, NF, NF>::identity() * sweep.shift();
     let mut pi = vec![Cols::<NX>::zeros(ng); n + 1];
-    let mut kp = vec![Cols::<NU>::zeros(ng); n];
+    let mut kp = vec![Cols::<NF>::zeros(ng); n];
     let mut psi = DMatrix::zeros(ng, ng);
     let mut psi_vec = DVector::zeros(ng);
     for k in (0..n).rev() {
@@ -209,15 +209,15 @@ pub fn global_sweep<'s, const NX: usize, const NU: usize, const NT: usize>(
 }
 
 /// The forward pass with the globals' step `p` fed into every stage.
-pub fn global_forward<'s, const NX: usize, const NU: usize, const NT: usize>(
-    sweep: &BackwardSweep<NX, NU>,
-    schur: &GlobalSchur<NX, NU>,
-    stages: &[LqStage<NX, NU>],
-    couplings: &[LqCoupling<NX, NU, NT>],
+pub fn global_forward<'s, const NX: usize, const NF: usize, const NT: usize>(
+    sweep: &BackwardSweep<NX, NF>,
+    schur: &GlobalSchur<NX, NF>,
+    stages: &[LqStage<NX, NF>],
+    couplings: &[LqCoupling<NX, NF, NT>],
     support: &dyn Fn(usize) -> &'s [usize],
     x0: &SVector<f64, NX>,
     p: &DVector<f64>,
-) -> LqSolution<NX, NU> {
+) -> LqSolution<NX, NF> {
     let n = stages.len();
     let mut x = Vec::with_capacity(n + 1);
     x.push(*x0);
@@ -225,7 +225,7 @@ pub fn global_forward<'s, const NX: usize, const NU: usize, const NT: usize>(
     let mut lambda = Vec::with_capacity(n);
     for (k, st) in stages.iter().enumerate() {
         let (gain, ff) = sweep.gain(k);
-        let uk: SVector<f64, NU> = gain * x[k] + ff + &schur.kp[k] * p;
+        let uk: SVector<f64, NF> = gain * x[k] + ff + &schur.kp[k] * p;
         let mut theta = SVector::<f64, NT>::zeros();
         for (a, &j) in support(k).iter().enumerate() {
             theta[a] = p[j];
@@ -256,17 +256,17 @@ mod tests {
     #[test]
     fn schur_complement_solves_the_coupled_lq() {
         const NX: usize = 3;
-        const NU: usize = 2;
+        const NF: usize = 2;
         const NT: usize = 2;
         let (n, ng) = (7usize, 3usize);
         let mut seed = 11u64;
         let spd = |m: SMatrix<f64, NX, NX>| m * m.transpose() + SMatrix::identity() * 0.2;
-        let stages: Vec<LqStage<NX, NU>> = (0..n)
+        let stages: Vec<LqStage<NX, NF>> = (0..n)
             .map(|_| {
-                let r: SMatrix<f64, NU, NU> = mat(&mut seed);
+                let r: SMatrix<f64, NF, NF> = mat(&mut seed);
                 LqStage {
                     q_mat: spd(mat(&mut seed)),
-                    s_mat: mat::<NX, NU>(&mut seed) * 0.1,
+                    s_mat: mat::<NX, NF>(&mut seed) * 0.1,
                     r_mat: r * r.transpose() + SMatrix::identity() * 0.5,
                     q: mat(&mut seed),
                     r: mat(&mut seed),
@@ -276,12 +276,12 @@ mod tests {
                 }
             })
             .collect();
-        let couplings: Vec<LqCoupling<NX, NU, NT>> = (0..n)
+        let couplings: Vec<LqCoupling<NX, NF, NT>> = (0..n)
             .map(|_| {
                 let r: SMatrix<f64, NT, NT> = mat(&mut seed);
                 LqCoupling {
                     s_xt: mat::<NX, NT>(&mut seed) * 0.1,
-                    s_ut: mat::<NU, NT>(&mut seed) * 0.1,
+                    s_ut: mat::<NF, NT>(&mut seed) * 0.1,
                     r_tt: r * r.transpose() + SMatrix::identity(),
                     q_t: mat(&mut seed),
                     b_t: mat(&mut seed),
@@ -307,7 +307,7 @@ mod tests {
         let sol = global_forward(&sweep, &schur, &stages, &couplings, &support, &x0, &p);
         // The substituted problem: θ fixed, its terms moved into q, r, c.
         let total = |p: &DVector<f64>| {
-            let sub: Vec<LqStage<NX, NU>> = stages
+            let sub: Vec<LqStage<NX, NF>> = stages
                 .iter()
                 .zip(&couplings)
                 .enumerate()

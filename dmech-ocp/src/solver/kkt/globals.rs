@@ -44,8 +44,8 @@ pub(in crate::solver) struct GlobalStep {
 
 /// A stage's coupling to its globals, and how its decision moves with them (`W_θ`, the
 /// first `per_stage` columns).
-pub(in crate::solver) type StageCoupling<const NX: usize, const NW: usize, const NU: usize> =
-    (LqCoupling<NX, NU, NW>, SMatrix<f64, NW, NW>);
+pub(in crate::solver) type StageCoupling<const NX: usize, const NW: usize, const NF: usize> =
+    (LqCoupling<NX, NF, NW>, SMatrix<f64, NW, NW>);
 
 /// What the solver keeps of the problem's globals.
 #[derive(Clone, Debug)]
@@ -145,8 +145,8 @@ impl GlobalSpec {
     }
 }
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// The last `per_stage` entries of every `w_k` set to the globals they copy.
     pub(in crate::solver) fn sync_globals(&self, it: &mut Iterate<NX, NW, NC>) {
@@ -203,9 +203,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         d: &StageDerivatives<NX, NW, NE, NC>,
         curvature: StageCurvature<'_, NX, NW, NE>,
         mu: f64,
-        el: &Elimination<NX, NW, NU>,
+        el: &Elimination<NX, NW, NF>,
         nt: usize,
-    ) -> Result<StageCoupling<NX, NW, NU>, String> {
+    ) -> Result<StageCoupling<NX, NW, NF>, String> {
         // The state blocks are the condensing's; only the decision blocks are used here.
         let (mut hxx, mut gx) = (SMatrix::zeros(), SVector::zeros());
         let (hxw, hww, gw) = self.stage_hessian_into(k, it, d, curvature, mu, (&mut hxx, &mut gx));
@@ -243,9 +243,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
         (constants, qn): (&ConstantsTable<NX, NW, NC>, &[QuasiNewton<NX, NW, NE>]),
-        elim: &[Elimination<NX, NW, NU>],
+        elim: &[Elimination<NX, NW, NF>],
         mu: f64,
-        out: &mut Vec<StageCoupling<NX, NW, NU>>,
+        out: &mut Vec<StageCoupling<NX, NW, NF>>,
     ) -> Result<(), String> {
         let nt = self.globals.as_ref().map_or(0, |g| g.g.per_stage);
         out.resize_with(self.n, || (LqCoupling::zeros(), SMatrix::zeros()));
@@ -301,7 +301,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     /// the equalities' new multipliers, or `None` if its inertia is wrong.
     fn reduced_global_step(
         &self,
-        schur: &GlobalSchur<NX, NU>,
+        schur: &GlobalSchur<NX, NF>,
         gi: &GlobalIterate,
         mu: f64,
         delta: f64,
@@ -342,7 +342,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     pub(in crate::solver) fn newton_step_global(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         inertia: &mut InertiaCorrection,
         mu: f64,
         dc: f64,
@@ -396,12 +396,12 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
 
     fn schur(
         &self,
-        sweep: &BackwardSweep<NX, NU>,
-        lq: &[LqStage<NX, NU>],
-        couplings: &[StageCoupling<NX, NW, NU>],
-    ) -> Option<GlobalSchur<NX, NU>> {
+        sweep: &BackwardSweep<NX, NF>,
+        lq: &[LqStage<NX, NF>],
+        couplings: &[StageCoupling<NX, NW, NF>],
+    ) -> Option<GlobalSchur<NX, NF>> {
         let gs = self.globals.as_ref()?;
-        let cps: Vec<LqCoupling<NX, NU, NW>> = couplings.iter().map(|c| c.0.clone()).collect();
+        let cps: Vec<LqCoupling<NX, NF, NW>> = couplings.iter().map(|c| c.0.clone()).collect();
         let support = |k: usize| gs.g.support_of(k);
         global_sweep(sweep, lq, &cps, &support, gs.g.len(), &SVector::zeros()).ok()
     }
@@ -413,18 +413,18 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
-        lq: &[LqStage<NX, NU>],
-        elim: &[Elimination<NX, NW, NU>],
-        couplings: &[StageCoupling<NX, NW, NU>],
-        sweep: &BackwardSweep<NX, NU>,
-        solved: (GlobalSchur<NX, NU>, DVector<f64>, Vec<f64>),
+        lq: &[LqStage<NX, NF>],
+        elim: &[Elimination<NX, NW, NF>],
+        couplings: &[StageCoupling<NX, NW, NF>],
+        sweep: &BackwardSweep<NX, NF>,
+        solved: (GlobalSchur<NX, NF>, DVector<f64>, Vec<f64>),
         mu: f64,
         dc: f64,
     ) -> Step<NX, NW, NC> {
         let (schur, dp, y) = solved;
         let gs = self.globals.as_ref().expect("a problem with globals");
         let support = |k: usize| gs.g.support_of(k);
-        let cps: Vec<LqCoupling<NX, NU, NW>> = couplings.iter().map(|c| c.0.clone()).collect();
+        let cps: Vec<LqCoupling<NX, NF, NW>> = couplings.iter().map(|c| c.0.clone()).collect();
         let sol = global_forward(sweep, &schur, lq, &cps, &support, &SVector::zeros(), &dp);
         self.recover_with_globals(it, ders, elim, couplings, sol, &dp, y, mu, dc)
     }
@@ -436,9 +436,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
-        elim: &[Elimination<NX, NW, NU>],
-        couplings: &[StageCoupling<NX, NW, NU>],
-        sol: LqSolution<NX, NU>,
+        elim: &[Elimination<NX, NW, NF>],
+        couplings: &[StageCoupling<NX, NW, NF>],
+        sol: LqSolution<NX, NF>,
         dp: &DVector<f64>,
         y: Vec<f64>,
         mu: f64,
@@ -486,7 +486,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     pub(in crate::solver) fn global_correction(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         trial_vals: &[StageValues<NX, NE, NC>],
         trial: &Iterate<NX, NW, NC>,
         alpha: f64,

@@ -20,8 +20,8 @@ pub(super) struct StageCurvature<'c, const NX: usize, const NW: usize, const NE:
     pub(super) qn: Option<&'c QuasiNewton<NX, NW, NE>>,
 }
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// The Newton step at `it` and the primal shift it took: every stage condensed, the
     /// Riccati recursion run behind the condensing with no shift, and, while some stage's
@@ -31,7 +31,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     pub(super) fn newton_step(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         inertia: &mut InertiaCorrection,
         mu: f64,
         dc: f64,
@@ -94,8 +94,8 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         curvature: StageCurvature<'_, NX, NW, NE>,
         mu: f64,
         dc: f64,
-        lq: &mut LqStage<NX, NU>,
-        el: &mut Elimination<NX, NW, NU>,
+        lq: &mut LqStage<NX, NF>,
+        el: &mut Elimination<NX, NW, NF>,
     ) -> Result<(), String> {
         // `H_xx` and `g_x` go straight into the stage's `Q` and `q`, which the terms below
         // are added to in place (each entry sees the same additions in the same order as
@@ -107,7 +107,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         // are `(D_x, 0)`, `(d_0, 0)` and `wu = (D_u, I)`.
         let (dx, du, d0) = if NE > 0 {
             let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
-            let eu: SMatrix<f64, NE, NU> = d.ew.fixed_columns::<NU>(NE).into_owned();
+            let eu: SMatrix<f64, NE, NF> = d.ew.fixed_columns::<NF>(NE).into_owned();
             let lu = Lu::new(&ev).ok_or_else(|| {
                 format!("stage {k}: the stage equality is singular in its dependent decisions")
             })?;
@@ -126,7 +126,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         w0.rows_mut(NE, NW - NE).fill(0.0);
         wu.fixed_rows_mut::<NE>(0).copy_from(&du);
         wu.rows_mut(NE, NW - NE).fill(0.0);
-        for i in 0..NU {
+        for i in 0..NF {
             wu[(NE + i, i)] = 1.0;
         }
         let wu = &*wu;
@@ -282,18 +282,18 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     #[allow(clippy::type_complexity)]
     pub(super) fn condense_and_sweep<F>(
         &self,
-        lq: &mut [LqStage<NX, NU>],
-        elim: &mut [Elimination<NX, NW, NU>],
-        sweep: &mut BackwardSweep<NX, NU>,
+        lq: &mut [LqStage<NX, NF>],
+        elim: &mut [Elimination<NX, NW, NF>],
+        sweep: &mut BackwardSweep<NX, NF>,
         stage: F,
     ) -> Result<(Result<(), RiccatiError>, f64), String>
     where
-        F: Fn(usize, &mut LqStage<NX, NU>, &mut Elimination<NX, NW, NU>) -> Result<(), String>
+        F: Fn(usize, &mut LqStage<NX, NF>, &mut Elimination<NX, NW, NF>) -> Result<(), String>
             + Sync,
     {
         let failed = std::sync::Mutex::new(None::<(usize, String)>);
         let condense_chunk =
-            |ci: usize, pl: &mut [LqStage<NX, NU>], pe: &mut [Elimination<NX, NW, NU>]| {
+            |ci: usize, pl: &mut [LqStage<NX, NF>], pe: &mut [Elimination<NX, NW, NF>]| {
                 let mut ok = true;
                 for (j, (l, e)) in pl.iter_mut().zip(pe.iter_mut()).enumerate() {
                     let k = ci * PAR_CHUNK + j;
@@ -311,7 +311,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         let mut sweep_time = 0.0;
         // Sweep one condensed chunk (all of its stages, last first).
         let mut sweep_chunk =
-            |ci: usize, stages: &[LqStage<NX, NU>], result: &mut Result<(), RiccatiError>| {
+            |ci: usize, stages: &[LqStage<NX, NF>], result: &mut Result<(), RiccatiError>| {
                 if result.is_err() {
                     return;
                 }
@@ -346,7 +346,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
             // chunk whose condensing failed. One sender per helper: the channel closes
             // when every helper is done (or has panicked), and the senders no helper took
             // are dropped once the queue is empty.
-            let (tx, rx) = std::sync::mpsc::channel::<(usize, Option<&[LqStage<NX, NU>]>)>();
+            let (tx, rx) = std::sync::mpsc::channel::<(usize, Option<&[LqStage<NX, NF>]>)>();
             let helpers = self.opts.threads - 1;
             let senders = std::sync::Mutex::new(vec![tx; helpers]);
             let condense_chunks = || {
@@ -355,7 +355,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                 };
                 while let Some((ci, (pl, pe))) = take() {
                     let ok = condense_chunk(ci, pl, pe);
-                    let pl: &[LqStage<NX, NU>] = pl;
+                    let pl: &[LqStage<NX, NF>] = pl;
                     if tx.send((ci, ok.then_some(pl))).is_err() {
                         break;
                     }
@@ -364,7 +364,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
             // This thread: sweep the next chunk when it is ready, otherwise condense one
             // (the queue hands them out last first, so usually the next one).
             let mut sweep_chunks = || {
-                let mut ready: Vec<Option<Option<&[LqStage<NX, NU>]>>> = vec![None; n_chunks];
+                let mut ready: Vec<Option<Option<&[LqStage<NX, NF>]>>> = vec![None; n_chunks];
                 let mut next = n_chunks;
                 // A chunk that failed to condense stops the sweep (its error is reported).
                 let mut sweeping = true;
@@ -381,7 +381,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                         ready[ci] = Some(chunk);
                     } else if let Some((ci, (pl, pe))) = take() {
                         let ok = condense_chunk(ci, pl, pe);
-                        let pl: &[LqStage<NX, NU>] = pl;
+                        let pl: &[LqStage<NX, NF>] = pl;
                         ready[ci] = Some(ok.then_some(pl));
                     } else {
                         senders.lock().unwrap_or_else(|p| p.into_inner()).clear();
@@ -416,7 +416,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     pub(super) fn second_order_correction(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         trial_vals: &[StageValues<NX, NE, NC>],
         trial: &Iterate<NX, NW, NC>,
         alpha: f64,
@@ -443,7 +443,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     pub(super) fn condense_workspace(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         mu: f64,
         dc: f64,
         shift: f64,

@@ -17,20 +17,20 @@
 
 use nalgebra::{SMatrix, SVector};
 
-/// One stage of the LQ problem, fixed sizes (`NX` states, `NU` inputs).
+/// One stage of the LQ problem, fixed sizes (`NX` states, `NF` inputs).
 #[derive(Clone, Debug)]
-pub struct LqStage<const NX: usize, const NU: usize> {
+pub struct LqStage<const NX: usize, const NF: usize> {
     pub q_mat: SMatrix<f64, NX, NX>,
-    pub s_mat: SMatrix<f64, NX, NU>,
-    pub r_mat: SMatrix<f64, NU, NU>,
+    pub s_mat: SMatrix<f64, NX, NF>,
+    pub r_mat: SMatrix<f64, NF, NF>,
     pub q: SVector<f64, NX>,
-    pub r: SVector<f64, NU>,
+    pub r: SVector<f64, NF>,
     pub a: SMatrix<f64, NX, NX>,
-    pub b: SMatrix<f64, NX, NU>,
+    pub b: SMatrix<f64, NX, NF>,
     pub c: SVector<f64, NX>,
 }
 
-impl<const NX: usize, const NU: usize> LqStage<NX, NU> {
+impl<const NX: usize, const NF: usize> LqStage<NX, NF> {
     pub fn zeros() -> Self {
         LqStage {
             q_mat: SMatrix::zeros(),
@@ -48,9 +48,9 @@ impl<const NX: usize, const NU: usize> LqStage<NX, NU> {
 /// The solution: states `x[0..=N]`, inputs `u[0..N]`, and the multipliers of the dynamics
 /// (`lambda[k]` for the constraint that defines `x_{k+1}`).
 #[derive(Clone, Debug)]
-pub struct LqSolution<const NX: usize, const NU: usize> {
+pub struct LqSolution<const NX: usize, const NF: usize> {
     pub x: Vec<SVector<f64, NX>>,
-    pub u: Vec<SVector<f64, NU>>,
+    pub u: Vec<SVector<f64, NF>>,
     pub lambda: Vec<SVector<f64, NX>>,
 }
 
@@ -64,21 +64,21 @@ pub enum RiccatiError {
 /// The backward sweep of the recursion, one stage at a time from `k = N−1` down, so that a
 /// caller can run it while the stages are still being formed (the solver condenses stage
 /// `k` on one thread while another sweeps through `k + 1 … N−1`).
-pub struct BackwardSweep<const NX: usize, const NU: usize> {
+pub struct BackwardSweep<const NX: usize, const NF: usize> {
     shift: f64,
     /// The terminal cost `(Q_N, q_N)` without the shift, for [`BackwardSweep::reshift`].
     terminal: (SMatrix<f64, NX, NX>, SVector<f64, NX>),
     eye_x: SMatrix<f64, NX, NX>,
-    eye_u: SMatrix<f64, NU, NU>,
+    eye_u: SMatrix<f64, NF, NF>,
     /// `(P_k, p_k)` for `k = next … N` (a step reads `P_{k+1}` here, in place).
     cost_to_go: Vec<(SMatrix<f64, NX, NX>, SVector<f64, NX>)>,
     /// `(K_k, κ_k)` for `k = next … N−1`.
-    gains: Vec<(SMatrix<f64, NU, NX>, SVector<f64, NU>)>,
+    gains: Vec<(SMatrix<f64, NF, NX>, SVector<f64, NF>)>,
     /// The stage the next [`BackwardSweep::step`] takes is `next − 1`.
     next: usize,
 }
 
-impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
+impl<const NX: usize, const NF: usize> BackwardSweep<NX, NF> {
     /// A sweep over `n` stages from the terminal cost `(q_n, q_vec_n)`, with the primal
     /// shift `shift`.
     pub fn new(
@@ -114,7 +114,7 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
         self.shift = shift;
         self.terminal = (*q_n, *q_vec_n);
         self.eye_x = SMatrix::<f64, NX, NX>::identity() * shift;
-        self.eye_u = SMatrix::<f64, NU, NU>::identity() * shift;
+        self.eye_u = SMatrix::<f64, NF, NF>::identity() * shift;
         let terminal = (q_n + self.eye_x, *q_vec_n);
         crate::solver::huge_pages::resize(&mut self.cost_to_go, n + 1, terminal);
         self.cost_to_go[n] = terminal;
@@ -130,7 +130,7 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
     }
 
     /// Every remaining stage of `stages`, last first.
-    pub fn sweep_all(&mut self, stages: &[LqStage<NX, NU>]) -> Result<(), RiccatiError> {
+    pub fn sweep_all(&mut self, stages: &[LqStage<NX, NF>]) -> Result<(), RiccatiError> {
         while let Some(k) = self.expects() {
             self.step(k, &stages[k])?;
         }
@@ -143,7 +143,7 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
     }
 
     /// Stage `k = next − 1` ([`BackwardSweep::expects`]) of the backward recursion.
-    pub fn step(&mut self, k: usize, st: &LqStage<NX, NU>) -> Result<(), RiccatiError> {
+    pub fn step(&mut self, k: usize, st: &LqStage<NX, NF>) -> Result<(), RiccatiError> {
         assert_eq!(
             Some(k),
             self.expects(),
@@ -195,13 +195,13 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
     }
 
     /// `(K_k, κ_k)` of a swept stage.
-    pub fn gain(&self, k: usize) -> &(SMatrix<f64, NU, NX>, SVector<f64, NU>) {
+    pub fn gain(&self, k: usize) -> &(SMatrix<f64, NF, NX>, SVector<f64, NF>) {
         assert!(k >= self.next, "stage {k} is not swept yet");
         &self.gains[k]
     }
 
     /// The forward pass from `x0` once every stage has been swept.
-    pub fn forward(&self, stages: &[LqStage<NX, NU>], x0: &SVector<f64, NX>) -> LqSolution<NX, NU> {
+    pub fn forward(&self, stages: &[LqStage<NX, NF>], x0: &SVector<f64, NX>) -> LqSolution<NX, NF> {
         assert_eq!(self.next, 0, "the backward sweep is not complete");
         let n = stages.len();
         let mut x = Vec::with_capacity(n + 1);
@@ -223,25 +223,25 @@ impl<const NX: usize, const NU: usize> BackwardSweep<NX, NU> {
 /// Solve the LQ problem over `stages[0..N]` and the terminal cost `(q_n, q_vec_n)` from
 /// `x0`, with the primal shift `shift` (the tests' reference path).
 #[cfg(test)]
-pub fn solve_lq<const NX: usize, const NU: usize>(
-    stages: &[LqStage<NX, NU>],
+pub fn solve_lq<const NX: usize, const NF: usize>(
+    stages: &[LqStage<NX, NF>],
     q_n: &SMatrix<f64, NX, NX>,
     q_vec_n: &SVector<f64, NX>,
     x0: &SVector<f64, NX>,
     shift: f64,
-) -> Result<LqSolution<NX, NU>, RiccatiError> {
+) -> Result<LqSolution<NX, NF>, RiccatiError> {
     Ok(sweep_lq(stages, q_n, q_vec_n, shift)?.forward(stages, x0))
 }
 
 /// The backward sweep over `stages[0..N]` and the terminal cost `(q_n, q_vec_n)` with the
 /// primal shift `shift`, complete (the tests' reference path).
 #[cfg(test)]
-pub fn sweep_lq<const NX: usize, const NU: usize>(
-    stages: &[LqStage<NX, NU>],
+pub fn sweep_lq<const NX: usize, const NF: usize>(
+    stages: &[LqStage<NX, NF>],
     q_n: &SMatrix<f64, NX, NX>,
     q_vec_n: &SVector<f64, NX>,
     shift: f64,
-) -> Result<BackwardSweep<NX, NU>, RiccatiError> {
+) -> Result<BackwardSweep<NX, NF>, RiccatiError> {
     let mut sweep = BackwardSweep::new(stages.len(), q_n, q_vec_n, shift);
     sweep.sweep_all(stages)?;
     Ok(sweep)
@@ -282,8 +282,8 @@ mod tests {
     #[test]
     fn riccati_equals_dense_kkt() {
         const NX: usize = 4;
-        const NU: usize = 2;
-        let (nx, nu, n) = (NX, NU, 6usize);
+        const NF: usize = 2;
+        let (nx, nu, n) = (NX, NF, 6usize);
         let mut seed = 3u64;
         let spd = |m: DMatrix<f64>, shift: f64| {
             &m * m.transpose() + DMatrix::identity(m.nrows(), m.nrows()) * shift
@@ -304,7 +304,7 @@ mod tests {
         let q_n = spd(mat(nx, nx, &mut seed), 0.1);
         let q_vec_n = vec(mat(nx, 1, &mut seed));
         let x0 = vec(mat(nx, 1, &mut seed));
-        let lq: Vec<LqStage<NX, NU>> = stages
+        let lq: Vec<LqStage<NX, NF>> = stages
             .iter()
             .map(|st| LqStage {
                 q_mat: fixed(&st.q_mat),
@@ -380,7 +380,7 @@ mod tests {
         let z = kkt.lu().solve(&b).unwrap();
         let mut worst: f64 = 0.0;
         for k in 0..n {
-            worst = worst.max((z.fixed_rows::<NU>(ui(k)) - sol.u[k]).amax());
+            worst = worst.max((z.fixed_rows::<NF>(ui(k)) - sol.u[k]).amax());
             worst = worst.max((z.fixed_rows::<NX>(xi(k + 1)) - sol.x[k + 1]).amax());
             // KKT multipliers ν of the rows (x_{k+1} − …): H z + Jᵀν = −g, so λ = −ν.
             worst = worst.max((z.fixed_rows::<NX>(nz + k * nx) + sol.lambda[k]).amax());

@@ -130,10 +130,10 @@ impl Assembled {
 }
 
 impl SparseKkt {
-    /// The pattern of `n` stages of `NX` states and `NU` inputs, the globals read through
+    /// The pattern of `n` stages of `NX` states and `NF` inputs, the globals read through
     /// `supports`, `ne` equalities of `ng` globals; its AMD ordering and symbolic
     /// factorisation.
-    pub fn new<const NX: usize, const NU: usize>(
+    pub fn new<const NX: usize, const NF: usize>(
         n: usize,
         ng: usize,
         ne: usize,
@@ -142,13 +142,13 @@ impl SparseKkt {
         let shape = Shape {
             n,
             nx: NX,
-            nu: NU,
+            nu: NF,
             ng,
             ne,
             supports,
         };
         // The pattern from an assembly of ones (every entry the solves will write).
-        let one_stage = LqStage::<NX, NU> {
+        let one_stage = LqStage::<NX, NF> {
             q_mat: SMatrix::repeat(1.0),
             s_mat: SMatrix::repeat(1.0),
             r_mat: SMatrix::repeat(1.0),
@@ -159,7 +159,7 @@ impl SparseKkt {
             c: SVector::repeat(1.0),
         };
         let nt = shape.supports.first().map_or(0, |s| s.len());
-        let one_coupling = LqCoupling::<NX, NU, 8> {
+        let one_coupling = LqCoupling::<NX, NF, 8> {
             s_xt: SMatrix::repeat(1.0),
             s_ut: SMatrix::repeat(1.0),
             r_tt: SMatrix::repeat(1.0),
@@ -214,16 +214,16 @@ impl SparseKkt {
     /// `x0`, with primal shift `shift` and the globals' own `terms`: the states, inputs and
     /// dynamics multipliers, the globals' step and the equalities' multipliers.
     #[allow(clippy::too_many_arguments, clippy::type_complexity)]
-    pub fn solve<const NX: usize, const NU: usize, const NT: usize>(
+    pub fn solve<const NX: usize, const NF: usize, const NT: usize>(
         &self,
-        stages: &[LqStage<NX, NU>],
-        couplings: &[LqCoupling<NX, NU, NT>],
+        stages: &[LqStage<NX, NF>],
+        couplings: &[LqCoupling<NX, NF, NT>],
         q_n: &SMatrix<f64, NX, NX>,
         q_vec_n: &SVector<f64, NX>,
         x0: &SVector<f64, NX>,
         shift: f64,
         terms: &GlobalTerms,
-    ) -> Result<(LqSolution<NX, NU>, DVector<f64>, Vec<f64>), SparseKktError> {
+    ) -> Result<(LqSolution<NX, NF>, DVector<f64>, Vec<f64>), SparseKktError> {
         let sh = &self.shape;
         let a = assemble(sh, stages, couplings, q_n, q_vec_n, x0, shift, terms);
         let size = sh.size();
@@ -323,10 +323,10 @@ fn sym_mul(
 
 /// The matrix's upper triangle and the right-hand side.
 #[allow(clippy::too_many_arguments)]
-fn assemble<const NX: usize, const NU: usize, const NT: usize>(
+fn assemble<const NX: usize, const NF: usize, const NT: usize>(
     sh: &Shape,
-    stages: &[LqStage<NX, NU>],
-    couplings: &[LqCoupling<NX, NU, NT>],
+    stages: &[LqStage<NX, NF>],
+    couplings: &[LqCoupling<NX, NF, NT>],
     q_n: &SMatrix<f64, NX, NX>,
     q_vec_n: &SVector<f64, NX>,
     x0: &SVector<f64, NX>,
@@ -338,7 +338,7 @@ fn assemble<const NX: usize, const NU: usize, const NT: usize>(
         rhs: vec![0.0; sh.size()],
     };
     let eye_x = SMatrix::<f64, NX, NX>::identity() * shift;
-    let eye_u = SMatrix::<f64, NU, NU>::identity() * shift;
+    let eye_u = SMatrix::<f64, NF, NF>::identity() * shift;
     let p0 = sh.p_at();
     for (k, (st, cp)) in stages.iter().zip(couplings).enumerate() {
         let sup = &sh.supports[k];
@@ -374,7 +374,7 @@ fn assemble<const NX: usize, const NU: usize, const NT: usize>(
             a.rhs[u + i] = -v;
         }
         for (t, &j) in sup.iter().enumerate() {
-            for i in 0..NU {
+            for i in 0..NF {
                 a.add(u + i, p0 + j, cp.s_ut[(i, t)]);
             }
             a.rhs[p0 + j] -= gt[t];
@@ -388,7 +388,7 @@ fn assemble<const NX: usize, const NU: usize, const NT: usize>(
         let xn = sh.x_at(k + 1);
         for i in 0..NX {
             a.add(xn + i, lam + i, 1.0);
-            for j in 0..NU {
+            for j in 0..NF {
                 a.add(u + j, lam + i, -st.b[(i, j)]);
             }
             for (t, &j) in sup.iter().enumerate() {
@@ -420,11 +420,11 @@ fn assemble<const NX: usize, const NU: usize, const NT: usize>(
 
 /// The solution in the Riccati's terms.
 #[allow(clippy::type_complexity)]
-fn read<const NX: usize, const NU: usize>(
+fn read<const NX: usize, const NF: usize>(
     sh: &Shape,
     z: &Mat<f64>,
     x0: &SVector<f64, NX>,
-) -> (LqSolution<NX, NU>, DVector<f64>, Vec<f64>) {
+) -> (LqSolution<NX, NF>, DVector<f64>, Vec<f64>) {
     let x = std::iter::once(*x0)
         .chain((1..=sh.n).map(|k| SVector::from_fn(|i, _| z[(sh.x_at(k) + i, 0)])))
         .collect();
@@ -447,7 +447,7 @@ mod tests {
     use nalgebra::DMatrix;
 
     const NX: usize = 4;
-    const NU: usize = 2;
+    const NF: usize = 2;
     const NT: usize = 2;
 
     fn mat<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
@@ -455,13 +455,13 @@ mod tests {
     }
 
     /// Random stages: convex costs, dynamics near the identity.
-    fn stages(n: usize, seed: &mut u64) -> Vec<LqStage<NX, NU>> {
+    fn stages(n: usize, seed: &mut u64) -> Vec<LqStage<NX, NF>> {
         (0..n)
             .map(|_| {
-                let (q, r): (SMatrix<f64, NX, NX>, SMatrix<f64, NU, NU>) = (mat(seed), mat(seed));
+                let (q, r): (SMatrix<f64, NX, NX>, SMatrix<f64, NF, NF>) = (mat(seed), mat(seed));
                 LqStage {
                     q_mat: q * q.transpose() + SMatrix::identity() * 0.1,
-                    s_mat: mat::<NX, NU>(seed) * 0.1,
+                    s_mat: mat::<NX, NF>(seed) * 0.1,
                     r_mat: r * r.transpose() + SMatrix::identity() * 0.5,
                     q: mat(seed),
                     r: mat(seed),
@@ -494,9 +494,9 @@ mod tests {
     /// `2 n κ₂ ε ‖z‖` (each solver's backward error `≲ n ε ‖K‖‖z‖`, amplified by `κ₂`).
     /// The largest entry of `a − b` over every stage's `u`, `x_{k+1}`, `λ`, and the largest
     /// entry of `a` there.
-    fn difference_and_size<const NX: usize, const NU: usize>(
-        a: &LqSolution<NX, NU>,
-        b: &LqSolution<NX, NU>,
+    fn difference_and_size<const NX: usize, const NF: usize>(
+        a: &LqSolution<NX, NF>,
+        b: &LqSolution<NX, NF>,
     ) -> (f64, f64) {
         let (mut worst, mut size) = (0.0f64, 0.0f64);
         for k in 0..a.u.len() {
@@ -530,8 +530,8 @@ mod tests {
         let q_vec_n: SVector<f64, NX> = mat(&mut seed);
         let x0: SVector<f64, NX> = mat(&mut seed);
         let riccati = solve_lq(&st, &q_n, &q_vec_n, &x0, 0.0).unwrap();
-        let kkt = SparseKkt::new::<NX, NU>(n, 0, 0, vec![Vec::new(); n]).unwrap();
-        let none = vec![LqCoupling::<NX, NU, NT>::zeros(); n];
+        let kkt = SparseKkt::new::<NX, NF>(n, 0, 0, vec![Vec::new(); n]).unwrap();
+        let none = vec![LqCoupling::<NX, NF, NT>::zeros(); n];
         let terms = GlobalTerms::default();
         let (sparse, _, _) = kkt
             .solve(&st, &none, &q_n, &q_vec_n, &x0, 0.0, &terms)
@@ -557,12 +557,12 @@ mod tests {
         let (n, ng) = (30, 3);
         let mut seed = 9u64;
         let st = stages(n, &mut seed);
-        let cps: Vec<LqCoupling<NX, NU, NT>> = (0..n)
+        let cps: Vec<LqCoupling<NX, NF, NT>> = (0..n)
             .map(|_| {
                 let r: SMatrix<f64, NT, NT> = mat(&mut seed);
                 LqCoupling {
                     s_xt: mat::<NX, NT>(&mut seed) * 0.1,
-                    s_ut: mat::<NU, NT>(&mut seed) * 0.1,
+                    s_ut: mat::<NF, NT>(&mut seed) * 0.1,
                     r_tt: r * r.transpose() + SMatrix::identity(),
                     q_t: mat(&mut seed),
                     b_t: mat::<NX, NT>(&mut seed) * 0.3,
@@ -598,7 +598,7 @@ mod tests {
         let sol = m.lu().solve(&rhs).unwrap();
         let dp = sol.rows(0, ng).into_owned();
         let riccati = global_forward(&sweep, &schur, &st, &cps, &support, &x0, &dp);
-        let kkt = SparseKkt::new::<NX, NU>(n, ng, 1, supports.clone()).unwrap();
+        let kkt = SparseKkt::new::<NX, NF>(n, ng, 1, supports.clone()).unwrap();
         let (sparse, p, y) = kkt
             .solve(&st, &cps, &q_n, &q_vec_n, &x0, 0.0, &terms)
             .unwrap();

@@ -8,8 +8,8 @@ use super::*;
 use crate::solver::kkt::global_riccati::LqCoupling;
 use crate::solver::kkt::sparse_ldlt::{SparseKkt, SparseKktError};
 
-impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, const NC: usize>
-    Solver<'a, NX, NW, NE, NU, NC>
+impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    Solver<'a, NX, NW, NE, NF, NC>
 {
     /// The pattern's symbolic factorisation, built at the first sparse step of a solve.
     fn sparse_kkt(&self) -> Result<&SparseKkt, String> {
@@ -23,7 +23,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
                     ),
                     None => (0, 0, vec![Vec::new(); self.n]),
                 };
-                SparseKkt::new::<NX, NU>(self.n, ng, ne, supports).map_err(|e| format!("{e:?}"))
+                SparseKkt::new::<NX, NF>(self.n, ng, ne, supports).map_err(|e| format!("{e:?}"))
             })
             .as_ref()
             .map_err(Clone::clone)
@@ -34,14 +34,14 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     fn sparse_solve(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &Workspace<NX, NW, NE, NU, NC>,
+        ws: &Workspace<NX, NW, NE, NF, NC>,
         mu: f64,
         dc: f64,
         delta: f64,
     ) -> Result<Option<Step<NX, NW, NC>>, String> {
         let kkt = self.sparse_kkt()?;
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
-        let cps: Vec<LqCoupling<NX, NU, NW>> = ws.couplings.iter().map(|c| c.0.clone()).collect();
+        let cps: Vec<LqCoupling<NX, NF, NW>> = ws.couplings.iter().map(|c| c.0.clone()).collect();
         let terms = self.global_terms(&it.globals, mu, delta);
         match kkt.solve(
             &ws.lq,
@@ -72,7 +72,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     pub(in crate::solver) fn newton_step_sparse(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         inertia: &mut InertiaCorrection,
         mu: f64,
         dc: f64,
@@ -81,7 +81,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
         let t1 = Instant::now();
         {
             let (ders, qn, constants) = (&ws.ders, &ws.qn, &ws.constants);
-            let condense = |k: usize, l: &mut LqStage<NX, NU>, e: &mut Elimination<NX, NW, NU>| {
+            let condense = |k: usize, l: &mut LqStage<NX, NF>, e: &mut Elimination<NX, NW, NF>| {
                 let curvature = self.stage_curvature(k, constants, qn);
                 self.condense(k, it, &ders[k], curvature, mu, dc, l, e)
             };
@@ -127,7 +127,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     fn fill_couplings(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         mu: f64,
     ) -> Result<(), String> {
         if self.globals.is_some() {
@@ -153,7 +153,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NU: usize, con
     pub(in crate::solver) fn sparse_correction(
         &self,
         it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NU, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
         trial_vals: &[StageValues<NX, NE, NC>],
         trial: &Iterate<NX, NW, NC>,
         alpha: f64,

@@ -19,16 +19,27 @@ pub use stages::RkStages;
 
 /// A robot's problem on an explicit Runge–Kutta step of the continuous model:
 /// `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`, no stage equality.
-pub struct RkTranscription<'a, S, P, const DOF: usize, const NP: usize, const NS: usize> {
+pub struct RkTranscription<
+    'a,
+    S,
+    P,
+    const DOF: usize,
+    const NP: usize,
+    const NS: usize,
+    const NU: usize,
+> {
+    /// The stage functions.
     pub stages: RkStages<'a, S>,
+    /// The robot's problem.
     pub problem: P,
-    _sizes: PhantomData<[(); DOF]>,
+    _sizes: PhantomData<([(); DOF], [(); NS], [(); NU])>,
 }
 
-impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize>
-    RkTranscription<'a, S, P, DOF, NP, NS>
+impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usize>
+    RkTranscription<'a, S, P, DOF, NP, NS, NU>
 {
-    pub fn new<const NU: usize>(sys: &'a S, problem: P, h: f64, method: RungeKutta) -> Self
+    /// `problem` on `sys` at step `h` with the Runge–Kutta method `method`.
+    pub fn new(sys: &'a S, problem: P, h: f64, method: RungeKutta) -> Self
     where
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
@@ -45,7 +56,7 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize>
     }
 
     /// The typed view of `(x_k, w_k = u_k)`.
-    pub fn stage<T: Real, const NU: usize, const NX: usize>(
+    pub fn stage<T: Real, const NX: usize>(
         &self,
         x: &SVector<T, NX>,
         u: &SVector<T, NU>,
@@ -61,13 +72,13 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize>
     }
 
     /// The solver's iterate as a [`PlannedTrajectory`].
-    pub fn trajectory<const NU: usize, const NX: usize, const NC: usize>(
+    pub fn trajectory<const NX: usize, const NC: usize>(
         &self,
         it: &Iterate<NX, NU, NC>,
     ) -> PlannedTrajectory<NP, NS, NU> {
         let n = it.w.len();
         let stages = (0..=n)
-            .map(|k| self.stage::<f64, NU, NX>(&it.x[k], &it.w[k.min(n - 1)]))
+            .map(|k| self.stage(&it.x[k], &it.w[k.min(n - 1)]))
             .collect();
         PlannedTrajectory {
             h: self.stages.h,
@@ -85,7 +96,7 @@ impl<
         const NX: usize,
         const NU: usize,
         const NC: usize,
-    > StageProblem<NX, NU, 0, NC> for RkTranscription<'_, S, P, DOF, NP, NS>
+    > StageProblem<NX, NU, 0, NU, NC> for RkTranscription<'_, S, P, DOF, NP, NS, NU>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
@@ -122,7 +133,7 @@ where
         SVector::zeros()
     }
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, u: &SVector<T, NU>) -> T {
-        self.problem.cost(k, &self.stage::<T, NU, NX>(x, u))
+        self.problem.cost(k, &self.stage(x, u))
     }
     fn constraints<T: Real>(
         &self,
@@ -130,7 +141,7 @@ where
         x: &SVector<T, NX>,
         u: &SVector<T, NU>,
     ) -> SVector<T, NC> {
-        self.problem.constraints(k, &self.stage::<T, NU, NX>(x, u))
+        self.problem.constraints(k, &self.stage(x, u))
     }
     fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
         self.problem.bounds(k)
@@ -151,7 +162,7 @@ where
         zeta: &SVector<f64, NC>,
     ) -> HessianBlocks<NX, NU> {
         if !self.problem.affine_in_configuration() {
-            return generic_cost_curvature::<Self, NX, NU, 0, NC>(self, k, x, u, cost_scale, zeta);
+            return generic_cost_curvature(self, k, x, u, cost_scale, zeta);
         }
         let v_at = self.stages.layout.v_at();
         let part = VelocityPart {
@@ -189,18 +200,11 @@ struct VelocityPart<'a, P, const NX: usize, const NC: usize> {
 impl<P, const NX: usize, const NS: usize, const NU: usize, const NC: usize> StageScalar<NS, NU>
     for VelocityPart<'_, P, NX, NC>
 where
-    P: StageProblem<NX, NU, 0, NC>,
+    P: StageProblem<NX, NU, 0, NU, NC>,
 {
     fn eval<T: Real>(&self, v: &SVector<T, NS>, u: &SVector<T, NU>) -> T {
         let mut x = self.x.map(T::from);
         x.fixed_rows_mut::<NS>(self.v_at).copy_from(v);
-        cost_and_inequalities::<P, T, NX, NU, 0, NC>(
-            self.problem,
-            self.k,
-            self.cost_scale,
-            self.zeta,
-            &x,
-            u,
-        )
+        cost_and_inequalities(self.problem, self.k, self.cost_scale, self.zeta, &x, u)
     }
 }

@@ -20,23 +20,28 @@ pub use stages::VarIntStages;
 /// A robot's problem on a variational integrator (first order or midpoint):
 /// `x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`, `w_k = (v_k, u_k)`, stage equality = the
 /// momentum matching of node `k`.
-pub struct VarIntTranscription<'a, S, P, const DOF: usize, const NP: usize, const NU: usize> {
+pub struct VarIntTranscription<
+    'a,
+    S,
+    P,
+    const DOF: usize,
+    const NP: usize,
+    const NS: usize,
+    const NU: usize,
+> {
+    /// The stage functions.
     pub stages: VarIntStages<'a, S>,
+    /// The robot's problem.
     pub problem: P,
-    _sizes: PhantomData<[(); DOF]>,
+    _sizes: PhantomData<([(); DOF], [(); NS], [(); NU])>,
 }
 
-impl<'a, S, P, const DOF: usize, const NP: usize, const NU: usize>
-    VarIntTranscription<'a, S, P, DOF, NP, NU>
+impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usize>
+    VarIntTranscription<'a, S, P, DOF, NP, NS, NU>
 {
     /// `problem` on `sys` at step `h`, right-point forcing (the first-order scheme's
     /// default), with the given discretisation.
-    pub fn new<const NS: usize>(
-        sys: &'a S,
-        problem: P,
-        h: f64,
-        discretisation: Discretisation,
-    ) -> Self
+    pub fn new(sys: &'a S, problem: P, h: f64, discretisation: Discretisation) -> Self
     where
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
@@ -61,7 +66,7 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NU: usize>
     }
 
     /// The typed view of `(x_k, w_k)`.
-    pub fn stage<T: Real, const NS: usize, const NX: usize, const NW: usize>(
+    pub fn stage<T: Real, const NX: usize, const NW: usize>(
         &self,
         x: &SVector<T, NX>,
         w: &SVector<T, NW>,
@@ -77,7 +82,7 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NU: usize>
     }
 
     /// The solver's iterate as a [`PlannedTrajectory`].
-    pub fn trajectory<const NS: usize, const NX: usize, const NW: usize, const NC: usize>(
+    pub fn trajectory<const NX: usize, const NW: usize, const NC: usize>(
         &self,
         it: &Iterate<NX, NW, NC>,
     ) -> PlannedTrajectory<NP, NS, NU>
@@ -86,9 +91,7 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NU: usize>
     {
         let n = it.w.len();
         let l = self.stages.layout;
-        let mut stages: Vec<_> = (0..n)
-            .map(|k| self.stage::<f64, NS, NX, NW>(&it.x[k], &it.w[k]))
-            .collect();
+        let mut stages: Vec<_> = (0..n).map(|k| self.stage(&it.x[k], &it.w[k])).collect();
         let x = &it.x[n];
         stages.push(Stage {
             pose: segment(x, 0),
@@ -123,7 +126,7 @@ impl<
         const NX: usize,
         const NW: usize,
         const NC: usize,
-    > StageProblem<NX, NW, NS, NC> for VarIntTranscription<'_, S, P, DOF, NP, NU>
+    > StageProblem<NX, NW, NS, NU, NC> for VarIntTranscription<'_, S, P, DOF, NP, NS, NU>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
@@ -185,12 +188,10 @@ where
     ) -> HessianBlocks<NX, NW> {
         self.stages
             .constraint_curvature::<DOF, NS, NU, NX, NW>(x, w, lambda, nu)
-            .unwrap_or_else(|| {
-                generic_constraint_curvature::<Self, NX, NW, NS, NC>(self, k, x, w, lambda, nu)
-            })
+            .unwrap_or_else(|| generic_constraint_curvature(self, k, x, w, lambda, nu))
     }
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
-        self.problem.cost(k, &self.stage::<T, NS, NX, NW>(x, w))
+        self.problem.cost(k, &self.stage(x, w))
     }
     fn constraints<T: Real>(
         &self,
@@ -198,8 +199,7 @@ where
         x: &SVector<T, NX>,
         w: &SVector<T, NW>,
     ) -> SVector<T, NC> {
-        self.problem
-            .constraints(k, &self.stage::<T, NS, NX, NW>(x, w))
+        self.problem.constraints(k, &self.stage(x, w))
     }
     fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
         self.problem.bounds(k)
