@@ -21,7 +21,8 @@ fn bench(c: &mut Criterion) {
     let wip = Wip::default();
     let p = eight(0.005);
     let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
-    let plan = varint_plan::<_, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
+    let plan =
+        varint_plan::<_, 5, 15, 7>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
     let (x, w) = (xs[700], ws[700]);
     let zeta = SVector::<f64, 8>::repeat(0.1);
     let st = &plan.stages;
@@ -70,13 +71,13 @@ fn bench(c: &mut Criterion) {
     g.bench_function("stage_derivatives_exact", |b| {
         b.iter(|| stage_derivatives(&plan, 700, black_box(&x), &w, &zeta, Some(&lam)))
     });
-    let rk1 = rk_plan::<_, 5>(&wip, &p, PlanBounds::default(), RungeKutta::Rk1);
+    let rk1 = rk_plan::<_, 5, 15>(&wip, &p, PlanBounds::default(), RungeKutta::Rk1);
     let (xr, wr) = rk_start::<Wip, 5, 15>(&wip, &p);
     let (x1, w1) = (xr[700], wr[700]);
     g.bench_function("stage_derivatives_rk1", |b| {
         b.iter(|| stage_derivatives(&rk1, 700, black_box(&x1), &w1, &zeta, None))
     });
-    let rk4 = rk_plan::<_, 5>(&wip, &p, PlanBounds::default(), RungeKutta::Rk4);
+    let rk4 = rk_plan::<_, 5, 15>(&wip, &p, PlanBounds::default(), RungeKutta::Rk4);
     g.bench_function("stage_derivatives_rk4", |b| {
         b.iter(|| stage_derivatives(&rk4, 700, black_box(&x1), &w1, &zeta, None))
     });
@@ -104,7 +105,8 @@ fn bench(c: &mut Criterion) {
     // The algebraic-current model (NS = 3, NX = 11): the VI stage.
     let alg = WipAlgebraicCurrent::new(wip);
     let (xa, wa) = varint_start::<_, 3, 11, 5>(&alg, &p);
-    let plan_a = varint_plan::<_, 3>(&alg, &p, PlanBounds::default(), Discretisation::FirstOrder);
+    let plan_a =
+        varint_plan::<_, 3, 11, 5>(&alg, &p, PlanBounds::default(), Discretisation::FirstOrder);
     let (x2, w2) = (xa[700], wa[700]);
     g.bench_function("stage_derivatives_algebraic", |b| {
         b.iter(|| stage_derivatives(&plan_a, 700, black_box(&x2), &w2, &zeta, None))

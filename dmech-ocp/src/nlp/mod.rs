@@ -85,42 +85,107 @@ impl Globals {
     }
     /// `Err` naming the first inconsistency with a horizon of `n` stages and decisions of
     /// size `nw`.
-    pub fn check(&self, n: usize, nw: usize) -> Result<(), String> {
+    pub fn check(&self, n: usize, nw: usize) -> Result<(), GlobalsError> {
         let g = self.len();
         if self.lo.len() != g || self.hi.len() != g || self.cost.len() != g {
-            return Err(format!(
-                "globals: start, lo, hi and cost must have the same length ({g}, {}, {}, {})",
-                self.lo.len(),
-                self.hi.len(),
-                self.cost.len()
-            ));
+            return Err(GlobalsError::Lengths {
+                start: g,
+                lo: self.lo.len(),
+                hi: self.hi.len(),
+                cost: self.cost.len(),
+            });
         }
         if self.per_stage > nw || self.support.len() != n * self.per_stage {
-            return Err(format!(
-                "globals: {} per stage of {nw} decisions, support of {} for {n} stages",
-                self.per_stage,
-                self.support.len()
-            ));
+            return Err(GlobalsError::Support {
+                per_stage: self.per_stage,
+                nw,
+                support: self.support.len(),
+                stages: n,
+            });
         }
         if let Some(&j) = self.support.iter().find(|&&j| j >= g) {
-            return Err(format!("globals: support names global {j} of {g}"));
+            return Err(GlobalsError::UnknownGlobal {
+                index: j,
+                globals: g,
+            });
         }
         if let Some(e) = self.equalities.iter().find(|e| e.a.len() != g) {
-            return Err(format!(
-                "globals: an equality has {} coefficients for {g} globals",
-                e.a.len()
-            ));
+            return Err(GlobalsError::Equality {
+                coefficients: e.a.len(),
+                globals: g,
+            });
         }
         if let Some(j) =
             (0..g).find(|&j| !(self.lo[j] <= self.start[j] && self.start[j] <= self.hi[j]))
         {
-            return Err(format!(
-                "globals: start {} of global {j} is outside [{}, {}]",
-                self.start[j], self.lo[j], self.hi[j]
-            ));
+            return Err(GlobalsError::StartOutside {
+                index: j,
+                start: self.start[j],
+                lo: self.lo[j],
+                hi: self.hi[j],
+            });
         }
         Ok(())
     }
+}
+
+/// An inconsistency of a problem's [`Globals`] ([`Globals::check`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum GlobalsError {
+    /// `start`, `lo`, `hi` and `cost` differ in length.
+    #[error(
+        "globals: start, lo, hi and cost must have the same length ({start}, {lo}, {hi}, {cost})"
+    )]
+    Lengths {
+        /// `start`'s length.
+        start: usize,
+        /// `lo`'s length.
+        lo: usize,
+        /// `hi`'s length.
+        hi: usize,
+        /// `cost`'s length.
+        cost: usize,
+    },
+    /// The per-stage copies do not fit the decisions, or the support the horizon.
+    #[error("globals: {per_stage} per stage of {nw} decisions, support of {support} for {stages} stages")]
+    Support {
+        /// Globals read per stage.
+        per_stage: usize,
+        /// The decision size.
+        nw: usize,
+        /// The support's length.
+        support: usize,
+        /// The horizon.
+        stages: usize,
+    },
+    /// The support names a global that does not exist.
+    #[error("globals: support names global {index} of {globals}")]
+    UnknownGlobal {
+        /// The named global.
+        index: usize,
+        /// The number of globals.
+        globals: usize,
+    },
+    /// An equality with a wrong number of coefficients.
+    #[error("globals: an equality has {coefficients} coefficients for {globals} globals")]
+    Equality {
+        /// Its coefficients.
+        coefficients: usize,
+        /// The number of globals.
+        globals: usize,
+    },
+    /// A start value outside its bounds.
+    #[error("globals: start {start} of global {index} is outside [{lo}, {hi}]")]
+    StartOutside {
+        /// The global.
+        index: usize,
+        /// Its start value.
+        start: f64,
+        /// Its lower bound.
+        lo: f64,
+        /// Its upper bound.
+        hi: f64,
+    },
 }
 
 /// The problem. `NX` state, `NW` stage decision, `NE` stage equalities, `NC` inequalities.

@@ -60,7 +60,7 @@ use kkt::globals::GlobalSpec;
 pub use kkt::riccati;
 use kkt_error::{KktError, StageAux};
 use line_search::LineSearch;
-pub use options::{IpOptions, KktMethod, Status, Timings};
+pub use options::{Failure, IpOptions, KktMethod, Status, Timings};
 pub use parallel::STAGE_THREAD_STACK;
 use parallel::{par_collect, par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
 use quasi_newton::QuasiNewton;
@@ -168,7 +168,7 @@ pub struct Solver<
     /// The problem's global variables, if any (`globals.rs`).
     globals: Option<GlobalSpec>,
     /// The sparse KKT matrix's symbolic factorisation, once the sparse path needs it.
-    sparse: std::sync::OnceLock<Result<crate::solver::kkt::sparse_ldlt::SparseKkt, String>>,
+    sparse: std::sync::OnceLock<Result<crate::solver::kkt::sparse_ldlt::SparseKkt, Failure>>,
 }
 
 impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
@@ -336,12 +336,20 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         let mut restored = false;
         let mut restore = false;
         self.print_header();
-        if let Some(msg) = self.check_affine_declaration(&it) {
-            return (self.finish(Status::Failed(msg), it, 0, tm, t_start), false);
+        if let Some(failure) = self.check_affine_declaration(&it) {
+            return (
+                self.finish(Status::Failed(failure), it, 0, tm, t_start),
+                false,
+            );
         }
         match self.stage_constants(&it) {
             Ok(constants) => ws.constants = constants,
-            Err(msg) => return (self.finish(Status::Failed(msg), it, 0, tm, t_start), false),
+            Err(failure) => {
+                return (
+                    self.finish(Status::Failed(failure), it, 0, tm, t_start),
+                    false,
+                )
+            }
         }
         let status = loop {
             if !m.objective.is_finite()
@@ -406,7 +414,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             let (mut step, delta) =
                 match self.newton_step(&it, &mut ws, &mut inertia, mu, dc, &mut tm) {
                     Ok(s) => s,
-                    Err(msg) => break Status::Failed(msg),
+                    Err(failure) => break Status::Failed(failure),
                 };
             last_shift = delta;
             last = self.line_search(
@@ -446,10 +454,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 ws.reset_quasi_newton();
             }
             let Some((trial, tv, tmz)) = last.accepted.take() else {
-                break Status::Failed(format!(
-                    "line search: no acceptable step (constraint violation {:.2e})",
-                    m.theta_max
-                ));
+                break Status::Failed(Failure::LineSearch {
+                    violation: m.theta_max,
+                });
             };
             it = self.dual_step(&it, trial, &step, last.alpha_dual, mu);
             vals = tv;

@@ -100,12 +100,67 @@ pub enum Status {
     TimeLimit,
     /// Non-finite values or iterates growing without bound.
     Diverged,
-    /// A numerical failure: the line search near feasibility, the inertia correction, a
-    /// singular stage equality, or a failed restoration; the reason.
-    Failed(String),
+    /// A numerical failure, or a declaration of the problem that does not hold.
+    Failed(Failure),
+}
+
+/// Why a solve failed ([`Status::Failed`]); its `Display` is a one-line message.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum Failure {
+    /// No step the line search accepts, near feasibility, after the forced short steps.
+    #[error("line search: no acceptable step (constraint violation {violation:.2e})")]
+    LineSearch {
+        /// The largest constraint violation at the last iterate.
+        violation: f64,
+    },
+    /// The inertia correction ran out of primal shifts.
+    #[error("inertia correction failed")]
+    InertiaCorrection,
+    /// A stage equality's Jacobian in its dependent decisions is singular.
+    #[error("stage {stage}: the stage equality is singular in its dependent decisions")]
+    SingularStageEquality {
+        /// The stage.
+        stage: usize,
+    },
+    /// [`StageProblem::affine_in_state`](crate::nlp::StageProblem::affine_in_state) is
+    /// declared but does not hold at the start.
+    #[error(
+        "the problem declares its cost and inequalities affine in the state, but at stage \
+         {stage} their state Hessian has an entry {entry:.3e}"
+    )]
+    NotAffineInState {
+        /// The stage.
+        stage: usize,
+        /// The largest entry of the state Hessian there.
+        entry: f64,
+    },
+    /// [`StageProblem::constant_cost_curvature`](crate::nlp::StageProblem::constant_cost_curvature)
+    /// is declared but does not hold at the start.
+    #[error(
+        "the problem declares its cost curvature constant, but at stage {stage} its \
+         derivatives change by {change:.3e} (largest entry {scale:.3e}) between two points"
+    )]
+    CurvatureNotConstant {
+        /// The stage.
+        stage: usize,
+        /// The largest change of an entry.
+        change: f64,
+        /// The largest entry.
+        scale: f64,
+    },
+    /// The sparse `LDLᵀ` back-end failed beyond a wrong inertia.
+    #[error("sparse KKT factorisation: {0}")]
+    SparseKkt(String),
+    /// The feasibility restoration diverged.
+    #[error("restoration diverged")]
+    RestorationDiverged,
+    /// The feasibility restoration failed.
+    #[error("restoration: {0}")]
+    Restoration(Box<Failure>),
 }
 
 impl Status {
+    /// The status as the word the tools write (`summary.json`'s `status`).
     pub fn code(&self) -> &'static str {
         match self {
             Status::Solved => "solved",

@@ -9,7 +9,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
 {
     /// If the problem declares its cost and inequalities affine in the state, check it at
     /// the first, middle and last stage of the start (with unit inequality multipliers).
-    pub(super) fn check_affine_declaration(&self, it: &Iterate<NX, NW, NC>) -> Option<String> {
+    pub(super) fn check_affine_declaration(&self, it: &Iterate<NX, NW, NC>) -> Option<Failure> {
         if !self.p.affine_in_state() || self.n == 0 {
             return None;
         }
@@ -18,10 +18,10 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             let (hxx, hxw) = self.p.state_curvature(k, &it.x[k], &it.w[k], &ones);
             let worst = hxx.amax().max(hxw.amax());
             if worst != 0.0 {
-                return Some(format!(
-                    "the problem declares its cost and inequalities affine in the state, but at \
-                     stage {k} their state Hessian has an entry {worst:.3e}"
-                ));
+                return Some(Failure::NotAffineInState {
+                    stage: k,
+                    entry: worst,
+                });
             }
         }
         None
@@ -39,7 +39,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
     pub(super) fn stage_constants(
         &self,
         it: &Iterate<NX, NW, NC>,
-    ) -> Result<ConstantsTable<NX, NW, NC>, String> {
+    ) -> Result<ConstantsTable<NX, NW, NC>, Failure> {
         if !self.p.constant_cost_curvature() || self.n == 0 {
             return Ok(ConstantsTable::default());
         }
@@ -84,11 +84,11 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 diff = diff.max((hx - gx).amax()).max((dx - cx).amax());
             }
             if diff > 64.0 * f64::EPSILON * scale {
-                return Err(format!(
-                    "the problem declares its cost curvature constant, but at stage {k} its \
-                     derivatives change by {diff:.3e} (largest entry {scale:.3e}) between two \
-                     points"
-                ));
+                return Err(Failure::CurvatureNotConstant {
+                    stage: k,
+                    change: diff,
+                    scale,
+                });
             }
         }
         Ok(constants)

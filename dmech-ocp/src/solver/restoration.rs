@@ -311,8 +311,8 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             // Converged to a stationary point of the squared violation that is not feasible.
             Status::Solved => Status::Infeasible { violation },
             s @ (Status::Infeasible { .. } | Status::MaxIterations | Status::TimeLimit) => s,
-            Status::Diverged => Status::Failed("restoration diverged".into()),
-            Status::Failed(why) => Status::Failed(format!("restoration: {why}")),
+            Status::Diverged => Status::Failed(Failure::RestorationDiverged),
+            Status::Failed(why) => Status::Failed(Failure::Restoration(Box::new(why))),
         };
         (Restored::Stop(status, back), r.iterations)
     }

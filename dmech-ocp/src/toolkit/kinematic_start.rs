@@ -45,14 +45,16 @@
 //! let h = 0.02;
 //! let path: Vec<Se2<f64>> = (0..=50).map(|k| Se2::new(0.5 * h * k as f64, 0.0, 0.0)).collect();
 //! let weights = SVector::<f64, 2>::repeat(1e-9);
-//! let (s, v) = shape_motion::<_, 3, 2, 2>(&DiffDrive, h, &path, &SVector::zeros(), &weights)?;
+//! let motion = shape_motion(&DiffDrive, h, &path, &SVector::zeros(), &weights)?;
+//! let v = &motion.velocities;
 //! assert!(v.iter().all(|vk| (vk[0] - 10.0).abs() < 1e-3 && (vk[1] - 10.0).abs() < 1e-3));
-//! assert!((s[50][0] - 10.0).abs() < 1e-3); // 1 s at 10 rad/s
+//! assert!((motion.shapes[50][0] - 10.0).abs() < 1e-3); // 1 s at 10 rad/s
 //! # Ok::<(), dmech_ocp::toolkit::kinematic_start::KinematicStartError>(())
 //! ```
 
 use crate::nlp::{StageProblem, StateEquality};
 use crate::solver::{IpOptions, SolveResult, Solver, Status};
+use crate::transcription::layout::Layout;
 use dmech::PrincipalKinematicSystem;
 use dmech_lie::{LieGroup, Real};
 use nalgebra::SVector;
@@ -148,33 +150,32 @@ where
     }
 }
 
-/// Why a kinematic start could not be built.
-#[derive(Debug, Clone, PartialEq)]
+/// Why a kinematic start could not be built: the least-squares solve for the shape motion
+/// ended with `status`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("the shape motion along the start path was not found ({})", .status.code())]
 pub struct KinematicStartError {
+    /// How the shape-motion solve ended.
     pub status: Status,
 }
 
-impl std::fmt::Display for KinematicStartError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "the shape motion along the start path was not found ({})",
-            self.status.code()
-        )
-    }
+/// The shape motion that realises a pose path: `s_0 … s_N` and `v_0 … v_{N−1}`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeMotion<const NS: usize> {
+    /// The shape at each stage, `N + 1` of them.
+    pub shapes: Vec<SVector<f64, NS>>,
+    /// The shape velocity over each step, `N` of them.
+    pub velocities: Vec<SVector<f64, NS>>,
 }
-impl std::error::Error for KinematicStartError {}
 
-/// Solves [`KinematicPath`] for `poses` and returns the shape path `s_0 … s_N` and the
-/// velocities `v_0 … v_{N−1}`.
-#[allow(clippy::type_complexity)]
+/// Solves [`KinematicPath`] for `poses`: the shape motion that realises them.
 pub fn shape_motion<S, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
     poses: &[S::Group<f64>],
     s0: &SVector<f64, NS>,
     regularisation: &SVector<f64, NS>,
-) -> Result<(Vec<SVector<f64, NS>>, Vec<SVector<f64, NS>>), KinematicStartError>
+) -> Result<ShapeMotion<NS>, KinematicStartError>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
 {
@@ -206,15 +207,20 @@ where
     if r.status != Status::Solved {
         return Err(KinematicStartError { status: r.status });
     }
-    Ok((r.iterate.x, r.iterate.w))
+    Ok(ShapeMotion {
+        shapes: r.iterate.x,
+        velocities: r.iterate.w,
+    })
 }
 
-/// The variational transcription's start (`x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`,
-/// `w_k = (v_k, u_k)`, inputs zero) from the pose path `poses`: the shape motion of
-/// [`shape_motion`], and poses rolled forward from `poses[0]` with it by the scheme's group
-/// update (`ξ_k = −A(s_k + c h v_k) v_k`, `c = 0` first order, `½` midpoint).
+/// The variational transcription's start in `layout` (`x_k = (coords(g_k), s_k, v_{k−1},
+/// u_{k−1})` with the layout's carried shape positions, `w_k = (v_k, u_k)`, inputs zero)
+/// from the pose path `poses`: the shape motion of [`shape_motion`], and poses rolled
+/// forward from `poses[0]` with it by the scheme's group update
+/// (`ξ_k = −A(s_k + c h v_k) v_k`, `c = 0` first order, `½` midpoint). The transcriptions
+/// call it as [`VarIntTranscription::start_from_path`](crate::transcription::VarIntTranscription::start_from_path).
 #[allow(clippy::type_complexity)]
-pub fn varint_start_from_path<
+pub(crate) fn varint_start_in_layout<
     S,
     const DOF: usize,
     const NS: usize,
@@ -228,11 +234,15 @@ pub fn varint_start_from_path<
     s0: &SVector<f64, NS>,
     regularisation: &SVector<f64, NS>,
     discretisation: dmech::Discretisation,
+    layout: Layout,
 ) -> Result<(Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>), KinematicStartError>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
 {
-    let (s, v) = shape_motion::<S, DOF, NS, NU>(sys, h, poses, s0, regularisation)?;
+    let ShapeMotion {
+        shapes: s,
+        velocities: v,
+    } = shape_motion(sys, h, poses, s0, regularisation)?;
     let shift = match discretisation {
         dmech::Discretisation::FirstOrder => 0.0,
         dmech::Discretisation::Midpoint => 0.5 * h,
@@ -240,18 +250,13 @@ where
     let mut g = poses[0];
     let mut xs = Vec::with_capacity(s.len());
     for k in 0..s.len() {
-        let coords = g.coordinates();
-        let nc = coords.len();
-        assert_eq!(NX, nc + 2 * NS + NU, "NX must be coords + 2 NS + NU");
         let mut x = SVector::<f64, NX>::zeros();
-        for (i, c) in coords.iter().enumerate() {
+        for (i, c) in g.coordinates().iter().enumerate() {
             x[i] = *c;
         }
-        for i in 0..NS {
-            x[nc + i] = s[k][i];
-            if k > 0 {
-                x[nc + NS + i] = v[k - 1][i];
-            }
+        layout.set_shape(&mut x, &s[k]);
+        if k > 0 {
+            x.fixed_rows_mut::<NS>(layout.v_at()).copy_from(&v[k - 1]);
         }
         xs.push(x);
         if k < v.len() {

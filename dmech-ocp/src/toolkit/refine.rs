@@ -102,7 +102,7 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
     layout.check(NX, NW, layout.ns + layout.nu);
     // v_{k−1} and u_{k−1} are adjacent in the state, in w's order (v, u).
     debug_assert_eq!(layout.u_at(), layout.v_at() + layout.ns);
-    let (ncoord, ns, v_at) = (layout.nc, layout.ns, layout.v_at());
+    let (ncoord, ns, v_at) = (layout.np, layout.ns, layout.v_at());
     // Positions of every node: the group coordinates, then every shape coordinate.
     let n_pos = ncoord + ns;
     let mut coarse_pos: Vec<Vec<f64>> = coarse

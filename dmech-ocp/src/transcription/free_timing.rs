@@ -99,21 +99,35 @@ pub struct FreeTimingTranscription<
     const NP: usize,
     const NS: usize,
     const NU: usize,
+    const NX: usize,
+    const NW: usize,
 > {
-    /// The fixed-timing plan it frees.
-    pub plan: VarIntTranscription<'a, S, P, DOF, NP, NS, NU>,
+    /// The fixed-timing plan it frees (its decision `w_k` of `NW` entries; the free-timing
+    /// problem's decision is `NW + 2`).
+    pub plan: VarIntTranscription<'a, S, P, DOF, NP, NS, NU, NX, NW>,
     /// The timing freedom.
     pub timing: FreeTiming,
     /// The segment of each interval `k < N`.
     segment_of: Vec<usize>,
 }
 
-impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usize>
-    FreeTimingTranscription<'a, S, P, DOF, NP, NS, NU>
+impl<
+        'a,
+        S,
+        P,
+        const DOF: usize,
+        const NP: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    > FreeTimingTranscription<'a, S, P, DOF, NP, NS, NU, NX, NW>
+where
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     /// `plan` with the timing freedom `timing`.
     pub fn new<const NC: usize>(
-        plan: VarIntTranscription<'a, S, P, DOF, NP, NS, NU>,
+        plan: VarIntTranscription<'a, S, P, DOF, NP, NS, NU, NX, NW>,
         timing: FreeTiming,
     ) -> Result<Self, FreeTimingError>
     where
@@ -167,9 +181,9 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usi
     }
 
     /// The ratios of a solution, and its stage times `t_0 … t_N`.
-    pub fn times<const NX: usize, const NW: usize, const NC: usize>(
+    pub fn times<const NWT: usize, const NC: usize>(
         &self,
-        it: &Iterate<NX, NW, NC>,
+        it: &Iterate<NX, NWT, NC>,
     ) -> (Vec<f64>, Vec<f64>) {
         let sigma = it.globals.p.clone();
         let h = self.plan.stages.h;
@@ -182,14 +196,14 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usi
 
     /// The fixed-timing iterate as a start of this problem: `w_k` extended by the ratios
     /// (1), the multipliers kept.
-    pub fn start_from_fixed<const NX: usize, const NW0: usize, const NW: usize, const NC: usize>(
+    pub fn start_from_fixed<const NWT: usize, const NC: usize>(
         &self,
-        it: Iterate<NX, NW0, NC>,
-    ) -> Iterate<NX, NW, NC> {
-        assert_eq!(NW, NW0 + 2, "the free-timing decision adds two ratios");
+        it: Iterate<NX, NW, NC>,
+    ) -> Iterate<NX, NWT, NC> {
+        assert_eq!(NWT, NW + 2, "the free-timing decision adds two ratios");
         let w =
             it.w.iter()
-                .map(|w0| SVector::<f64, NW>::from_fn(|i, _| if i < NW0 { w0[i] } else { 1.0 }))
+                .map(|w0| SVector::<f64, NWT>::from_fn(|i, _| if i < NW { w0[i] } else { 1.0 }))
                 .collect();
         Iterate {
             x: it.x,
@@ -206,14 +220,14 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usi
 
     /// The solution as a [`PlannedTrajectory`] at the nominal step (the fixed
     /// transcription's reading of the stages: the ratios trail `w`), with its stage times.
-    pub fn trajectory<const NX: usize, const NW: usize, const NC: usize>(
+    pub fn trajectory<const NWT: usize, const NC: usize>(
         &self,
-        it: &Iterate<NX, NW, NC>,
+        it: &Iterate<NX, NWT, NC>,
     ) -> (PlannedTrajectory<NP, NS, NU>, Vec<f64>)
     where
         P: PlanningProblem<NP, NS, NU, NC>,
     {
-        (self.plan.trajectory(it), self.times(it).1)
+        (self.plan.trajectory_of(&it.x, &it.w), self.times(it).1)
     }
 }
 
@@ -226,14 +240,16 @@ impl<
         const NU: usize,
         const NX: usize,
         const NW: usize,
+        const NWT: usize,
         const NC: usize,
-    > StageProblem<NX, NW, NS, NU, NC> for FreeTimingTranscription<'_, S, P, DOF, NP, NS, NU>
+    > StageProblem<NX, NWT, NS, NU, NC>
+    for FreeTimingTranscription<'_, S, P, DOF, NP, NS, NU, NX, NW>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
 {
     fn horizon(&self) -> usize {
-        self.plan.stages.layout.check(NX, NW, NS + NU + 2);
+        self.plan.stages.layout.check(NX, NWT, NS + NU + 2);
         self.plan.problem.horizon()
     }
     fn initial_state(&self) -> SVector<f64, NX> {
@@ -243,15 +259,15 @@ where
         &self,
         _k: usize,
         x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
+        w: &SVector<T, NWT>,
     ) -> SVector<T, NX> {
         let l = self.plan.stages.layout;
         let sys = self.plan.stages.sys;
-        let coords: Vec<T> = (0..l.nc).map(|i| x[i]).collect();
+        let coords: Vec<T> = (0..l.np).map(|i| x[i]).collect();
         let g = <S::Group<T> as LieGroup<DOF>>::from_coordinates(&coords).expect("layout checked");
         let s: SVector<T, NS> = segment(x, l.s_at());
         let v: SVector<T, NS> = segment(w, 0);
-        let h = w[NW - 1] * self.plan.stages.h;
+        let h = w[NWT - 1] * self.plan.stages.h;
         let xi = -(sys.connection(&s) * v);
         let g_next = g.compose(&<S::Group<T> as LieGroup<DOF>>::exp(&(xi * h)));
         let mut out = SVector::<T, NX>::zeros();
@@ -271,7 +287,7 @@ where
         &self,
         _k: usize,
         x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
+        w: &SVector<T, NWT>,
     ) -> SVector<T, NS> {
         let l = self.plan.stages.layout;
         let sys = self.plan.stages.sys;
@@ -280,7 +296,7 @@ where
         let v: SVector<T, NS> = segment(w, 0);
         let u: SVector<T, NU> = segment(w, NS);
         let hb = self.plan.stages.h;
-        let (h_prev, h) = (w[NW - 2] * hb, w[NW - 1] * hb);
+        let (h_prev, h) = (w[NWT - 2] * hb, w[NWT - 1] * hb);
         let s_prev = s - v_prev * h_prev;
         let a_k = sys.connection(&s);
         let dexp_inv = |xi: &SVector<T, DOF>| <S::Group<T> as LieGroup<DOF>>::dexp_inv(xi);
@@ -310,8 +326,12 @@ where
         &self,
         k: usize,
         x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SVector<f64, NS>, SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
+        w: &SVector<f64, NWT>,
+    ) -> (
+        SVector<f64, NS>,
+        SMatrix<f64, NS, NX>,
+        SMatrix<f64, NS, NWT>,
+    ) {
         // The value as the line search measures it (see `VarIntStages::equality_jacobian`).
         let e = self.equality(k, x, w);
         let (ex, ew) = self.equality_partials(k, x, w);
@@ -321,9 +341,9 @@ where
         &self,
         k: usize,
         x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NW>) {
-        let (sigma_prev, sigma) = (w[NW - 2], w[NW - 1]);
+        w: &SVector<f64, NWT>,
+    ) -> (SMatrix<f64, NS, NX>, SMatrix<f64, NS, NWT>) {
+        let (sigma_prev, sigma) = (w[NWT - 2], w[NWT - 1]);
         if sigma_prev != sigma {
             let (_, ex, ew) = generic_equality_jacobian(self, k, x, w);
             return (ex, ew);
@@ -333,10 +353,10 @@ where
             h: sigma * st.h,
             ..*st
         };
-        let (ex, mut ew) = at_step.first_order_equality_partials::<DOF, NS, NU, NX, NW>(x, w);
+        let (ex, mut ew) = at_step.first_order_equality_partials::<DOF, NS, NU, NX, NWT>(x, w);
         // w's last two entries (the ratios) seeded, the rest constant.
         let ratios_seeded =
-            SVector::<DualSVec64<2>, NW>::from_fn(|i, _| match i.checked_sub(NW - 2) {
+            SVector::<DualSVec64<2>, NWT>::from_fn(|i, _| match i.checked_sub(NWT - 2) {
                 Some(lane) => {
                     let mut eps = SVector::<f64, 2>::zeros();
                     eps[lane] = 1.0;
@@ -346,7 +366,7 @@ where
             });
         let r = self.equality(k, &lift_vec::<f64, 2, NX>(x), &ratios_seeded);
         let dr = jacobian_part(&r);
-        ew.fixed_columns_mut::<2>(NW - 2).copy_from(&dr);
+        ew.fixed_columns_mut::<2>(NWT - 2).copy_from(&dr);
         (ex, ew)
     }
     /// When the robot's problem is affine in its configuration and previous input, and
@@ -362,10 +382,10 @@ where
         &self,
         k: usize,
         x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
+        w: &SVector<f64, NWT>,
         cost_scale: f64,
         zeta: &SVector<f64, NC>,
-    ) -> HessianBlocks<NX, NW> {
+    ) -> HessianBlocks<NX, NWT> {
         if !self.plan.problem.affine_in_configuration() {
             return generic_cost_curvature(self, k, x, w, cost_scale, zeta);
         }
@@ -374,35 +394,35 @@ where
             k,
             cost_scale,
             zeta,
-            &x.map(Dual2SVec64::<NW>::from_re),
+            &x.map(Dual2SVec64::<NWT>::from_re),
             &seed2(w),
         ));
-        let ratios: SVector<f64, 2> = w.fixed_rows::<2>(NW - 2).into_owned();
+        let ratios: SVector<f64, 2> = w.fixed_rows::<2>(NWT - 2).into_owned();
         let (xh, rh) = seed_hyper(x, &ratios);
         let wh =
-            SVector::<HyperDualSVec64<NX, 2>, NW>::from_fn(|i, _| match i.checked_sub(NW - 2) {
+            SVector::<HyperDualSVec64<NX, 2>, NWT>::from_fn(|i, _| match i.checked_sub(NWT - 2) {
                 Some(j) => rh[j],
                 None => HyperDualSVec64::<NX, 2>::from_re(w[i]),
             });
-        let mut hxw = SMatrix::<f64, NX, NW>::zeros();
+        let mut hxw = SMatrix::<f64, NX, NWT>::zeros();
         let xr = cost_and_inequalities(self, k, cost_scale, zeta, &xh, &wh);
         if let Some(hxr) = xr.eps1eps2.0 {
-            hxw.fixed_columns_mut::<2>(NW - 2).copy_from(&hxr);
+            hxw.fixed_columns_mut::<2>(NWT - 2).copy_from(&hxr);
         }
         (SMatrix::zeros(), hxw, hww)
     }
-    fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
+    fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NWT>) -> T {
         let stage = self.plan.stage(x, w);
-        self.plan.problem.cost_at_step(k, &stage, w[NW - 1])
+        self.plan.problem.cost_at_step(k, &stage, w[NWT - 1])
     }
     fn constraints<T: Real>(
         &self,
         k: usize,
         x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
+        w: &SVector<T, NWT>,
     ) -> SVector<T, NC> {
         let stage = self.plan.stage(x, w);
-        self.plan.problem.constraints_at_step(k, &stage, w[NW - 1])
+        self.plan.problem.constraints_at_step(k, &stage, w[NWT - 1])
     }
     fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
         self.plan.problem.bounds(k)

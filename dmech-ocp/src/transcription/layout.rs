@@ -2,7 +2,7 @@
 
 use nalgebra::SVector;
 
-/// Sizes of a transcription's stage vectors for a system with `nc` group coordinates,
+/// Sizes of a transcription's stage vectors for a system with `np` group coordinates,
 /// `ns` shape coordinates and `nu` inputs, and which shape coordinates the state leaves
 /// out (`ignored`, bit `i` for `s_i`).
 ///
@@ -14,38 +14,111 @@ use nalgebra::SVector;
 /// by one per ignorable coordinate. The WIP's wheel angles and charges are such.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Layout {
-    pub nc: usize,
+    /// The pose's coordinates, `coords(g)` (SE(2): 3).
+    pub np: usize,
+    /// The shape coordinates.
     pub ns: usize,
+    /// The inputs.
     pub nu: usize,
+    /// The shape positions the state leaves out, bit `i` for `s_i`.
     pub ignored: u32,
+}
+
+/// A layout that does not fit the sizes a transcription was given.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LayoutError {
+    /// `NX` or `NW` is not what the layout holds.
+    #[error(
+        "stage sizes NX = {nx}, NW = {nw} do not match the system: NX must be {expected_nx} \
+         (coords {np} + {carried} carried shape + {ns} + {nu}), NW must be {expected_nw}"
+    )]
+    Sizes {
+        /// The given state size.
+        nx: usize,
+        /// The given decision size.
+        nw: usize,
+        /// The layout's state size.
+        expected_nx: usize,
+        /// The transcription's decision size.
+        expected_nw: usize,
+        /// The layout's pose coordinates.
+        np: usize,
+        /// The shape positions the layout carries.
+        carried: usize,
+        /// The shape coordinates.
+        ns: usize,
+        /// The inputs.
+        nu: usize,
+    },
+    /// `NP` is not the group's number of coordinates.
+    #[error("NP = {given} but the group has {group} coordinates")]
+    PoseCoordinates {
+        /// The given `NP`.
+        given: usize,
+        /// `coords(g)`'s length.
+        group: usize,
+    },
+    /// The layout was made for another system.
+    #[error("the layout has {layout} pose, shape and input sizes, the system {system}")]
+    System {
+        /// The layout's `(np, ns, nu)`.
+        layout: String,
+        /// The system's.
+        system: String,
+    },
+    /// An ignored shape coordinate out of range.
+    #[error("ignorable shape coordinate {index} of {ns} (at most 32 shape coordinates)")]
+    Ignored {
+        /// The coordinate.
+        index: usize,
+        /// The shape coordinates.
+        ns: usize,
+    },
+}
+
+/// `Err` unless `NP` is the group's number of coordinates `group`.
+pub(crate) fn check_pose_coordinates<const NP: usize>(group: usize) -> Result<(), LayoutError> {
+    if NP == group {
+        Ok(())
+    } else {
+        Err(LayoutError::PoseCoordinates { given: NP, group })
+    }
 }
 
 impl Layout {
     /// Every shape coordinate carried.
-    pub const fn new(nc: usize, ns: usize, nu: usize) -> Self {
+    pub const fn new(np: usize, ns: usize, nu: usize) -> Self {
         Layout {
-            nc,
+            np,
             ns,
             nu,
             ignored: 0,
         }
     }
 
-    /// The same sizes with the shape coordinates `ignored` left out of the state.
+    /// The same sizes with the shape coordinates `ignored` left out of the state. Panics
+    /// on a coordinate out of range (at most 32 shape coordinates); [`Layout::try_ignoring`]
+    /// returns the error instead.
     pub fn ignoring(self, ignored: &[usize]) -> Self {
+        self.try_ignoring(ignored).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Layout::ignoring`], `Err` on a coordinate out of range.
+    pub fn try_ignoring(self, ignored: &[usize]) -> Result<Self, LayoutError> {
         let mut mask = 0u32;
         for &i in ignored {
-            assert!(
-                i < self.ns && i < 32,
-                "ignorable shape coordinate {i} of {} (at most 32 shape coordinates)",
-                self.ns
-            );
+            if i >= self.ns || i >= 32 {
+                return Err(LayoutError::Ignored {
+                    index: i,
+                    ns: self.ns,
+                });
+            }
             mask |= 1 << i;
         }
-        Layout {
+        Ok(Layout {
             ignored: mask,
             ..self
-        }
+        })
     }
 
     /// Whether the state leaves `s_i` out.
@@ -61,15 +134,17 @@ impl Layout {
     /// State size of both transcriptions: `coords(g)`, the carried part of `s`, a
     /// velocity, `u_{k−1}`.
     pub fn nx(&self) -> usize {
-        self.nc + self.ns_kept() + self.ns + self.nu
+        self.np + self.ns_kept() + self.ns + self.nu
     }
     /// Offsets of the carried `s`, the velocity and `u_{k−1}` in the state.
     pub fn s_at(&self) -> usize {
-        self.nc
+        self.np
     }
+    /// Offset of the velocity in the state.
     pub fn v_at(&self) -> usize {
-        self.nc + self.ns_kept()
+        self.np + self.ns_kept()
     }
+    /// Offset of `u_{k−1}` in the state.
     pub fn u_at(&self) -> usize {
         self.v_at() + self.ns
     }
@@ -107,19 +182,50 @@ impl Layout {
         }
     }
 
-    /// Check that const-generic sizes agree with the system; a mismatch is a programming
-    /// error, reported with both sides.
+    /// `Err` unless the state size `NX` is the layout's and the decision size `NW` is
+    /// `nw_expected` (the transcription's).
+    pub fn fits<const NX: usize, const NW: usize>(
+        &self,
+        nw_expected: usize,
+    ) -> Result<(), LayoutError> {
+        if NX == self.nx() && NW == nw_expected {
+            return Ok(());
+        }
+        Err(self.sizes_error(NX, NW, nw_expected))
+    }
+
+    fn sizes_error(&self, nx: usize, nw: usize, nw_expected: usize) -> LayoutError {
+        LayoutError::Sizes {
+            nx,
+            nw,
+            expected_nx: self.nx(),
+            expected_nw: nw_expected,
+            np: self.np,
+            carried: self.ns_kept(),
+            ns: self.ns,
+            nu: self.nu,
+        }
+    }
+
+    /// Panics unless `nx` is the layout's state size and `nw` is `nw_expected`: for the
+    /// stage functions' own callers, whose sizes are a programming error when they
+    /// disagree ([`Layout::fits`] is the checked form).
     pub fn check(&self, nx: usize, nw: usize, nw_expected: usize) {
-        assert!(
-            nx == self.nx() && nw == nw_expected,
-            "stage sizes NX = {nx}, NW = {nw} do not match the system: NX must be {} \
-             (coords {} + {} carried shape + {} + {}), NW must be {nw_expected}",
-            self.nx(),
-            self.nc,
-            self.ns_kept(),
-            self.ns,
-            self.nu
-        );
+        if nx != self.nx() || nw != nw_expected {
+            panic!("{}", self.sizes_error(nx, nw, nw_expected));
+        }
+    }
+
+    /// `Err` unless the layout has the pose, shape and input sizes of `system`'s.
+    pub fn agrees_with(&self, system: &Layout) -> Result<(), LayoutError> {
+        let sizes = |l: &Layout| (l.np, l.ns, l.nu);
+        if sizes(self) == sizes(system) {
+            return Ok(());
+        }
+        Err(LayoutError::System {
+            layout: format!("{:?}", sizes(self)),
+            system: format!("{:?}", sizes(system)),
+        })
     }
 }
 

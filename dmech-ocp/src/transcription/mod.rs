@@ -10,13 +10,13 @@
 //! discretisations (the variational integrators decide `w_k = (v_k, u_k)` and carry
 //! `v_{k−1}` in the state; Runge–Kutta carries `v_k` in the state and decides `w_k = u_k`).
 //!
-//! Sizes: `NP` pose coordinates (`coords(g)`), `NS` shape, `NU` inputs, `NC` path
-//! constraints. The solver's `NX = NP + 2 NS + NU`; `NW = NS + NU` (variational) or `NU`
-//! (Runge–Kutta). The system's own `DOF` (dimension of `G`) and `DIM` (the dimension of the
-//! space it acts on: 2 for SE(2), 3 for SO(3) and SE(3)) are its `PrincipalKinematicSystem`
-//! parameters. The solver's `NU` is the number of *free* decisions per stage, `NW − NE`:
-//! for a variational transcription the `NE = NS` momentum-matching rows eliminate the
-//! velocities, leaving the system's inputs.
+//! Sizes, in this order everywhere: the system's `DOF` (dimension of `G`), `NS` (shape),
+//! `NU` (inputs); the problem's `NP` (pose coordinates, `coords(g)`) and `NC` (path
+//! constraints); the solver's `NX` (state), `NW` (stage decision), `NE` (stage
+//! equalities) and `NF` (free decisions per stage, `NW − NE`: the variational
+//! transcriptions' `NE = NS` momentum-matching rows eliminate the velocities and leave the
+//! inputs). With every shape position carried, `NX = NP + 2 NS + NU` and `NW = NS + NU`
+//! (variational) or `NU` (Runge–Kutta); the compiler infers them ([`sizes`]).
 //!
 //! # Example
 //!
@@ -27,7 +27,7 @@
 //! use dmech_lie::{Real, Se2};
 //! use dmech_ocp::solver::{IpOptions, Solver, Status};
 //! use dmech_ocp::transcription::*;
-//! use nalgebra::{SMatrix, SVector};
+//! use nalgebra::{Matrix3x2, SMatrix, SVector};
 //!
 //! struct DiffDrive; // mass 1 kg, wheel radius 0.05 m, half-track 0.1 m
 //! impl PrincipalKinematicSystem<3, 2, 2> for DiffDrive {
@@ -41,7 +41,7 @@
 //!     fn connection<T: Lift<f64>>(&self, _s: &SVector<T, 2>) -> SMatrix<T, 3, 2> {
 //!         // ξ = −A v: forward r(φ̇R + φ̇L)/2, yaw r(φ̇R − φ̇L)/(2d).
 //!         let (half_r, yaw, z) = (T::from(0.025), T::from(0.25), T::zero());
-//!         SMatrix::<T, 3, 2>::new(-half_r, -half_r, z, z, -yaw, yaw)
+//!         Matrix3x2::new(-half_r, -half_r, z, z, -yaw, yaw)
 //!     }
 //!     fn forcing<T: Lift<f64>>(
 //!         &self, _s: &SVector<T, 2>, _v: &SVector<T, 2>, u: &SVector<T, 2>,
@@ -75,12 +75,9 @@
 //! }
 //!
 //! let (n, h) = (100, 0.02);
-//! let p = VarIntTranscription::<_, _, 3, 3, 2>::new::<2>(
-//!     &DiffDrive, Forward { n }, h, Discretisation::FirstOrder,
-//! );
-//! // NX = 3 + 2·2 + 2 = 9, NW = 2 + 2 = 4, NE = 2, free inputs NW − NE = 2, NC = 0.
-//! let solver: Solver<9, 4, 2, 2, 0> =
-//!     Solver::new(&p, IpOptions { verbose: false, ..Default::default() });
+//! let p = VarIntTranscription::new(&DiffDrive, Forward { n }, h, Discretisation::FirstOrder);
+//! // Inferred: NX = 3 + 2·2 + 2 = 9, NW = 2 + 2 = 4, NE = 2, free decisions NF = 2, NC = 0.
+//! let solver = Solver::new(&p, IpOptions { verbose: false, ..Default::default() });
 //! // Any start: `initial_iterate` puts the problem's start state into x_0.
 //! let r = solver.solve(solver.initial_iterate(vec![SVector::zeros(); n + 1], vec![SVector::zeros(); n]));
 //! assert_eq!(r.status, Status::Solved);
@@ -92,6 +89,7 @@ pub mod free_timing;
 pub mod layout;
 mod problem;
 pub mod runge_kutta;
+pub mod sizes;
 pub mod variational;
 pub use problem::*;
 pub use runge_kutta::RkTranscription;

@@ -187,7 +187,7 @@ pub fn state_index(layout: Layout, quantity: Quantity) -> usize {
         });
     }
     let (offset, i, n) = match quantity {
-        Quantity::Pose(i) => (0, i, layout.nc),
+        Quantity::Pose(i) => (0, i, layout.np),
         Quantity::Shape(_) => unreachable!("handled above"),
         Quantity::Velocity(i) => (layout.v_at(), i, layout.ns),
         Quantity::PreviousInput(i) => (layout.u_at(), i, layout.nu),

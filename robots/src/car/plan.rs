@@ -11,7 +11,6 @@ use dmech::Discretisation;
 use dmech_lie::{LieGroup, Real, Se2};
 use dmech_ocp::nlp::StageProblem;
 use dmech_ocp::solver::{IpOptions, SolveResult, Status};
-use dmech_ocp::toolkit::kinematic_start::varint_start_from_path;
 use dmech_ocp::toolkit::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
 use dmech_ocp::transcription::layout::Layout;
 use dmech_ocp::transcription::{
@@ -287,7 +286,7 @@ pub struct CarMesh<'p> {
 impl<'p> SequencedPlan<NX, NW, NS, NU, NC> for CarSequence<'p> {
     type Mesh = CarMesh<'p>;
     type Problem<'a>
-        = VarIntTranscription<'a, Car, &'a CarPlan<'p>, 3, 3, NS, NU>
+        = VarIntTranscription<'a, Car, &'a CarPlan<'p>, 3, 3, NS, NU, NX, NW>
     where
         Self: 'a;
     fn steps(&self, mesh: &CarMesh) -> usize {
@@ -305,7 +304,6 @@ impl<'p> SequencedPlan<NX, NW, NS, NU, NC> for CarSequence<'p> {
         VarIntTranscription::new(self.car, &mesh.plan, mesh.plan.h, self.disc)
     }
     fn start(&self, mesh: &CarMesh) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
-        let h = mesh.plan.h;
         let path = start_path(self.problem, mesh.plan.n);
         // ρ: the wheel rate shrinks by ρ/(ρ + r²) where the path sets it (r² = 2.5e-3):
         // 1e-6 is a 0.04 % shrink, and holds the charge at rest. The steering rate's 1e-4
@@ -313,23 +311,17 @@ impl<'p> SequencedPlan<NX, NW, NS, NU, NC> for CarSequence<'p> {
         // δφ = 0.1 rad at 1 m/s: the steering follows the path's curvature, smoothly, on
         // the branch |φ| < π/2 it starts on.
         let weights = SVector::<f64, NS>::new(1e-4, 1e-6, 1e-6);
-        varint_start_from_path::<Car, 3, NS, NU, NX, NW>(
-            self.car,
-            h,
-            &path,
-            &SVector::zeros(),
-            &weights,
-            self.disc,
-        )
-        .unwrap_or_else(|_| {
-            // The path's poses with the shape at rest: the solver still starts from the
-            // right places (a kinematic start that fails is reported by the solve).
-            let xs = path
-                .iter()
-                .map(|g| SVector::from_fn(|i, _| if i < 3 { g.coordinates()[i] } else { 0.0 }))
-                .collect();
-            (xs, vec![SVector::zeros(); mesh.plan.n])
-        })
+        self.problem(mesh, 0)
+            .start_from_path(&path, &SVector::zeros(), &weights)
+            .unwrap_or_else(|_| {
+                // The path's poses with the shape at rest: the solver still starts from the
+                // right places (a kinematic start that fails is reported by the solve).
+                let xs = path
+                    .iter()
+                    .map(|g| SVector::from_fn(|i, _| if i < 3 { g.coordinates()[i] } else { 0.0 }))
+                    .collect();
+                (xs, vec![SVector::zeros(); mesh.plan.n])
+            })
     }
     fn layout(&self) -> Layout {
         Layout::new(3, NS, NU)

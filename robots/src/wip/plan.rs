@@ -7,8 +7,8 @@
 use super::algebraic_current::WipAlgebraicCurrent;
 use super::benchmarks::PlanProblem;
 pub use super::plan_problem::{
-    rk_plan, varint_layout, varint_plan, varint_plan_sized, PlanBounds, PlanModel, RkPlan,
-    VarIntPlan, WipPlan, NC, NX, NX_ALGEBRAIC, NX_VI, NX_VI_ALGEBRAIC, SMOOTH_FRICTION_SLOPE,
+    rk_plan, varint_layout, varint_plan, PlanBounds, PlanModel, RkPlan, VarIntPlan, WipPlan, NC,
+    NX, NX_ALGEBRAIC, NX_VI, NX_VI_ALGEBRAIC, SMOOTH_FRICTION_SLOPE,
 };
 use super::plan_sequence::{friction_continuation, varint_solve};
 pub use super::plan_start::{polyline_start, rk_start, varint_start};
@@ -200,15 +200,15 @@ fn plan_model<
     match transcription {
         Transcription::VarInt(disc) => {
             let r = varint_solve::<M, NS, NXV, NW>(model, models, problem, bounds, disc, opts);
-            let traj = varint_plan_sized::<M, NS, NXV>(model, problem, bounds, disc)
-                .trajectory(&r.iterate);
+            let traj =
+                varint_plan::<M, NS, NXV, NW>(model, problem, bounds, disc).trajectory(&r.iterate);
             outcome::<M, NS, NXV, NW>(model, r, traj, true)
         }
         Transcription::Rk(rk) => {
             let (xs, ws) = rk_start::<M, NS, NX>(model, problem);
             let plans: Vec<_> = models
                 .iter()
-                .map(|m| rk_plan::<M, NS>(m, problem, bounds, rk))
+                .map(|m| rk_plan::<M, NS, NX>(m, problem, bounds, rk))
                 .collect();
             // RK1 and RK2 solve the model's own friction directly: on the eight and the
             // zigzag, with either current model, it takes 31–65 iterations against 40–63

@@ -80,7 +80,7 @@ fn free_model<
     let disc = Discretisation::FirstOrder;
     let models = friction_continuation(model, false);
     let r = varint_solve::<M, NS, NX, NW0>(model, models, problem, bounds, disc, opts.clone());
-    let traj = varint_plan::<M, NS>(model, problem, bounds, disc).trajectory(&r.iterate);
+    let traj = varint_plan::<M, NS, NX, NW0>(model, problem, bounds, disc).trajectory(&r.iterate);
     let start = r.iterate.clone();
     let fixed = outcome::<M, NS, NX, NW0>(model, r, traj, true);
     let timing = FreeTiming {
@@ -88,9 +88,11 @@ fn free_model<
         ratio_bounds: FREE_TIMING_RATIOS,
         total,
     };
-    let ft =
-        FreeTimingTranscription::new(varint_plan::<M, NS>(model, problem, bounds, disc), timing)
-            .map_err(|e| e.to_string())?;
+    let ft = FreeTimingTranscription::new(
+        varint_plan::<M, NS, NX, NW0>(model, problem, bounds, disc),
+        timing,
+    )
+    .map_err(|e| e.to_string())?;
     if opts.verbose {
         crate::progress!(
             "free timing: {} segments, step ratios in [{}, {}], total time {}, from the fixed-timing plan",
@@ -108,7 +110,7 @@ fn free_model<
         ..opts
     };
     let s: Solver<NX, NW, NS, 2, NC> = Solver::new(&ft, o);
-    let r = s.solve(s.warm_iterate(ft.start_from_fixed::<NX, NW0, NW, NC>(start)));
+    let r = s.solve(s.warm_iterate(ft.start_from_fixed(start)));
     let (ratios, _) = ft.times(&r.iterate);
     let (plan, times) = ft.trajectory(&r.iterate);
     let mut free = outcome::<M, NS, NX, NW>(model, r, plan, true);

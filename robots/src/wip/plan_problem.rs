@@ -268,27 +268,14 @@ impl<M: PlanModel<NS>, const NS: usize> PlanningProblem<3, NS, 2, NC> for WipPla
     }
 }
 
-/// The WIP on a variational integrator (first order or midpoint).
-pub type VarIntPlan<'a, M, const NS: usize> =
-    VarIntTranscription<'a, M, WipPlan<'a, M>, 3, 3, NS, 2>;
+/// The WIP on a variational integrator (first order or midpoint), state size `NX`
+/// ([`varint_layout`]), decision size `NW = NS + 2`.
+pub type VarIntPlan<'a, M, const NS: usize, const NX: usize, const NW: usize> =
+    VarIntTranscription<'a, M, WipPlan<'a, M>, 3, 3, NS, 2, NX, NW>;
 
-/// The WIP on a Runge–Kutta step.
-pub type RkPlan<'a, M, const NS: usize> = RkTranscription<'a, M, WipPlan<'a, M>, 3, 3, NS, 2>;
-
-/// The first-order VI plan of `problem` for `model` (the paper's transcription).
-pub fn varint_plan<'a, M: PlanModel<NS>, const NS: usize>(
-    model: &'a M,
-    problem: &'a PlanProblem,
-    bounds: PlanBounds,
-    discretisation: Discretisation,
-) -> VarIntPlan<'a, M, NS> {
-    let plan = WipPlan {
-        model,
-        problem,
-        bounds,
-    };
-    VarIntTranscription::new(model, plan, problem.h, discretisation)
-}
+/// The WIP on a Runge–Kutta step, state size `NX = 2 NS + 5`.
+pub type RkPlan<'a, M, const NS: usize, const NX: usize> =
+    RkTranscription<'a, M, WipPlan<'a, M>, 3, 3, NS, 2, NX>;
 
 /// The VI stage layout for state size `NX`: every shape position (`NX = 2 NS + 5`), or
 /// without the model's ignorable ones.
@@ -308,32 +295,36 @@ pub fn varint_layout<M: PlanModel<NS>, const NS: usize, const NX: usize>(model: 
     reduced
 }
 
-/// [`varint_plan`] with the state of size `NX` ([`varint_layout`]).
-pub fn varint_plan_sized<'a, M: PlanModel<NS>, const NS: usize, const NX: usize>(
+/// The VI plan of `problem` for `model` with the state of size `NX` ([`varint_layout`]):
+/// the paper's transcription with [`Discretisation::FirstOrder`].
+pub fn varint_plan<'a, M: PlanModel<NS>, const NS: usize, const NX: usize, const NW: usize>(
     model: &'a M,
     problem: &'a PlanProblem,
     bounds: PlanBounds,
     discretisation: Discretisation,
-) -> VarIntPlan<'a, M, NS> {
-    let plan = varint_plan::<M, NS>(model, problem, bounds, discretisation);
-    let layout = varint_layout::<M, NS, NX>(model);
-    if layout.ignored == 0 {
-        return plan;
-    }
-    plan.with_ignored_shape(model.ignorable_shape())
-}
-
-/// The RK plan of `problem` for `model`.
-pub fn rk_plan<'a, M: PlanModel<NS>, const NS: usize>(
-    model: &'a M,
-    problem: &'a PlanProblem,
-    bounds: PlanBounds,
-    rk: RungeKutta,
-) -> RkPlan<'a, M, NS> {
+) -> VarIntPlan<'a, M, NS, NX, NW> {
     let plan = WipPlan {
         model,
         problem,
         bounds,
     };
-    RkTranscription::new(model, plan, problem.h, rk)
+    let layout = varint_layout::<M, NS, NX>(model);
+    VarIntTranscription::with_layout(model, plan, problem.h, discretisation, layout)
+        .unwrap_or_else(|e| panic!("the WIP's VI sizes: {e}"))
+}
+
+/// The RK plan of `problem` for `model`.
+pub fn rk_plan<'a, M: PlanModel<NS>, const NS: usize, const NX: usize>(
+    model: &'a M,
+    problem: &'a PlanProblem,
+    bounds: PlanBounds,
+    rk: RungeKutta,
+) -> RkPlan<'a, M, NS, NX> {
+    let plan = WipPlan {
+        model,
+        problem,
+        bounds,
+    };
+    RkTranscription::with_sizes(model, plan, problem.h, rk)
+        .unwrap_or_else(|e| panic!("the WIP's RK sizes: {e}"))
 }

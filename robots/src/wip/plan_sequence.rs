@@ -3,7 +3,7 @@
 
 use super::benchmarks::PlanProblem;
 use super::plan_problem::{
-    varint_layout, varint_plan_sized, PlanBounds, PlanModel, VarIntPlan, NC, SMOOTH_FRICTION_SLOPE,
+    varint_layout, varint_plan, PlanBounds, PlanModel, VarIntPlan, NC, SMOOTH_FRICTION_SLOPE,
 };
 use super::plan_start::varint_start;
 use dmech::Discretisation;
@@ -75,7 +75,7 @@ where
 {
     type Mesh = PlanProblem;
     type Problem<'a>
-        = VarIntPlan<'a, M, NS>
+        = VarIntPlan<'a, M, NS, NX, NW>
     where
         Self: 'a;
     fn steps(&self, mesh: &PlanProblem) -> usize {
@@ -87,8 +87,8 @@ where
     fn coarser(&self, mesh: &PlanProblem) -> Option<PlanProblem> {
         mesh.at_step(mesh.h * 2.0)
     }
-    fn problem<'a>(&'a self, mesh: &'a PlanProblem, phase: usize) -> VarIntPlan<'a, M, NS> {
-        varint_plan_sized::<M, NS, NX>(&self.models[phase], mesh, self.bounds, self.disc)
+    fn problem<'a>(&'a self, mesh: &'a PlanProblem, phase: usize) -> VarIntPlan<'a, M, NS, NX, NW> {
+        varint_plan::<M, NS, NX, NW>(&self.models[phase], mesh, self.bounds, self.disc)
     }
     fn phases(&self) -> usize {
         self.models.len()

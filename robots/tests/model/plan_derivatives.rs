@@ -161,8 +161,9 @@ fn one_pass_dynamics_jacobian_equals_two_passes() {
 fn free_timing_plan<'a>(
     wip: &'a Wip,
     p: &'a PlanProblem,
-) -> FreeTimingTranscription<'a, Wip, WipPlan<'a, Wip>, 3, 3, 5, 2> {
-    let plan = varint_plan::<Wip, 5>(wip, p, PlanBounds::default(), Discretisation::FirstOrder);
+) -> FreeTimingTranscription<'a, Wip, WipPlan<'a, Wip>, 3, 3, 5, 2, 15, 7> {
+    let plan =
+        varint_plan::<Wip, 5, 15, 7>(wip, p, PlanBounds::default(), Discretisation::FirstOrder);
     let timing = FreeTiming {
         segment_starts: p.stages[..p.stages.len() - 1].to_vec(),
         ratio_bounds: (0.5, 2.0),
@@ -373,7 +374,7 @@ fn block_constraint_curvature_equals_generic() {
         ForcingQuadrature::Midpoint,
     ] {
         let mut plan_q =
-            varint_plan::<_, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
+            varint_plan::<_, 5, 15, 7>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
         plan_q.stages.quadrature = q;
         for k in [0, 700, 2100] {
             for perturb in [0.0, 0.3] {
@@ -414,7 +415,7 @@ fn rk_cost_curvature_equals_generic() {
         M: PlanModel<NS>,
     {
         let p = eight(0.005);
-        let plan = rk_plan::<M, NS>(model, &p, PlanBounds::default(), RungeKutta::Rk1);
+        let plan = rk_plan::<M, NS, NX>(model, &p, PlanBounds::default(), RungeKutta::Rk1);
         let mut rand = lcg(4243);
         let mut worst = 0.0f64;
         for (k, x, u) in rk_test_points::<M, NS, NX>(model, 4242) {
@@ -511,12 +512,13 @@ fn the_wip_residual_does_not_read_its_ignorable_shape_positions() {
 /// exact curvature (by blocks), on the eight's start and at perturbed points.
 #[test]
 fn the_reduced_vi_state_is_the_full_one_without_the_ignorable_positions() {
-    use robots::wip::plan::{varint_plan_sized, NX_VI};
+    use robots::wip::plan::NX_VI;
     let wip = Wip::default();
     let p = eight(0.005);
     let (xs, ws) = varint_start::<Wip, 5, 15, 7>(&wip, &p);
-    let full = varint_plan::<Wip, 5>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
-    let reduced = varint_plan_sized::<Wip, 5, NX_VI>(
+    let full =
+        varint_plan::<Wip, 5, 15, 7>(&wip, &p, PlanBounds::default(), Discretisation::FirstOrder);
+    let reduced = varint_plan::<Wip, 5, NX_VI, 7>(
         &wip,
         &p,
         PlanBounds::default(),

@@ -205,7 +205,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         mu: f64,
         el: &Elimination<NX, NW, NF>,
         nt: usize,
-    ) -> Result<StageCoupling<NX, NW, NF>, String> {
+    ) -> Result<StageCoupling<NX, NW, NF>, Failure> {
         // The state blocks are the condensing's; only the decision blocks are used here.
         let (mut hxx, mut gx) = (SMatrix::zeros(), SVector::zeros());
         let (hxw, hww, gw) = self.stage_hessian_into(k, it, d, curvature, mu, (&mut hxx, &mut gx));
@@ -216,9 +216,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         }
         if NE > 0 {
             let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
-            let lu = Lu::new(&ev).ok_or_else(|| {
-                format!("stage {k}: the stage equality is singular in its dependent decisions")
-            })?;
+            let lu = Lu::new(&ev).ok_or(Failure::SingularStageEquality { stage: k })?;
             let mut et = SMatrix::<f64, NE, NW>::zeros();
             for i in 0..nt {
                 et.set_column(i, &(-d.ew.column(t0 + i)));
@@ -246,10 +244,10 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         elim: &[Elimination<NX, NW, NF>],
         mu: f64,
         out: &mut Vec<StageCoupling<NX, NW, NF>>,
-    ) -> Result<(), String> {
+    ) -> Result<(), Failure> {
         let nt = self.globals.as_ref().map_or(0, |g| g.g.per_stage);
         out.resize_with(self.n, || (LqCoupling::zeros(), SMatrix::zeros()));
-        let failed = std::sync::Mutex::new(None::<String>);
+        let failed = std::sync::Mutex::new(None::<Failure>);
         par_update(out, self.opts.threads, |k, slot| {
             let curvature = self.stage_curvature(k, constants, qn);
             match self.coupling(k, it, &ders[k], curvature, mu, &elim[k], nt) {
@@ -347,7 +345,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         mu: f64,
         dc: f64,
         tm: &mut Timings,
-    ) -> Result<(Step<NX, NW, NC>, f64), String> {
+    ) -> Result<(Step<NX, NW, NC>, f64), Failure> {
         let t1 = Instant::now();
         let (first, t_sweep) = self.condense_workspace(it, ws, mu, dc, 0.0, None)?;
         let Workspace {
@@ -384,7 +382,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 Some(s) => break s,
                 None => match inertia.next(delta) {
                     Some(next) => delta = next,
-                    None => return Err("inertia correction failed".into()),
+                    None => return Err(Failure::InertiaCorrection),
                 },
             }
         };

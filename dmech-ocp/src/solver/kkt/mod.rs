@@ -36,7 +36,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         mu: f64,
         dc: f64,
         tm: &mut Timings,
-    ) -> Result<(Step<NX, NW, NC>, f64), String> {
+    ) -> Result<(Step<NX, NW, NC>, f64), Failure> {
         if self.opts.kkt == KktMethod::SparseLdlt {
             return self.newton_step_sparse(it, ws, inertia, mu, dc, tm);
         }
@@ -71,7 +71,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 Ok(()) => break,
                 Err(_) => match inertia.next(delta) {
                     Some(next) => delta = next,
-                    None => return Err("inertia correction failed".into()),
+                    None => return Err(Failure::InertiaCorrection),
                 },
             }
         }
@@ -96,7 +96,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         dc: f64,
         lq: &mut LqStage<NX, NF>,
         el: &mut Elimination<NX, NW, NF>,
-    ) -> Result<(), String> {
+    ) -> Result<(), Failure> {
         // `H_xx` and `g_x` go straight into the stage's `Q` and `q`, which the terms below
         // are added to in place (each entry sees the same additions in the same order as
         // the sums written out, so the same bits).
@@ -108,9 +108,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         let (dx, du, d0) = if NE > 0 {
             let ev: SMatrix<f64, NE, NE> = d.ew.fixed_columns::<NE>(0).into_owned();
             let eu: SMatrix<f64, NE, NF> = d.ew.fixed_columns::<NF>(NE).into_owned();
-            let lu = Lu::new(&ev).ok_or_else(|| {
-                format!("stage {k}: the stage equality is singular in its dependent decisions")
-            })?;
+            let lu = Lu::new(&ev).ok_or(Failure::SingularStageEquality { stage: k })?;
             (
                 lu.solve_columns(&(-d.ex)),
                 lu.solve_columns(&(-eu)),
@@ -286,12 +284,12 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         elim: &mut [Elimination<NX, NW, NF>],
         sweep: &mut BackwardSweep<NX, NF>,
         stage: F,
-    ) -> Result<(Result<(), RiccatiError>, f64), String>
+    ) -> Result<(Result<(), RiccatiError>, f64), Failure>
     where
-        F: Fn(usize, &mut LqStage<NX, NF>, &mut Elimination<NX, NW, NF>) -> Result<(), String>
+        F: Fn(usize, &mut LqStage<NX, NF>, &mut Elimination<NX, NW, NF>) -> Result<(), Failure>
             + Sync,
     {
-        let failed = std::sync::Mutex::new(None::<(usize, String)>);
+        let failed = std::sync::Mutex::new(None::<(usize, Failure)>);
         let condense_chunk =
             |ci: usize, pl: &mut [LqStage<NX, NF>], pe: &mut [Elimination<NX, NW, NF>]| {
                 let mut ok = true;
@@ -448,7 +446,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         dc: f64,
         shift: f64,
         correction: Option<(&[StageValues<NX, NE, NC>], &Iterate<NX, NW, NC>, f64)>,
-    ) -> Result<(Result<(), RiccatiError>, f64), String> {
+    ) -> Result<(Result<(), RiccatiError>, f64), Failure> {
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
         let Workspace {
             ders,

@@ -12,7 +12,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
     Solver<'a, NX, NW, NE, NF, NC>
 {
     /// The pattern's symbolic factorisation, built at the first sparse step of a solve.
-    fn sparse_kkt(&self) -> Result<&SparseKkt, String> {
+    fn sparse_kkt(&self) -> Result<&SparseKkt, Failure> {
         self.sparse
             .get_or_init(|| {
                 let (ng, ne, supports) = match &self.globals {
@@ -23,7 +23,8 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                     ),
                     None => (0, 0, vec![Vec::new(); self.n]),
                 };
-                SparseKkt::new::<NX, NF>(self.n, ng, ne, supports).map_err(|e| format!("{e:?}"))
+                SparseKkt::new::<NX, NF>(self.n, ng, ne, supports)
+                    .map_err(|e| Failure::SparseKkt(format!("{e:?}")))
             })
             .as_ref()
             .map_err(Clone::clone)
@@ -38,7 +39,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         mu: f64,
         dc: f64,
         delta: f64,
-    ) -> Result<Option<Step<NX, NW, NC>>, String> {
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure> {
         let kkt = self.sparse_kkt()?;
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
         let cps: Vec<LqCoupling<NX, NF, NW>> = ws.couplings.iter().map(|c| c.0.clone()).collect();
@@ -64,7 +65,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 dc,
             ))),
             Err(SparseKktError::Inertia { .. } | SparseKktError::Singular) => Ok(None),
-            Err(e) => Err(format!("{e:?}")),
+            Err(e) => Err(Failure::SparseKkt(format!("{e:?}"))),
         }
     }
 
@@ -77,7 +78,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         mu: f64,
         dc: f64,
         tm: &mut Timings,
-    ) -> Result<(Step<NX, NW, NC>, f64), String> {
+    ) -> Result<(Step<NX, NW, NC>, f64), Failure> {
         let t1 = Instant::now();
         {
             let (ders, qn, constants) = (&ws.ders, &ws.qn, &ws.constants);
@@ -88,7 +89,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             // The closure borrows `ws` immutably; condense into fresh buffers, then move.
             let mut lq = std::mem::take(&mut ws.lq);
             let mut elim = std::mem::take(&mut ws.elim);
-            let failed = std::sync::Mutex::new(None::<(usize, String)>);
+            let failed = std::sync::Mutex::new(None::<(usize, Failure)>);
             par_zip(&mut lq, &mut elim, self.opts.threads, |k, l, e| {
                 if let Err(msg) = condense(k, l, e) {
                     let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
@@ -114,7 +115,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 Some(s) => break s,
                 None => match inertia.next(delta) {
                     Some(next) => delta = next,
-                    None => return Err("inertia correction failed".into()),
+                    None => return Err(Failure::InertiaCorrection),
                 },
             }
         };
@@ -129,7 +130,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         it: &Iterate<NX, NW, NC>,
         ws: &mut Workspace<NX, NW, NE, NF, NC>,
         mu: f64,
-    ) -> Result<(), String> {
+    ) -> Result<(), Failure> {
         if self.globals.is_some() {
             let Workspace {
                 ders,

@@ -8,7 +8,8 @@ use crate::nlp::derivatives::{
 use crate::nlp::HessianBlocks;
 use crate::nlp::{StageProblem, StateEquality};
 use crate::solver::Iterate;
-use crate::transcription::layout::segment;
+use crate::transcription::layout::{check_pose_coordinates, segment, LayoutError};
+use crate::transcription::sizes::{Dims, StageSizes};
 use dmech::{PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
@@ -18,7 +19,9 @@ pub(crate) mod stages;
 pub use stages::RkStages;
 
 /// A robot's problem on an explicit Runge–Kutta step of the continuous model:
-/// `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`, no stage equality.
+/// `x_k = (coords(g_k), s_k, v_k, u_{k−1})`, `w_k = u_k`, no stage equality. `NX` follows
+/// from the robot's sizes ([`crate::transcription::sizes`]) through
+/// [`RkTranscription::new`].
 pub struct RkTranscription<
     'a,
     S,
@@ -27,40 +30,56 @@ pub struct RkTranscription<
     const NP: usize,
     const NS: usize,
     const NU: usize,
+    const NX: usize,
 > {
     /// The stage functions.
     pub stages: RkStages<'a, S>,
     /// The robot's problem.
     pub problem: P,
-    _sizes: PhantomData<([(); DOF], [(); NS], [(); NU])>,
+    _sizes: PhantomData<([(); DOF], [(); NS], [(); NU], [(); NX])>,
 }
 
-impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usize>
-    RkTranscription<'a, S, P, DOF, NP, NS, NU>
+impl<
+        'a,
+        S,
+        P,
+        const DOF: usize,
+        const NP: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+    > RkTranscription<'a, S, P, DOF, NP, NS, NU, NX>
+where
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
     /// `problem` on `sys` at step `h` with the Runge–Kutta method `method`.
-    pub fn new(sys: &'a S, problem: P, h: f64, method: RungeKutta) -> Self
+    pub fn new<const NW: usize>(sys: &'a S, problem: P, h: f64, method: RungeKutta) -> Self
     where
-        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
+        Dims<NP, NS, NU>: StageSizes<NX, NW>,
     {
-        let stages = RkStages::new::<DOF, NS, NU>(sys, h, method);
-        assert_eq!(
-            stages.layout.nc, NP,
-            "NP must be the group's number of coordinates"
-        );
-        RkTranscription {
+        Self::with_sizes(sys, problem, h, method).expect("the sizes table agrees with the layout")
+    }
+
+    /// [`RkTranscription::new`] for sizes the table does not infer (generic code); `Err`
+    /// if `NP` or `NX` disagree with the system.
+    pub fn with_sizes(
+        sys: &'a S,
+        problem: P,
+        h: f64,
+        method: RungeKutta,
+    ) -> Result<Self, LayoutError> {
+        let stages = RkStages::new(sys, h, method);
+        check_pose_coordinates::<NP>(stages.layout.np)?;
+        stages.layout.fits::<NX, NU>(NU)?;
+        Ok(RkTranscription {
             stages,
             problem,
             _sizes: PhantomData,
-        }
+        })
     }
 
     /// The typed view of `(x_k, w_k = u_k)`.
-    pub fn stage<T: Real, const NX: usize>(
-        &self,
-        x: &SVector<T, NX>,
-        u: &SVector<T, NU>,
-    ) -> Stage<T, NP, NS, NU> {
+    pub fn stage<T: Real>(&self, x: &SVector<T, NX>, u: &SVector<T, NU>) -> Stage<T, NP, NS, NU> {
         let l = self.stages.layout;
         Stage {
             pose: segment(x, 0),
@@ -72,7 +91,7 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usi
     }
 
     /// The solver's iterate as a [`PlannedTrajectory`].
-    pub fn trajectory<const NX: usize, const NC: usize>(
+    pub fn trajectory<const NC: usize>(
         &self,
         it: &Iterate<NX, NU, NC>,
     ) -> PlannedTrajectory<NP, NS, NU> {
@@ -93,16 +112,15 @@ impl<
         const DOF: usize,
         const NP: usize,
         const NS: usize,
-        const NX: usize,
         const NU: usize,
+        const NX: usize,
         const NC: usize,
-    > StageProblem<NX, NU, 0, NU, NC> for RkTranscription<'_, S, P, DOF, NP, NS, NU>
+    > StageProblem<NX, NU, 0, NU, NC> for RkTranscription<'_, S, P, DOF, NP, NS, NU, NX>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
 {
     fn horizon(&self) -> usize {
-        self.stages.layout.check(NX, NU, NU);
         self.problem.horizon()
     }
     fn initial_state(&self) -> SVector<f64, NX> {

@@ -31,14 +31,14 @@ impl<'a, S> RkStages<'a, S> {
     where
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        let nc = <S::Group<f64> as LieGroup<DOF>>::identity()
+        let np = <S::Group<f64> as LieGroup<DOF>>::identity()
             .coordinates()
             .len();
         RkStages {
             sys,
             h,
             method,
-            layout: Layout::new(nc, NS, NU),
+            layout: Layout::new(np, NS, NU),
         }
     }
 
@@ -54,7 +54,7 @@ impl<'a, S> RkStages<'a, S> {
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
-        let coords: Vec<T> = (0..l.nc).map(|i| x[i]).collect();
+        let coords: Vec<T> = (0..l.np).map(|i| x[i]).collect();
         let g = <S::Group<T> as LieGroup<DOF>>::from_coordinates(&coords).expect("layout checked");
         let s: SVector<T, NS> = segment(x, l.s_at());
         let v: SVector<T, NS> = segment(x, l.v_at());
@@ -187,7 +187,7 @@ impl<'a, S> RkStages<'a, S> {
         let s: SVector<f64, NS> = segment(x, l.s_at());
         let v: SVector<f64, NS> = segment(x, l.v_at());
         let xd = seeded(x);
-        let coords: Vec<DualSVec64<NX>> = (0..l.nc).map(|i| xd[i]).collect();
+        let coords: Vec<DualSVec64<NX>> = (0..l.np).map(|i| xd[i]).collect();
         let g = <S::Group<DualSVec64<NX>> as LieGroup<DOF>>::from_coordinates(&coords)
             .expect("layout checked");
         let sd: SVector<DualSVec64<NX>, NS> = segment(&xd, l.s_at());

@@ -6,7 +6,9 @@ use crate::nlp::derivatives::generic_constraint_curvature;
 use crate::nlp::HessianBlocks;
 use crate::nlp::{StageProblem, StateEquality};
 use crate::solver::Iterate;
-use crate::transcription::layout::segment;
+use crate::toolkit::kinematic_start::{varint_start_in_layout, KinematicStartError};
+use crate::transcription::layout::{check_pose_coordinates, segment, Layout, LayoutError};
+use crate::transcription::sizes::{Dims, StageSizes};
 use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
@@ -20,6 +22,11 @@ pub use stages::VarIntStages;
 /// A robot's problem on a variational integrator (first order or midpoint):
 /// `x_k = (coords(g_k), s_k, v_{k−1}, u_{k−1})`, `w_k = (v_k, u_k)`, stage equality = the
 /// momentum matching of node `k`.
+///
+/// Its sizes are the robot's (`DOF`, `NP`, `NS`, `NU`) and the layout's (`NX`, `NW`):
+/// [`VarIntTranscription::new`] carries every shape position and infers `NX` and `NW`
+/// ([`crate::transcription::sizes`]); [`VarIntTranscription::with_layout`] takes any
+/// layout, e.g. one without the system's ignorable shape positions.
 pub struct VarIntTranscription<
     'a,
     S,
@@ -28,6 +35,8 @@ pub struct VarIntTranscription<
     const NP: usize,
     const NS: usize,
     const NU: usize,
+    const NX: usize,
+    const NW: usize,
 > {
     /// The stage functions.
     pub stages: VarIntStages<'a, S>,
@@ -36,40 +45,85 @@ pub struct VarIntTranscription<
     _sizes: PhantomData<([(); DOF], [(); NS], [(); NU])>,
 }
 
-impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usize>
-    VarIntTranscription<'a, S, P, DOF, NP, NS, NU>
+impl<
+        'a,
+        S,
+        P,
+        const DOF: usize,
+        const NP: usize,
+        const NS: usize,
+        const NU: usize,
+        const NX: usize,
+        const NW: usize,
+    > VarIntTranscription<'a, S, P, DOF, NP, NS, NU, NX, NW>
+where
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
 {
-    /// `problem` on `sys` at step `h`, right-point forcing (the first-order scheme's
-    /// default), with the given discretisation.
+    /// `problem` on `sys` at step `h` with the given discretisation, every shape position
+    /// in the state; right-point forcing (the first-order scheme's, the paper's).
     pub fn new(sys: &'a S, problem: P, h: f64, discretisation: Discretisation) -> Self
     where
-        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
+        Dims<NP, NS, NU>: StageSizes<NX, NW>,
     {
-        let stages = VarIntStages::new::<DOF, NS, NU>(sys, h, ForcingQuadrature::Right)
-            .with_discretisation(discretisation);
-        assert_eq!(
-            stages.layout.nc, NP,
-            "NP must be the group's number of coordinates"
-        );
-        VarIntTranscription {
+        let layout = Layout::new(NP, NS, NU);
+        Self::with_layout(sys, problem, h, discretisation, layout)
+            .expect("the sizes table agrees with the full layout")
+    }
+
+    /// `problem` on `sys` at step `h` in `layout` (from [`Layout::new`], with
+    /// [`Layout::ignoring`] for shape positions the stage functions do not read). `Err`
+    /// if `NP`, `NX` or `NW` disagree with the system and the layout.
+    pub fn with_layout(
+        sys: &'a S,
+        problem: P,
+        h: f64,
+        discretisation: Discretisation,
+        layout: Layout,
+    ) -> Result<Self, LayoutError> {
+        let mut stages =
+            VarIntStages::new(sys, h, ForcingQuadrature::Right).with_discretisation(discretisation);
+        layout.agrees_with(&stages.layout)?;
+        layout.fits::<NX, NW>(NS + NU)?;
+        check_pose_coordinates::<NP>(stages.layout.np)?;
+        stages.layout = layout;
+        Ok(VarIntTranscription {
             stages,
             problem,
             _sizes: PhantomData,
-        }
+        })
     }
 
-    /// The same transcription with the shape coordinates `ignored` left out of the state
-    /// (`Layout::ignoring`): they must be ones the stage functions do not read.
-    pub fn with_ignored_shape(mut self, ignored: &[usize]) -> Self {
-        self.stages.layout = self.stages.layout.ignoring(ignored);
-        self
+    /// A start in this transcription's layout from the pose path `poses` (`N + 1` poses,
+    /// heading along the motion): the shape motion that realises the path through the
+    /// connection from shape `s0` ([`crate::toolkit::kinematic_start`]), inputs zero.
+    /// `regularisation` weighs each shape velocity in its least squares.
+    #[allow(clippy::type_complexity)]
+    pub fn start_from_path(
+        &self,
+        poses: &[S::Group<f64>],
+        s0: &SVector<f64, NS>,
+        regularisation: &SVector<f64, NS>,
+    ) -> Result<(Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>), KinematicStartError>
+    where
+        S: Sync,
+    {
+        varint_start_in_layout(
+            self.stages.sys,
+            self.stages.h,
+            poses,
+            s0,
+            regularisation,
+            self.stages.discretisation,
+            self.stages.layout,
+        )
     }
 
     /// The typed view of `(x_k, w_k)`.
-    pub fn stage<T: Real, const NX: usize, const NW: usize>(
+    /// (`w` may trail entries of its own beyond `(v_k, u_k)`, as free timing's do.)
+    pub fn stage<T: Real, const NWX: usize>(
         &self,
         x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
+        w: &SVector<T, NWX>,
     ) -> Stage<T, NP, NS, NU> {
         let l = self.stages.layout;
         Stage {
@@ -82,22 +136,35 @@ impl<'a, S, P, const DOF: usize, const NP: usize, const NS: usize, const NU: usi
     }
 
     /// The solver's iterate as a [`PlannedTrajectory`].
-    pub fn trajectory<const NX: usize, const NW: usize, const NC: usize>(
+    pub fn trajectory<const NC: usize>(
         &self,
         it: &Iterate<NX, NW, NC>,
     ) -> PlannedTrajectory<NP, NS, NU>
     where
         P: PlanningProblem<NP, NS, NU, NC>,
     {
-        let n = it.w.len();
+        self.trajectory_of(&it.x, &it.w)
+    }
+
+    /// The states and decisions `x`, `w` as a [`PlannedTrajectory`] (decisions of any
+    /// size that start with `(v_k, u_k)`).
+    pub(crate) fn trajectory_of<const NWX: usize, const NC: usize>(
+        &self,
+        x: &[SVector<f64, NX>],
+        w: &[SVector<f64, NWX>],
+    ) -> PlannedTrajectory<NP, NS, NU>
+    where
+        P: PlanningProblem<NP, NS, NU, NC>,
+    {
+        let n = w.len();
         let l = self.stages.layout;
-        let mut stages: Vec<_> = (0..n).map(|k| self.stage(&it.x[k], &it.w[k])).collect();
-        let x = &it.x[n];
+        let mut stages: Vec<_> = (0..n).map(|k| self.stage(&x[k], &w[k])).collect();
+        let x = &x[n];
         stages.push(Stage {
             pose: segment(x, 0),
             shape: l.shape(x),
             velocity: segment(x, l.v_at()),
-            input: segment(&it.w[n - 1], NS),
+            input: segment(&w[n - 1], NS),
             previous_input: segment(x, l.u_at()),
         });
         // The ignored positions, which the state does not carry, by the dynamics they
@@ -126,13 +193,12 @@ impl<
         const NX: usize,
         const NW: usize,
         const NC: usize,
-    > StageProblem<NX, NW, NS, NU, NC> for VarIntTranscription<'_, S, P, DOF, NP, NS, NU>
+    > StageProblem<NX, NW, NS, NU, NC> for VarIntTranscription<'_, S, P, DOF, NP, NS, NU, NX, NW>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     P: PlanningProblem<NP, NS, NU, NC>,
 {
     fn horizon(&self) -> usize {
-        self.stages.layout.check(NX, NW, NS + NU);
         self.problem.horizon()
     }
     fn initial_state(&self) -> SVector<f64, NX> {

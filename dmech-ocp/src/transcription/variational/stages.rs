@@ -114,7 +114,7 @@ impl<'a, S> VarIntStages<'a, S> {
     where
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        let nc = <S::Group<f64> as LieGroup<DOF>>::identity()
+        let np = <S::Group<f64> as LieGroup<DOF>>::identity()
             .coordinates()
             .len();
         VarIntStages {
@@ -122,7 +122,7 @@ impl<'a, S> VarIntStages<'a, S> {
             h,
             quadrature,
             discretisation: Discretisation::FirstOrder,
-            layout: Layout::new(nc, NS, NU),
+            layout: Layout::new(np, NS, NU),
         }
     }
 
@@ -187,7 +187,7 @@ impl<'a, S> VarIntStages<'a, S> {
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
         let l = self.layout;
-        let g = <S::Group<T> as LieGroup<DOF>>::from_coordinates(&x.as_slice()[..l.nc])
+        let g = <S::Group<T> as LieGroup<DOF>>::from_coordinates(&x.as_slice()[..l.np])
             .expect("layout checked");
         let s: SVector<T, NS> = l.shape(x);
         let v: SVector<T, NS> = segment(w, 0);
