@@ -14,6 +14,8 @@
 //! Every closed form with a removable singularity (`θ → 0`) branches on the real part and
 //! evaluates a series in the dual variable, so derivatives at exactly zero are exact.
 
+#![warn(missing_docs)]
+
 pub mod dual;
 pub mod linalg;
 pub mod rn;
@@ -40,14 +42,18 @@ use std::fmt::Debug;
 /// numbers ([`LieGroup::from_re`]) and derivatives dropped ([`LieGroup::re`]). The space a
 /// group acts on is a trait of its own, [`GroupAction`].
 pub trait LieGroup<const DOF: usize>: Copy + Debug + Sized {
+    /// The scalar of the group's coordinates (`f64` or a dual number).
     type Scalar: Real;
     /// The same group over scalar `U`.
     type With<U: Real>: LieGroup<DOF, Scalar = U, With<f64> = Self::With<f64>>;
 
+    /// The identity `e`.
     fn identity() -> Self;
     /// `self ∘ other`.
     fn compose(&self, other: &Self) -> Self;
+    /// `self⁻¹`.
     fn inverse(&self) -> Self;
+    /// The exponential map of the algebra.
     fn exp(xi: &SVector<Self::Scalar, DOF>) -> Self;
     /// The principal logarithm (rotation angle in (−π, π]).
     fn log(&self) -> SVector<Self::Scalar, DOF>;

@@ -8,19 +8,25 @@ use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 /// As a matrix, `[[R(θ), (x, y)ᵀ], [0, 1]]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Se2<T: Real> {
+    /// The translation's first coordinate.
     pub x: T,
+    /// The translation's second coordinate.
     pub y: T,
+    /// The heading, rad.
     pub theta: T,
 }
 
 impl<T: Real> Se2<T> {
+    /// The pose at `(x, y)` with heading `θ`.
     pub fn new(x: T, y: T, theta: T) -> Self {
         Se2 { x, y, theta }
     }
+    /// `R(θ)`.
     pub fn rotation(&self) -> Matrix2<T> {
         let (s, c) = self.theta.sin_cos();
         Matrix2::new(c, -s, s, c)
     }
+    /// `(x, y)`.
     pub fn translation(&self) -> Vector2<T> {
         Vector2::new(self.x, self.y)
     }

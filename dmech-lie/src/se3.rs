@@ -7,7 +7,9 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector3, Vector6};
 /// A rigid motion `x ↦ R x + p`, rotation stored as a unit quaternion ([`So3`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Se3<T: Real> {
+    /// `R`.
     pub rotation: So3<T>,
+    /// `p`.
     pub translation: Vector3<T>,
 }
 
@@ -28,6 +30,7 @@ fn blocks<T: Real>(a: Matrix3<T>, b: Matrix3<T>, c: Matrix3<T>, d: Matrix3<T>) -
 }
 
 impl<T: Real> Se3<T> {
+    /// `x ↦ R x + p`.
     pub fn new(rotation: So3<T>, translation: Vector3<T>) -> Self {
         Se3 {
             rotation,

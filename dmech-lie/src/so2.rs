@@ -9,10 +9,12 @@ use nalgebra::{SMatrix, SVector, Vector1, Vector2};
 /// it into (−π, π].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct So2<T: Real> {
+    /// The rotation angle, rad (kept unwrapped).
     pub angle: T,
 }
 
 impl<T: Real> So2<T> {
+    /// The rotation by `angle`.
     pub fn new(angle: T) -> Self {
         So2 { angle }
     }

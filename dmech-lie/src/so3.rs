@@ -8,7 +8,9 @@ use nalgebra::{Matrix3, Vector3};
 /// nalgebra's `UnitQuaternion`) so that `exp`/`log` keep exact dual derivatives at zero.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct So3<T: Real> {
+    /// The quaternion's scalar part, `cos(θ/2)`.
     pub w: T,
+    /// The quaternion's vector part, `sin(θ/2) n`.
     pub v: Vector3<T>,
 }
 

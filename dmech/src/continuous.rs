@@ -134,9 +134,11 @@ where
 pub struct AccelerationJacobian<const NS: usize, const NU: usize> {
     /// `a(s, v, u)`.
     pub a: SVector<f64, NS>,
-    /// `∂a/∂s`, `∂a/∂v`, `∂a/∂u`.
+    /// `∂a/∂s`.
     pub a_s: SMatrix<f64, NS, NS>,
+    /// `∂a/∂v`.
     pub a_v: SMatrix<f64, NS, NS>,
+    /// `∂a/∂u`.
     pub a_u: SMatrix<f64, NS, NU>,
 }
 

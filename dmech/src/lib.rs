@@ -58,8 +58,11 @@
 //! assert!(e > 0.0);
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod continuous;
 pub mod energy;
+pub mod integrator;
 pub mod midpoint;
 pub mod newton;
 pub mod partials;
@@ -68,6 +71,7 @@ pub mod variational;
 
 pub use continuous::{ContinuousModel, RungeKutta};
 pub use energy::energy;
+pub use integrator::{Integrator, UnknownIntegrator};
 pub use system::{Lift, Param, PrincipalKinematicSystem};
 pub use variational::{
     Discretisation, ForcingQuadrature, JacobianPolicy, NewtonCache, StepError,

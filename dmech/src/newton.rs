@@ -11,7 +11,12 @@ use std::fmt;
 #[derive(Clone, Debug, PartialEq)]
 pub enum StepError {
     /// Newton's method did not reach the tolerance in the allowed iterations.
-    NoConvergence { iterations: usize, step_norm: f64 },
+    NoConvergence {
+        /// The iterations taken.
+        iterations: usize,
+        /// The last Newton step's size, `‖Δv‖∞`.
+        step_norm: f64,
+    },
     /// A residual, Jacobian or iterate was not finite.
     NonFinite,
     /// The Jacobian (or the mass matrix) was singular.

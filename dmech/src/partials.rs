@@ -76,7 +76,7 @@ fn pulled_back_partials<T: Real, const DOF: usize, const NS: usize>(
     })
 }
 
-/// [`pulled_back_partials`] with `D = −dexp⁻¹ A` given by its factors: the momentum
+/// `pulled_back_partials` with `D = −dexp⁻¹ A` given by its factors: the momentum
 /// `∂ℓ/∂v + c ∂ℓ/∂s − Aᵀ (dexp⁻ᵀ ∂ℓ/∂ξ)`. Contracting `∂ℓ/∂ξ` first takes `DOF (DOF + NS)`
 /// products of duals where forming `D` takes `DOF NS (DOF + 1)`: on the WIP's equality
 /// partials the product `dexp⁻¹ A` was a sixth of their instructions.
@@ -236,13 +236,17 @@ where
 /// the `v` and the `ξ` slot), in `f64`.
 #[derive(Clone, Copy, Debug)]
 pub struct MomentaJacobian<const DOF: usize, const NS: usize> {
-    /// `∂ℓ/∂v`, `∂ℓ/∂s`, `μ = ∂ℓ/∂ξ`.
+    /// `∂ℓ/∂v`.
     pub p: SVector<f64, NS>,
+    /// `∂ℓ/∂s`.
     pub ls: SVector<f64, NS>,
+    /// `μ = ∂ℓ/∂ξ`.
     pub mu: SVector<f64, DOF>,
-    /// `d(∂ℓ/∂v)/dv`, `d(∂ℓ/∂s)/dv`, `dμ/dv`.
+    /// `d(∂ℓ/∂v)/dv`.
     pub dp: nalgebra::SMatrix<f64, NS, NS>,
+    /// `d(∂ℓ/∂s)/dv`.
     pub dls: nalgebra::SMatrix<f64, NS, NS>,
+    /// `dμ/dv`.
     pub dmu: nalgebra::SMatrix<f64, DOF, NS>,
 }
 

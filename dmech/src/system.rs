@@ -10,6 +10,7 @@ use num_dual::{DualSVec64, DualVec};
 /// numbers themselves (derivatives with respect to parameters, for identification from
 /// data), the computation runs in that dual type, or in a vector dual over it.
 pub trait Lift<P>: Real {
+    /// The parameter `p` as a value of this scalar.
     fn lift(p: P) -> Self;
     /// `self · p`. For `f64` parameters this is a scalar product, several times cheaper in
     /// dual arithmetic than multiplying by the lifted parameter.

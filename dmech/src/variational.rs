@@ -53,16 +53,19 @@ impl ForcingQuadrature {
     }
 }
 
+/// A name that is not a [`ForcingQuadrature`]'s.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown forcing quadrature '{0}' (left, right, midpoint)")]
+pub struct UnknownQuadrature(pub String);
+
 impl std::str::FromStr for ForcingQuadrature {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownQuadrature;
+    fn from_str(s: &str) -> Result<Self, UnknownQuadrature> {
         match s {
             "left" => Ok(Self::Left),
             "right" => Ok(Self::Right),
             "midpoint" => Ok(Self::Midpoint),
-            _ => Err(format!(
-                "unknown forcing quadrature '{s}' (left, right, midpoint)"
-            )),
+            _ => Err(UnknownQuadrature(s.to_string())),
         }
     }
 }
@@ -294,8 +297,11 @@ where
 /// ([`crate::continuous::ContinuousState`], the same type) the instantaneous velocity.
 #[derive(Clone, Copy, Debug)]
 pub struct ViState<G, const NS: usize> {
+    /// The group element `g_k`.
     pub g: G,
+    /// The shape `s_k`.
     pub s: SVector<f64, NS>,
+    /// The shape velocity (on the interval after the node, for the integrators).
     pub v: SVector<f64, NS>,
 }
 
@@ -316,17 +322,25 @@ pub enum Discretisation {
 /// settings.
 #[derive(Clone, Copy, Debug)]
 pub struct VariationalIntegrator {
+    /// The step, s.
     pub h: f64,
+    /// The discretisation of the principle.
     pub discretisation: Discretisation,
+    /// Where the first-order scheme reads the force.
     pub quadrature: ForcingQuadrature,
+    /// How Newton's method forms its Jacobian.
     pub jacobian: JacobianPolicy,
     /// Newton stops when `‖Δv‖∞ ≤ tol · (1 + ‖v‖∞)`, or when the updates stall within 100×
     /// of that (round-off).
     pub newton_tol: f64,
+    /// Newton iterations per step, at most.
     pub max_newton_iterations: usize,
 }
 
 impl VariationalIntegrator {
+    /// The first-order scheme at step `h` with the default forcing quadrature and Newton
+    /// Jacobian ([`ForcingQuadrature::default`], [`JacobianPolicy::default`]), Newton
+    /// tolerance `1e-13` and at most 30 iterations.
     pub fn new(h: f64) -> Self {
         VariationalIntegrator {
             h,
@@ -337,14 +351,17 @@ impl VariationalIntegrator {
             max_newton_iterations: 30,
         }
     }
+    /// The same integrator with another discretisation.
     pub fn with_discretisation(mut self, d: Discretisation) -> Self {
         self.discretisation = d;
         self
     }
+    /// The same integrator with another forcing quadrature (first-order scheme).
     pub fn with_quadrature(mut self, q: ForcingQuadrature) -> Self {
         self.quadrature = q;
         self
     }
+    /// The same integrator with another Newton Jacobian policy.
     pub fn with_jacobian(mut self, j: JacobianPolicy) -> Self {
         self.jacobian = j;
         self

@@ -1,6 +1,6 @@
 //! Command-line arguments shared by the robots' tools.
 
-use dmech_ocp::solver::IpOptions;
+use dmech_ocp::solver::{Curvature, IpOptions};
 
 /// `--hessian`: the curvature of the constraints in the solver's Newton systems.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -15,12 +15,11 @@ pub enum HessianArg {
 impl HessianArg {
     /// `opts` with this curvature.
     pub fn apply(self, opts: IpOptions) -> IpOptions {
-        let exact = self == HessianArg::Exact;
-        IpOptions {
-            exact_hessian: exact,
-            quasi_newton: !exact,
-            ..opts
-        }
+        let curvature = match self {
+            HessianArg::Sr1 => Curvature::Sr1,
+            HessianArg::Exact => Curvature::Exact,
+        };
+        IpOptions { curvature, ..opts }
     }
 }
 

@@ -21,7 +21,9 @@ use num_dual::{Derivative, Dual2SVec64, DualSVec64, HyperDualSVec64};
 /// their state gradients `(∇_x ℓ_k, C_x)`, constant then too.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StageConstants<const NX: usize, const NW: usize, const NC: usize> {
+    /// The cost's and inequalities' curvature.
     pub curvature: HessianBlocks<NX, NW>,
+    /// `(∇_x ℓ_k, C_x)`, when they are constant too.
     pub state_gradients: Option<(SVector<f64, NX>, SMatrix<f64, NC, NX>)>,
 }
 
@@ -94,20 +96,35 @@ where
 /// Values and first derivatives at one stage, and the Hessian of `ℓ + ζᵀc`.
 #[derive(Clone, Debug)]
 pub struct StageDerivatives<const NX: usize, const NW: usize, const NE: usize, const NC: usize> {
+    /// The dynamics `f_k(x, w)`.
     pub f: SVector<f64, NX>,
+    /// `∂f/∂x`.
     pub fx: SMatrix<f64, NX, NX>,
+    /// `∂f/∂w`.
     pub fw: SMatrix<f64, NX, NW>,
+    /// The stage equality `e_k(x, w)`.
     pub e: SVector<f64, NE>,
+    /// `∂e/∂x`.
     pub ex: SMatrix<f64, NE, NX>,
+    /// `∂e/∂w`.
     pub ew: SMatrix<f64, NE, NW>,
+    /// The cost `ℓ_k(x, w)`.
     pub cost: f64,
+    /// `∇_x ℓ_k`.
     pub gx: SVector<f64, NX>,
+    /// `∇_w ℓ_k`.
     pub gw: SVector<f64, NW>,
+    /// The inequalities `c_k(x, w)`.
     pub c: SVector<f64, NC>,
+    /// `∂c/∂x`.
     pub cx: SMatrix<f64, NC, NX>,
+    /// `∂c/∂w`.
     pub cw: SMatrix<f64, NC, NW>,
+    /// `∇²_xx` of `ℓ + ζᵀc` (with the exact Hessian, `+ λᵀf + νᵀe`).
     pub hxx: SMatrix<f64, NX, NX>,
+    /// `∇²_xw` of the same.
     pub hxw: SMatrix<f64, NX, NW>,
+    /// `∇²_ww` of the same.
     pub hww: SMatrix<f64, NW, NW>,
     /// The stage equality's multiplier estimate at the iterate's `(λ, ζ)`
     /// ([`StageDerivatives::equality_multiplier`]), computed once per iteration by the
@@ -119,6 +136,7 @@ pub struct StageDerivatives<const NX: usize, const NW: usize, const NE: usize, c
 impl<const NX: usize, const NW: usize, const NE: usize, const NC: usize>
     StageDerivatives<NX, NW, NE, NC>
 {
+    /// All values and derivatives zero, no multiplier estimate.
     pub fn zeros() -> Self {
         StageDerivatives {
             f: SVector::zeros(),
@@ -206,6 +224,7 @@ where
 /// A scalar function of a stage `(x, w)` in any scalar: what [`block_hessian`] takes
 /// second derivatives of (closures cannot be generic over the scalar).
 pub trait StageScalar<const NX: usize, const NW: usize> {
+    /// The function's value at `(x, w)`.
     fn eval<T: dmech_lie::Real>(&self, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T;
 }
 
@@ -315,9 +334,13 @@ where
 /// The constraint part `λᵀf + νᵀe` of stage `k` as a [`StageScalar`] (through the
 /// problem's generic dynamics and equality).
 pub struct ConstraintPart<'a, P, const NX: usize, const NE: usize> {
+    /// The problem.
     pub p: &'a P,
+    /// The stage.
     pub k: usize,
+    /// The dynamics' multipliers `λ`.
     pub lambda: &'a SVector<f64, NX>,
+    /// The stage equality's multipliers `ν`.
     pub nu: &'a SVector<f64, NE>,
 }
 
@@ -585,12 +608,17 @@ where
 /// Stage values only (for the line search).
 #[derive(Clone, Copy, Debug)]
 pub struct StageValues<const NX: usize, const NE: usize, const NC: usize> {
+    /// The dynamics.
     pub f: SVector<f64, NX>,
+    /// The stage equality.
     pub e: SVector<f64, NE>,
+    /// The cost.
     pub cost: f64,
+    /// The inequalities.
     pub c: SVector<f64, NC>,
 }
 
+/// The values of stage `k` at `(x, w)` (no derivatives).
 pub fn stage_values<
     P,
     const NX: usize,
@@ -618,11 +646,15 @@ where
 /// The terminal cost `ℓ_N(x_N)`: value, gradient and Hessian, by one `Dual2` pass.
 #[derive(Clone, Copy, Debug)]
 pub struct TerminalDerivatives<const NX: usize> {
+    /// `ℓ_N(x_N)`.
     pub cost: f64,
+    /// Its gradient.
     pub gx: SVector<f64, NX>,
+    /// Its Hessian.
     pub hxx: SMatrix<f64, NX, NX>,
 }
 
+/// The terminal cost's [`TerminalDerivatives`] at `x`.
 pub fn terminal_derivatives<
     P,
     const NX: usize,

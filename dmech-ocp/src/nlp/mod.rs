@@ -41,15 +41,20 @@ pub type HessianBlocks<const NX: usize, const NW: usize> = (
 /// `x_k[index] = value` at stage `k` (`k = N` is the end state).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StateEquality {
+    /// The stage `k`.
     pub stage: usize,
+    /// The state entry.
     pub index: usize,
+    /// Its value.
     pub value: f64,
 }
 
 /// `aᵀp = b` on the global variables.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GlobalEquality {
+    /// `a`, one coefficient per global.
     pub a: Vec<f64>,
+    /// `b`.
     pub b: f64,
 }
 
@@ -59,8 +64,11 @@ pub struct GlobalEquality {
 pub struct Globals {
     /// The start value of `p` (its length is the number of globals).
     pub start: Vec<f64>,
+    /// The lower bounds.
     pub lo: Vec<f64>,
+    /// The upper bounds.
     pub hi: Vec<f64>,
+    /// The linear equalities.
     pub equalities: Vec<GlobalEquality>,
     /// `c` of the linear cost `cᵀp`.
     pub cost: Vec<f64>,
@@ -76,6 +84,7 @@ impl Globals {
     pub fn len(&self) -> usize {
         self.start.len()
     }
+    /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.start.is_empty()
     }
@@ -188,7 +197,8 @@ pub enum GlobalsError {
     },
 }
 
-/// The problem. `NX` state, `NW` stage decision, `NE` stage equalities, `NC` inequalities.
+/// The problem. `NX` state, `NW` stage decision, `NE` stage equalities, `NF = NW − NE`
+/// free decisions (less the globals' copies per stage, if any), `NC` inequalities.
 pub trait StageProblem<
     const NX: usize,
     const NW: usize,
@@ -201,15 +211,19 @@ pub trait StageProblem<
     fn horizon(&self) -> usize;
     /// `x̄ = x_0`.
     fn initial_state(&self) -> SVector<f64, NX>;
+    /// `x_{k+1} = f_k(x_k, w_k)`.
     fn dynamics<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>)
         -> SVector<T, NX>;
+    /// The stage equality `e_k(x_k, w_k) = 0`, solvable for the first `NE` entries of `w`.
     fn equality<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>)
         -> SVector<T, NE>;
+    /// The running cost `ℓ_k(x_k, w_k)`.
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T;
     /// `ℓ_N(x_N)`, a cost on the end state. Default: none.
     fn terminal_cost<T: Real>(&self, _x: &SVector<T, NX>) -> T {
         T::zero()
     }
+    /// The stage inequalities `c_k(x_k, w_k)`, bounded by [`StageProblem::bounds`].
     fn constraints<T: Real>(
         &self,
         k: usize,

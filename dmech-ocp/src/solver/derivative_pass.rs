@@ -167,7 +167,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 // The condensing reads the curvature from the table.
                 self.p.first_derivatives_into(d, k, x, w, known);
             } else {
-                let lam_exact = o.exact_hessian.then_some(lam);
+                let lam_exact = (o.curvature == Curvature::Exact).then_some(lam);
                 self.p.derivatives_into(d, k, x, w, &zeta, lam_exact, known);
             }
             d.nu = d.equality_multiplier(lam, &zeta);
@@ -182,7 +182,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                     c: d.c,
                 };
             };
-        if o.quasi_newton {
+        if o.curvature == Curvature::Sr1 {
             par_zip3(
                 &mut ws.ders,
                 &mut ws.qn,

@@ -8,14 +8,21 @@ use nalgebra::{SMatrix, SVector};
 /// The primal–dual iterate.
 #[derive(Clone, Debug)]
 pub struct Iterate<const NX: usize, const NW: usize, const NC: usize> {
+    /// The states `x_0 … x_N`.
     pub x: Vec<SVector<f64, NX>>,
+    /// The decisions `w_0 … w_{N−1}`.
     pub w: Vec<SVector<f64, NW>>,
     /// `lambda[k]`: multiplier of `x_{k+1} = f_k(x_k, w_k)`.
     pub lambda: Vec<SVector<f64, NX>>,
+    /// The slacks `c_k − lo_k` of the lower bounds.
     pub t_lo: Vec<SVector<f64, NC>>,
+    /// The slacks `hi_k − c_k` of the upper bounds.
     pub t_hi: Vec<SVector<f64, NC>>,
+    /// The lower bounds' multipliers.
     pub z_lo: Vec<SVector<f64, NC>>,
+    /// The upper bounds' multipliers.
     pub z_hi: Vec<SVector<f64, NC>>,
+    /// The state equalities' multipliers, in the problem's order.
     pub y: Vec<f64>,
     /// The global variables and their multipliers (empty without globals).
     pub globals: GlobalIterate,
@@ -24,13 +31,18 @@ pub struct Iterate<const NX: usize, const NW: usize, const NC: usize> {
 /// The result of a solve.
 #[derive(Clone, Debug)]
 pub struct SolveResult<const NX: usize, const NW: usize, const NC: usize> {
+    /// How the solve ended.
     pub status: Status,
+    /// The last iterate (the optimum when solved).
     pub iterate: Iterate<NX, NW, NC>,
+    /// Iterations taken, restoration's included.
     pub iterations: usize,
+    /// The objective at the returned point, in the problem's units.
     pub objective: f64,
     /// Largest constraint violation (dynamics, stage equalities, inequalities, state
     /// equalities), recomputed at the returned point.
     pub max_violation: f64,
+    /// Where the time went.
     pub timings: Timings,
 }
 

@@ -60,7 +60,7 @@ use kkt::globals::GlobalSpec;
 pub use kkt::riccati;
 use kkt_error::{KktError, StageAux};
 use line_search::LineSearch;
-pub use options::{Failure, IpOptions, KktMethod, Status, Timings};
+pub use options::{Curvature, Failure, IpOptions, KktMethod, Status, Timings};
 pub use parallel::STAGE_THREAD_STACK;
 use parallel::{par_collect, par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
 use quasi_newton::QuasiNewton;
@@ -327,7 +327,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         let mut filter = Filter::new(m.theta);
         let mut inertia = InertiaCorrection::default();
         let mut stall = StallWatch::new();
-        let mut ws = Workspace::new(self.n, o.quasi_newton, o.threads);
+        let mut ws = Workspace::new(self.n, o.curvature == Curvature::Sr1, o.threads);
         let mut last = LineSearch::none();
         // The shift of the step that led to the current iterate (IPOPT's `lg(rg)` column).
         let mut last_shift = 0.0;

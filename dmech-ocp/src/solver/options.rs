@@ -7,23 +7,21 @@ pub struct IpOptions {
     pub tol: f64,
     /// Largest allowed constraint violation at convergence.
     pub constr_viol_tol: f64,
+    /// Iterations, at most (restoration's included).
     pub max_iter: usize,
+    /// The barrier parameter `μ` to start with.
     pub mu_init: f64,
     /// Dual regularisation of the state equalities at `μ = mu_init`; it shrinks like `μ²`
     /// down to `delta_c_min`.
     pub delta_c: f64,
+    /// The floor of that regularisation.
     pub delta_c_min: f64,
     /// Worker threads for the stage derivatives and the line search.
     pub threads: usize,
     /// Print an iteration table on stderr.
     pub verbose: bool,
-    /// Include the curvature of the dynamics and stage equalities in the Hessian
-    /// (exact Newton; expensive with nested duals). Otherwise a Gauss–Newton-type
-    /// Hessian: cost and inequality curvature only.
-    pub exact_hessian: bool,
-    /// Partitioned SR1 approximation of the dynamics' and stage equalities' curvature
-    /// (used when `exact_hessian` is off).
-    pub quasi_newton: bool,
+    /// The curvature of the dynamics and stage equalities in the Newton systems.
+    pub curvature: Curvature,
     /// The SR1 update `B += r rᵀ/(sᵀr)` of a stage is skipped when `|sᵀr| ≤ sr1_skip ‖s‖‖r‖`.
     /// The update's norm is `‖r‖²/|sᵀr|`, at most `‖r‖/(sr1_skip ‖s‖)`: this bounds how far
     /// one stage's curvature may leap past what the secant observed. One stage's leap
@@ -42,6 +40,20 @@ pub struct IpOptions {
     pub final_barrier: Option<f64>,
 }
 
+/// The curvature of the dynamics and the stage equalities, `∇²(λᵀf + νᵀe)`, in the
+/// Newton systems (the cost's and the inequalities' curvature is always exact).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Curvature {
+    /// A partitioned SR1 approximation per stage, updated from the exact Jacobians.
+    #[default]
+    Sr1,
+    /// The exact second derivatives (exact Newton; the problem's
+    /// [`constraint_curvature`](crate::nlp::StageProblem::constraint_curvature)).
+    Exact,
+    /// None: a Gauss–Newton-type Hessian of the cost and the inequalities alone.
+    GaussNewton,
+}
+
 /// The linear algebra of the Newton step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum KktMethod {
@@ -49,7 +61,7 @@ pub enum KktMethod {
     /// complement) when the problem has globals.
     #[default]
     Riccati,
-    /// The whole condensed KKT matrix by faer's sparse `LDLᵀ` ([`crate::solver::kkt::sparse_ldlt`]).
+    /// The whole condensed KKT matrix by faer's sparse `LDLᵀ` (built on faer).
     SparseLdlt,
 }
 
@@ -74,8 +86,7 @@ impl Default for IpOptions {
                 .unwrap_or(1)
                 .min(8),
             verbose: false,
-            exact_hessian: false,
-            quasi_newton: true,
+            curvature: Curvature::Sr1,
             sr1_skip: 1e-2,
             time_limit: f64::INFINITY,
             kkt: KktMethod::Riccati,
@@ -87,11 +98,13 @@ impl Default for IpOptions {
 /// How a solve ended. Callers can tell these apart; only `Solved` carries an optimum.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Status {
+    /// The KKT conditions hold to the tolerances: an optimum.
     Solved,
     /// Feasibility restoration converged to a point of local infeasibility (a stationary
     /// point of the state equalities' squared violation within the dynamics and bounds), or
     /// the dynamics and bounds themselves cannot be met: no feasible point near.
     Infeasible {
+        /// The largest constraint violation where restoration stopped.
         violation: f64,
     },
     /// The iteration limit (`max_iter`) was reached.
@@ -176,18 +189,24 @@ impl Status {
 /// Where the time went.
 #[derive(Clone, Debug, Default)]
 pub struct Timings {
+    /// Seconds in the stage derivatives.
     pub derivatives: f64,
     /// All of the KKT solve; of it, the Riccati recursions (`riccati`, one per inertia
     /// correction trial, counted in `factorizations`).
     pub kkt: f64,
+    /// Seconds in the Riccati recursions.
     pub riccati: f64,
+    /// Factorisations of the KKT system (inertia-correction trials included).
     pub factorizations: usize,
     /// Second-order correction steps tried.
     pub second_order_corrections: usize,
     /// Feasibility restorations entered, and their time (included in `total`; their
     /// iterations are in the solve's count).
     pub restorations: usize,
+    /// Seconds in restorations.
     pub restoration: f64,
+    /// Seconds in the line search.
     pub line_search: f64,
+    /// Seconds in all.
     pub total: f64,
 }

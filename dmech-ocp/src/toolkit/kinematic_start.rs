@@ -62,10 +62,13 @@ use std::marker::PhantomData;
 
 /// The least-squares problem of the module's documentation: `x_k = s_k`, `w_k = v_k`.
 pub struct KinematicPath<'a, S, const DOF: usize, const NU: usize> {
+    /// The system.
     pub sys: &'a S,
+    /// The step.
     pub h: f64,
     /// `ξ̄_k`, one per step.
     pub body_velocities: Vec<SVector<f64, DOF>>,
+    /// `ρ_i`, one per shape velocity.
     pub regularisation: Vec<f64>,
     s0: Vec<f64>,
     _nu: PhantomData<[(); NU]>,

@@ -44,7 +44,9 @@ use nalgebra::SVector;
 /// The state equalities of the coarse and the fine problem (each in its own problem's
 /// order: the solver's `y` follows it).
 pub struct EqualityLists<'a> {
+    /// The coarse problem's.
     pub coarse: &'a [StateEquality],
+    /// The fine problem's.
     pub fine: &'a [StateEquality],
 }
 

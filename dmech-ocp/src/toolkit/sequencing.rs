@@ -145,8 +145,9 @@ pub trait SequencedPlan<
     type Problem<'a>: StageProblem<NX, NW, NE, NF, NC>
     where
         Self: 'a;
-    /// The number of steps and the step of `mesh`.
+    /// The number of steps of `mesh`.
     fn steps(&self, mesh: &Self::Mesh) -> usize;
+    /// The step of `mesh`.
     fn step(&self, mesh: &Self::Mesh) -> f64;
     /// The same problem at twice the step, if it exists (e.g. no two conditions share a
     /// stage there).

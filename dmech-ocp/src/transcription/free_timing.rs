@@ -51,6 +51,7 @@ pub struct FreeTiming {
     pub segment_starts: Vec<usize>,
     /// Bounds on each segment's step ratio `σ_j = h_j / h̄`.
     pub ratio_bounds: (f64, f64),
+    /// The plan's total time: fixed, or free at a price.
     pub total: TotalTime,
 }
 

@@ -26,7 +26,9 @@ pub struct Stage<T, const NP: usize, const NS: usize, const NU: usize> {
 /// The state a plan starts from.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StartState<const NP: usize, const NS: usize, const NU: usize> {
+    /// `coords(g_0)`.
     pub pose: SVector<f64, NP>,
+    /// `s_0`.
     pub shape: SVector<f64, NS>,
     /// The velocity the robot has arrived with (zero: at rest).
     pub velocity: SVector<f64, NS>,
@@ -52,7 +54,9 @@ impl<const NP: usize, const NS: usize, const NU: usize> StartState<NP, NS, NU> {
 /// repeats `u_{N−1}`.
 #[derive(Clone, Debug)]
 pub struct PlannedTrajectory<const NP: usize, const NS: usize, const NU: usize> {
+    /// The step.
     pub h: f64,
+    /// Stages `0 … N`.
     pub stages: Vec<Stage<f64, NP, NS, NU>>,
 }
 
@@ -73,8 +77,11 @@ pub enum Quantity {
 /// `quantity = value` at `stage` (`stage = N` is the end).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Condition {
+    /// The stage (`N`: the end).
     pub stage: usize,
+    /// What it fixes.
     pub quantity: Quantity,
+    /// To what.
     pub value: f64,
 }
 

@@ -16,7 +16,7 @@
 
 use dmech::{Discretisation, Lift, PrincipalKinematicSystem};
 use dmech_lie::{Real, Se2};
-use dmech_ocp::solver::{Failure, IpOptions, Solver, Status};
+use dmech_ocp::solver::{Curvature, Failure, IpOptions, Solver, Status};
 use dmech_ocp::transcription::{
     Condition, PlanningProblem, Quantity, Stage, StartState, VarIntTranscription,
 };
@@ -211,7 +211,7 @@ fn steered_car_bound_sweep_solves_with_default_options() {
 #[test]
 fn steered_car_with_the_exact_hessian() {
     let opts = IpOptions {
-        exact_hessian: true,
+        curvature: Curvature::Exact,
         ..Default::default()
     };
     let (status, _, j, _) = solve(0.035, opts);

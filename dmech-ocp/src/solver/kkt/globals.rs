@@ -27,9 +27,13 @@ use nalgebra::{DMatrix, DVector};
 /// (zero where there is none) and of its equalities.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GlobalIterate {
+    /// The globals `p`.
     pub p: Vec<f64>,
+    /// Their lower bounds' multipliers.
     pub z_lo: Vec<f64>,
+    /// Their upper bounds' multipliers.
     pub z_hi: Vec<f64>,
+    /// Their equalities' multipliers.
     pub y: Vec<f64>,
 }
 

@@ -218,7 +218,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         k: usize,
         constants: &'c ConstantsTable<NX, NW, NC>,
     ) -> Option<&'c HessianBlocks<NX, NW>> {
-        if self.opts.exact_hessian {
+        if self.opts.curvature == Curvature::Exact {
             return None;
         }
         constants.get(k).map(|c| &c.curvature)

@@ -16,13 +16,18 @@ type Accel<'f, T, const NS: usize, const NU: usize> =
 
 /// The stage functions of an RK transcription of `sys` at step `h`.
 pub struct RkStages<'a, S> {
+    /// The system.
     pub sys: &'a S,
+    /// The step.
     pub h: f64,
+    /// The Runge–Kutta method.
     pub method: RungeKutta,
+    /// Where each quantity sits in the stage vectors.
     pub layout: Layout,
 }
 
 impl<'a, S> RkStages<'a, S> {
+    /// `sys`'s stage functions at step `h` with `method`, every shape position in the state.
     pub fn new<const DOF: usize, const NS: usize, const NU: usize>(
         sys: &'a S,
         h: f64,

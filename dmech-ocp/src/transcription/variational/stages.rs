@@ -98,14 +98,21 @@ impl<T: Real, const NS: usize, const NU: usize> NodePoint<T, NS, NU> {
 /// The stage functions of the VI transcription of `sys` at step `h`.
 #[derive(Clone, Copy)]
 pub struct VarIntStages<'a, S> {
+    /// The system.
     pub sys: &'a S,
+    /// The step.
     pub h: f64,
+    /// Where the first-order scheme reads the force.
     pub quadrature: ForcingQuadrature,
+    /// The discretisation of the principle.
     pub discretisation: Discretisation,
+    /// Where each quantity sits in the stage vectors.
     pub layout: Layout,
 }
 
 impl<'a, S> VarIntStages<'a, S> {
+    /// `sys`'s first-order stage functions at step `h` with the forcing `quadrature`, every
+    /// shape position in the state.
     pub fn new<const DOF: usize, const NS: usize, const NU: usize>(
         sys: &'a S,
         h: f64,
@@ -203,7 +210,7 @@ impl<'a, S> VarIntStages<'a, S> {
     }
 
     /// `(f, F_x, F_w)` of [`VarIntStages::dynamics`]: the group rows by one vector-dual pass
-    /// of width `NX` through [`VarIntStages::group_step`], the other rows written out (they
+    /// of width `NX` through `VarIntStages::group_step`, the other rows written out (they
     /// are linear: `s_{k+1} = s_k + h v_k`, `(v_k, u_k)` copied). The group step reads only
     /// `(coords(g_k), s_k)` of `x` and all of `w`; `w` is seeded in the directions of the
     /// entries of `x` it does not read, `(v_{k−1}, u_{k−1})`, which `w = (v_k, u_k)` fills
