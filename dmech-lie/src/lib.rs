@@ -17,6 +17,7 @@
 #![warn(missing_docs)]
 
 pub mod dual;
+pub mod lcg;
 pub mod linalg;
 pub mod rn;
 pub mod scalar;

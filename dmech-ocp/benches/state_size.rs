@@ -6,26 +6,20 @@
 //! do not read (docs/ocp.md, "What is left"). Random stages, 4235 of them (the eight at
 //! 5 ms), so that each pass streams its data as the solver's does.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use dmech_lie::lcg::Lcg;
 use dmech_ocp::solver::riccati::{BackwardSweep, LqStage};
 use nalgebra::{SMatrix, SVector};
 use std::hint::black_box;
 
 const STAGES: usize = 4235;
 
-fn uniform(seed: &mut u64) -> f64 {
-    *seed = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-}
-
-fn random<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
-    SMatrix::from_fn(|_, _| uniform(seed))
+fn random<const R: usize, const C: usize>(seed: &mut Lcg) -> SMatrix<f64, R, C> {
+    SMatrix::from_fn(|_, _| seed.uniform())
 }
 
 /// Stages whose backward sweep stays positive definite: `Q ⪰ I`, `R = I`, `A` near `I`.
 fn lq_stages<const NX: usize>() -> Vec<LqStage<NX, 2>> {
-    let mut seed = 7;
+    let mut seed = Lcg(7);
     (0..STAGES)
         .map(|_| {
             let mut st = LqStage::<NX, 2>::zeros();
@@ -64,7 +58,7 @@ fn sweep<const NX: usize>(c: &mut Criterion) {
 }
 
 fn condense<const NX: usize>(c: &mut Criterion) {
-    let mut seed = 3;
+    let mut seed = Lcg(3);
     let input: Vec<CondenseInput<NX>> = (0..STAGES)
         .map(|_| {
             (

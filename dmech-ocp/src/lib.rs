@@ -26,7 +26,5 @@
 
 pub mod nlp;
 pub mod solver;
-#[cfg(test)]
-mod test_rng;
 pub mod toolkit;
 pub mod transcription;

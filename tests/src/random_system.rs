@@ -89,23 +89,7 @@ where
     (x, nc)
 }
 
-/// A 64-bit linear congruential generator: reproducible draws from a seed, no dependency.
-pub struct Lcg(pub u64);
-
-impl Lcg {
-    /// Uniform in `[−0.5, 0.5)`.
-    pub fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    }
-    /// Uniform in `[lo, hi)`.
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.uniform() + 0.5)
-    }
-}
+pub use dmech_lie::lcg::Lcg;
 
 impl<F, const DOF: usize, const NS: usize> RandomSystem<F, DOF, NS> {
     /// Draws a system from `seed`.

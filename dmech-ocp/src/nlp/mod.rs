@@ -30,6 +30,93 @@ use nalgebra::{SMatrix, SVector};
 
 pub mod derivatives;
 
+/// The [`StageProblem`] methods named, forwarded to the problem in field `$p` (inside an
+/// `impl StageProblem<NX, NW, NE, NF, NC>` of a wrapper that changes only the others).
+macro_rules! forward_stage_problem {
+    ($p:ident: $($method:ident),* $(,)?) => {
+        $( $crate::nlp::forward_stage_problem!(@one $p $method); )*
+    };
+    (@one $p:ident horizon) => {
+        fn horizon(&self) -> usize {
+            self.$p.horizon()
+        }
+    };
+    (@one $p:ident initial_state) => {
+        fn initial_state(&self) -> SVector<f64, NX> {
+            self.$p.initial_state()
+        }
+    };
+    (@one $p:ident dynamics) => {
+        fn dynamics<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>)
+            -> SVector<T, NX> {
+            self.$p.dynamics(k, x, w)
+        }
+    };
+    (@one $p:ident equality) => {
+        fn equality<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>)
+            -> SVector<T, NE> {
+            self.$p.equality(k, x, w)
+        }
+    };
+    (@one $p:ident constraints) => {
+        fn constraints<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>)
+            -> SVector<T, NC> {
+            self.$p.constraints(k, x, w)
+        }
+    };
+    (@one $p:ident bounds) => {
+        fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
+            self.$p.bounds(k)
+        }
+    };
+    (@one $p:ident state_equalities) => {
+        fn state_equalities(&self) -> Vec<$crate::nlp::StateEquality> {
+            self.$p.state_equalities()
+        }
+    };
+    (@one $p:ident affine_in_state) => {
+        fn affine_in_state(&self) -> bool {
+            self.$p.affine_in_state()
+        }
+    };
+    (@one $p:ident constant_cost_curvature) => {
+        fn constant_cost_curvature(&self) -> bool {
+            self.$p.constant_cost_curvature()
+        }
+    };
+    (@one $p:ident dynamics_jacobian) => {
+        fn dynamics_jacobian(&self, k: usize, x: &SVector<f64, NX>, w: &SVector<f64, NW>)
+            -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
+            self.$p.dynamics_jacobian(k, x, w)
+        }
+    };
+    (@one $p:ident equality_jacobian) => {
+        fn equality_jacobian(&self, k: usize, x: &SVector<f64, NX>, w: &SVector<f64, NW>)
+            -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
+            self.$p.equality_jacobian(k, x, w)
+        }
+    };
+    (@one $p:ident equality_partials) => {
+        fn equality_partials(&self, k: usize, x: &SVector<f64, NX>, w: &SVector<f64, NW>)
+            -> (SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
+            self.$p.equality_partials(k, x, w)
+        }
+    };
+    (@one $p:ident constraint_curvature) => {
+        fn constraint_curvature(
+            &self,
+            k: usize,
+            x: &SVector<f64, NX>,
+            w: &SVector<f64, NW>,
+            lambda: &SVector<f64, NX>,
+            nu: &SVector<f64, NE>,
+        ) -> $crate::nlp::HessianBlocks<NX, NW> {
+            self.$p.constraint_curvature(k, x, w, lambda, nu)
+        }
+    };
+}
+pub(crate) use forward_stage_problem;
+
 /// The blocks `(∇²_xx, ∇²_xw, ∇²_ww)` of a stage's Hessian (of a scalar function of
 /// `(x, w)`).
 pub type HessianBlocks<const NX: usize, const NW: usize> = (

@@ -121,12 +121,13 @@ impl<const NX: usize, const NW: usize, const NE: usize> QuasiNewton<NX, NW, NE> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dmech_lie::lcg::Lcg;
 
     type Der = StageDerivatives<3, 2, 1, 1>;
 
     /// A deterministic pseudo-random matrix with entries in [−0.5, 0.5).
-    fn mat<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
-        SMatrix::from_fn(|_, _| crate::test_rng::uniform(seed))
+    fn mat<const R: usize, const C: usize>(seed: &mut Lcg) -> SMatrix<f64, R, C> {
+        SMatrix::from_fn(|_, _| seed.uniform())
     }
 
     /// Two stage Jacobians, points and multipliers with `cos∠(s, y) = cos` (y the
@@ -140,7 +141,7 @@ mod tests {
         SVector<f64, 3>,
         SVector<f64, 3>,
     ) {
-        let mut seed = 7u64;
+        let mut seed = Lcg(7);
         let (mut d0, mut d1) = (Der::zeros(), Der::zeros());
         (d0.fx, d0.fw, d0.ex, d0.ew) = (
             mat(&mut seed),

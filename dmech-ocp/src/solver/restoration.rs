@@ -31,7 +31,6 @@
 
 use super::oracle::{RestorationOracle, RestorationSetup};
 use super::*;
-use crate::nlp::HessianBlocks;
 use dmech_lie::Real;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -100,28 +99,9 @@ impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, cons
 where
     P: StageProblem<NX, NW, NE, NF, NC>,
 {
-    fn horizon(&self) -> usize {
-        self.p.horizon()
-    }
-    fn initial_state(&self) -> SVector<f64, NX> {
-        self.p.initial_state()
-    }
-    fn dynamics<T: Real>(
-        &self,
-        k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NX> {
-        self.p.dynamics(k, x, w)
-    }
-    fn equality<T: Real>(
-        &self,
-        k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NE> {
-        self.p.equality(k, x, w)
-    }
+    crate::nlp::forward_stage_problem!(p: horizon, initial_state, dynamics, equality,
+        constraints, bounds, dynamics_jacobian, equality_jacobian, equality_partials,
+        constraint_curvature);
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         let prox = proximity(x, &self.at.x_ref[k]) + proximity(w, &self.at.w_ref[k]);
         self.penalty(k, x) + prox * (0.5 * self.zeta())
@@ -130,53 +110,8 @@ where
         let n = self.at.x_ref.len() - 1;
         self.penalty(n, x) + proximity(x, &self.at.x_ref[n]) * (0.5 * self.zeta())
     }
-    fn constraints<T: Real>(
-        &self,
-        k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NC> {
-        self.p.constraints(k, x, w)
-    }
-    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
-        self.p.bounds(k)
-    }
     fn state_equalities(&self) -> Vec<StateEquality> {
         Vec::new()
-    }
-    fn dynamics_jacobian(
-        &self,
-        k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
-        self.p.dynamics_jacobian(k, x, w)
-    }
-    fn equality_jacobian(
-        &self,
-        k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
-        self.p.equality_jacobian(k, x, w)
-    }
-    fn equality_partials(
-        &self,
-        k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
-        self.p.equality_partials(k, x, w)
-    }
-    fn constraint_curvature(
-        &self,
-        k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-        lambda: &SVector<f64, NX>,
-        nu: &SVector<f64, NE>,
-    ) -> HessianBlocks<NX, NW> {
-        self.p.constraint_curvature(k, x, w, lambda, nu)
     }
     /// The globals stay, with their equalities and bounds hard (they can always be met)
     /// and without their cost.

@@ -17,7 +17,7 @@
 
 use super::Iterate;
 use crate::nlp::HessianBlocks;
-use crate::nlp::{StageProblem, StateEquality};
+use crate::nlp::StageProblem;
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 
@@ -33,83 +33,20 @@ impl<P, const NX: usize, const NW: usize, const NE: usize, const NF: usize, cons
 where
     P: StageProblem<NX, NW, NE, NF, NC>,
 {
-    fn horizon(&self) -> usize {
-        self.p.horizon()
-    }
-    fn initial_state(&self) -> SVector<f64, NX> {
-        self.p.initial_state()
-    }
-    fn dynamics<T: Real>(
-        &self,
-        k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NX> {
-        self.p.dynamics(k, x, w)
-    }
-    fn equality<T: Real>(
-        &self,
-        k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NE> {
-        self.p.equality(k, x, w)
-    }
+    crate::nlp::forward_stage_problem!(p: horizon, initial_state, dynamics, equality,
+        constraints, bounds, state_equalities, affine_in_state, constant_cost_curvature,
+        dynamics_jacobian, equality_jacobian, equality_partials, constraint_curvature);
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         self.p.cost(k, x, w) * T::from(self.c)
     }
     fn terminal_cost<T: Real>(&self, x: &SVector<T, NX>) -> T {
         self.p.terminal_cost(x) * T::from(self.c)
     }
-    fn constraints<T: Real>(
-        &self,
-        k: usize,
-        x: &SVector<T, NX>,
-        w: &SVector<T, NW>,
-    ) -> SVector<T, NC> {
-        self.p.constraints(k, x, w)
-    }
-    fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>) {
-        self.p.bounds(k)
-    }
-    fn state_equalities(&self) -> Vec<StateEquality> {
-        self.p.state_equalities()
-    }
-    fn affine_in_state(&self) -> bool {
-        self.p.affine_in_state()
-    }
-    fn constant_cost_curvature(&self) -> bool {
-        self.p.constant_cost_curvature()
-    }
     fn globals(&self) -> Option<crate::nlp::Globals> {
         self.p.globals().map(|mut g| {
             g.cost.iter_mut().for_each(|v| *v *= self.c);
             g
         })
-    }
-    fn dynamics_jacobian(
-        &self,
-        k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SVector<f64, NX>, SMatrix<f64, NX, NX>, SMatrix<f64, NX, NW>) {
-        self.p.dynamics_jacobian(k, x, w)
-    }
-    fn equality_jacobian(
-        &self,
-        k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SVector<f64, NE>, SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
-        self.p.equality_jacobian(k, x, w)
-    }
-    fn equality_partials(
-        &self,
-        k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-    ) -> (SMatrix<f64, NE, NX>, SMatrix<f64, NE, NW>) {
-        self.p.equality_partials(k, x, w)
     }
     /// The problem's own curvature with the cost's scale passed down (its override, if it
     /// has one, serves the scaled problem).
@@ -122,16 +59,6 @@ where
         zeta: &SVector<f64, NC>,
     ) -> HessianBlocks<NX, NW> {
         self.p.cost_curvature(k, x, w, cost_scale * self.c, zeta)
-    }
-    fn constraint_curvature(
-        &self,
-        k: usize,
-        x: &SVector<f64, NX>,
-        w: &SVector<f64, NW>,
-        lambda: &SVector<f64, NX>,
-        nu: &SVector<f64, NE>,
-    ) -> HessianBlocks<NX, NW> {
-        self.p.constraint_curvature(k, x, w, lambda, nu)
     }
 }
 

@@ -325,15 +325,11 @@ where
     points
 }
 
-/// Uniform numbers in [−0.5, 0.5) from a fixed seed (a 64-bit LCG): the perturbations of
-/// both tests, reproducible without a dependency.
-fn lcg(mut seed: u64) -> impl FnMut() -> f64 {
-    move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    }
+/// Uniform numbers in [−0.5, 0.5) from a fixed seed: the perturbations of both tests,
+/// reproducible.
+fn lcg(seed: u64) -> impl FnMut() -> f64 {
+    let mut rng = dmech_lie::lcg::Lcg(seed);
+    move || rng.uniform()
 }
 
 #[test]

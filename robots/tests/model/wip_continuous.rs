@@ -3,6 +3,7 @@
 
 use dmech::continuous::{acceleration, coordinate_rate};
 use dmech::PrincipalKinematicSystem;
+use dmech_lie::lcg::Lcg;
 use nalgebra::SVector;
 use robots::wip::closed_form;
 use robots::wip::state::{from_reduced, reduced_acceleration};
@@ -58,18 +59,6 @@ fn reference_vectors() {
     let _ = WipParams::default();
 }
 
-/// A deterministic pseudo-random generator for test states (no dependency needed).
-pub struct Lcg(pub u64);
-impl Lcg {
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        lo + (hi - lo) * ((self.0 >> 11) as f64 / (1u64 << 53) as f64)
-    }
-}
-
 /// The generic model equals the hand-derived closed form at 1,000 random states and inputs,
 /// to 1e-10 relative (both are ~60 flops deep in f64 from the same parameters; the mass
 /// matrix has condition ≈ 1e4, so ε·κ ≈ 2e-12 bounds the difference).
@@ -80,15 +69,15 @@ fn generic_equals_closed_form_at_random_states() {
     let mut worst: f64 = 0.0;
     for _ in 0..1000 {
         let x = SVector::<f64, 9>::from_fn(|i, _| match i {
-            0 | 1 => rng.uniform(-3.0, 3.0),
-            2 => rng.uniform(-6.0, 6.0),
-            3 => rng.uniform(-1.2, 1.2),
-            4 => rng.uniform(-4.0, 4.0),
-            5 => rng.uniform(-1.0, 1.0),
-            6 => rng.uniform(-3.0, 3.0),
-            _ => rng.uniform(-3.0, 3.0),
+            0 | 1 => rng.range(-3.0, 3.0),
+            2 => rng.range(-6.0, 6.0),
+            3 => rng.range(-1.2, 1.2),
+            4 => rng.range(-4.0, 4.0),
+            5 => rng.range(-1.0, 1.0),
+            6 => rng.range(-3.0, 3.0),
+            _ => rng.range(-3.0, 3.0),
         });
-        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let u = SVector::<f64, 2>::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
         let a = generic_xdot(&w, &x, &u);
         let b = closed_form::state_derivative(&w.params, &x, &u);
         worst = worst.max(rel_err(&a, &b));
@@ -105,9 +94,9 @@ fn motor_circuit_from_generic_path() {
     let p = w.params;
     let mut rng = Lcg(11);
     for _ in 0..200 {
-        let s = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-1.0, 1.0));
-        let v = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
-        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let s = SVector::<f64, 5>::from_fn(|_, _| rng.range(-1.0, 1.0));
+        let v = SVector::<f64, 5>::from_fn(|_, _| rng.range(-3.0, 3.0));
+        let u = SVector::<f64, 2>::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
         let a = acceleration::<Wip, f64, 3, 5, 2>(&w, &s, &v, &u).unwrap();
         for (side, (iv, phiv)) in [(3usize, 1usize), (4, 2)].into_iter().enumerate() {
             let lhs = p.L_m * a[iv] + p.k_e * p.n_wm * (v[phiv] - v[0]);
@@ -236,24 +225,24 @@ fn closed_form_with_extensions_equals_generic_path() {
     let mut worst_d: f64 = 0.0;
     for _ in 0..500 {
         let mut p = robots::wip::WipParams::default();
-        p.m_b *= rng.uniform(0.8, 1.3);
-        p.l *= rng.uniform(0.8, 1.3);
-        p.d_v *= rng.uniform(0.5, 4.0);
+        p.m_b *= rng.range(0.8, 1.3);
+        p.l *= rng.range(0.8, 1.3);
+        p.d_v *= rng.range(0.5, 4.0);
         let je = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
-        let offsets = [rng.uniform(-2e-3, 2e-3), rng.uniform(-2e-3, 2e-3)];
+        let offsets = [rng.range(-2e-3, 2e-3), rng.range(-2e-3, 2e-3)];
         let s = SVector::<f64, 5>::new(
-            rng.uniform(-1.0, 1.0),
-            rng.uniform(-9.0, 9.0),
-            rng.uniform(-9.0, 9.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-9.0, 9.0),
+            rng.range(-9.0, 9.0),
             0.0,
             0.0,
         );
-        let v = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
-        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let v = SVector::<f64, 5>::from_fn(|_, _| rng.range(-3.0, 3.0));
+        let u = SVector::<f64, 2>::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
         let f = SVector::<f64, 5>::new(
-            rng.uniform(-0.05, 0.05),
-            rng.uniform(-0.01, 0.01),
-            rng.uniform(-0.01, 0.01),
+            rng.range(-0.05, 0.05),
+            rng.range(-0.01, 0.01),
+            rng.range(-0.01, 0.01),
             0.0,
             0.0,
         );
@@ -310,12 +299,12 @@ fn algebraic_current_model_equals_full_model_at_steady_current() {
     let mut worst: f64 = 0.0;
     for _ in 0..500 {
         let s3 = SVector::<f64, 3>::new(
-            rng.uniform(-1.0, 1.0),
-            rng.uniform(-9.0, 9.0),
-            rng.uniform(-9.0, 9.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-9.0, 9.0),
+            rng.range(-9.0, 9.0),
         );
-        let v3 = SVector::<f64, 3>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
-        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let v3 = SVector::<f64, 3>::from_fn(|_, _| rng.range(-3.0, 3.0));
+        let u = SVector::<f64, 2>::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
         let i = [
             p.steady_current(u[0], v3[1] - v3[0]),
             p.steady_current(u[1], v3[2] - v3[0]),
@@ -329,7 +318,7 @@ fn algebraic_current_model_equals_full_model_at_steady_current() {
             );
         }
         let a = acceleration::<WipAlgebraicCurrent, f64, 3, 3, 2>(&alg, &s3, &v3, &u).unwrap();
-        let s5 = SVector::<f64, 5>::new(s3[0], s3[1], s3[2], rng.uniform(-1.0, 1.0), 0.3);
+        let s5 = SVector::<f64, 5>::new(s3[0], s3[1], s3[2], rng.range(-1.0, 1.0), 0.3);
         let v5 = SVector::<f64, 5>::new(v3[0], v3[1], v3[2], i[0], i[1]);
         let b = acceleration::<Wip, f64, 3, 5, 2>(&full, &s5, &v5, &u).unwrap();
         let c = shape_acceleration(&full, s3[0], [v3[0], v3[1], v3[2]], i, [0.0; 3]).unwrap();
@@ -355,12 +344,12 @@ fn algebraic_current_model_equals_full_model_at_steady_current() {
 /// every term the closed forms carry.
 fn perturbed_wip(rng: &mut Lcg) -> Wip {
     let mut p = WipParams::default();
-    p.m_b *= rng.uniform(0.8, 1.3);
-    p.l *= rng.uniform(0.8, 1.3);
-    p.d_v *= rng.uniform(0.5, 4.0);
-    p.I_m *= rng.uniform(0.5, 2.0);
+    p.m_b *= rng.range(0.8, 1.3);
+    p.l *= rng.range(0.8, 1.3);
+    p.d_v *= rng.range(0.5, 4.0);
+    p.I_m *= rng.range(0.5, 2.0);
     let mut w = Wip::new(p);
-    w.wheel_radius_offsets = [rng.uniform(-2e-3, 2e-3), rng.uniform(-2e-3, 2e-3)];
+    w.wheel_radius_offsets = [rng.range(-2e-3, 2e-3), rng.range(-2e-3, 2e-3)];
     w.quasi_static_inertia = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
     w
 }
@@ -429,14 +418,14 @@ fn closed_form_acceleration_of_both_models_equals_generic_path() {
     for _ in 0..300 {
         let full = perturbed_wip(&mut rng);
         let s = SVector::<f64, 5>::new(
-            rng.uniform(-1.0, 1.0),
-            rng.uniform(-9.0, 9.0),
-            rng.uniform(-9.0, 9.0),
-            rng.uniform(-1.0, 1.0),
-            rng.uniform(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-9.0, 9.0),
+            rng.range(-9.0, 9.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
         );
-        let v = SVector::<f64, 5>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
-        let u = SVector::<f64, 2>::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+        let v = SVector::<f64, 5>::from_fn(|_, _| rng.range(-3.0, 3.0));
+        let u = SVector::<f64, 2>::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
         worst = worst.max(compare(&full, &s, &v, &u));
         let alg = WipAlgebraicCurrent::new(full);
         let (s3, v3) = (
@@ -505,9 +494,9 @@ fn closed_form_lagrangian_gradient_of_both_models_equals_dual_partials() {
     let mut worst: f64 = 0.0;
     for _ in 0..300 {
         let full = perturbed_wip(&mut rng);
-        let z13 = SVector::<f64, 13>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
+        let z13 = SVector::<f64, 13>::from_fn(|_, _| rng.range(-3.0, 3.0));
         worst = worst.max(compare::<_, 5, 13>(&full, &z13));
-        let z9 = SVector::<f64, 9>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
+        let z9 = SVector::<f64, 9>::from_fn(|_, _| rng.range(-3.0, 3.0));
         worst = worst.max(compare::<_, 3, 9>(&WipAlgebraicCurrent::new(full), &z9));
     }
     println!("worst relative difference: {worst:.3e}");

@@ -244,9 +244,10 @@ pub fn global_forward<'s, const NX: usize, const NF: usize, const NT: usize>(
 mod tests {
     use super::*;
     use crate::solver::kkt::riccati::{solve_lq, sweep_lq};
+    use dmech_lie::lcg::Lcg;
 
-    fn mat<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
-        SMatrix::from_fn(|_, _| crate::test_rng::uniform(seed))
+    fn mat<const R: usize, const C: usize>(seed: &mut Lcg) -> SMatrix<f64, R, C> {
+        SMatrix::from_fn(|_, _| seed.uniform())
     }
 
     /// With the globals' step fixed at the Schur solution, the augmented recursion gives the
@@ -259,7 +260,7 @@ mod tests {
         const NF: usize = 2;
         const NT: usize = 2;
         let (n, ng) = (7usize, 3usize);
-        let mut seed = 11u64;
+        let mut seed = Lcg(11);
         let spd = |m: SMatrix<f64, NX, NX>| m * m.transpose() + SMatrix::identity() * 0.2;
         let stages: Vec<LqStage<NX, NF>> = (0..n)
             .map(|_| {

@@ -20,17 +20,26 @@ use nalgebra::{SMatrix, SVector};
 /// One stage of the LQ problem, fixed sizes (`NX` states, `NF` inputs).
 #[derive(Clone, Debug)]
 pub struct LqStage<const NX: usize, const NF: usize> {
+    /// `Q`, the cost's state block.
     pub q_mat: SMatrix<f64, NX, NX>,
+    /// `S`, its state–input block.
     pub s_mat: SMatrix<f64, NX, NF>,
+    /// `R`, its input block.
     pub r_mat: SMatrix<f64, NF, NF>,
+    /// `q`, the cost's state gradient.
     pub q: SVector<f64, NX>,
+    /// `r`, its input gradient.
     pub r: SVector<f64, NF>,
+    /// `A` of `x_{k+1} = A x_k + B u_k + c`.
     pub a: SMatrix<f64, NX, NX>,
+    /// `B`.
     pub b: SMatrix<f64, NX, NF>,
+    /// `c`.
     pub c: SVector<f64, NX>,
 }
 
 impl<const NX: usize, const NF: usize> LqStage<NX, NF> {
+    /// Every block zero.
     pub fn zeros() -> Self {
         LqStage {
             q_mat: SMatrix::zeros(),
@@ -49,8 +58,11 @@ impl<const NX: usize, const NF: usize> LqStage<NX, NF> {
 /// (`lambda[k]` for the constraint that defines `x_{k+1}`).
 #[derive(Clone, Debug)]
 pub struct LqSolution<const NX: usize, const NF: usize> {
+    /// The states.
     pub x: Vec<SVector<f64, NX>>,
+    /// The inputs.
     pub u: Vec<SVector<f64, NF>>,
+    /// The dynamics' multipliers.
     pub lambda: Vec<SVector<f64, NX>>,
 }
 
@@ -58,7 +70,10 @@ pub struct LqSolution<const NX: usize, const NF: usize> {
 #[derive(Clone, Debug, PartialEq)]
 pub enum RiccatiError {
     /// `H_uu` not positive definite at this stage.
-    NotPositiveDefinite { stage: usize },
+    NotPositiveDefinite {
+        /// The stage.
+        stage: usize,
+    },
 }
 
 /// The backward sweep of the recursion, one stage at a time from `k = N−1` down, so that a
@@ -250,11 +265,12 @@ pub fn sweep_lq<const NX: usize, const NF: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dmech_lie::lcg::Lcg;
     use nalgebra::{DMatrix, DVector};
 
     /// A deterministic pseudo-random matrix.
-    fn mat(r: usize, c: usize, seed: &mut u64) -> DMatrix<f64> {
-        DMatrix::from_fn(r, c, |_, _| crate::test_rng::uniform(seed))
+    fn mat(r: usize, c: usize, seed: &mut Lcg) -> DMatrix<f64> {
+        DMatrix::from_fn(r, c, |_, _| seed.uniform())
     }
 
     /// A stage with dynamic sizes, for the dense assembly.
@@ -284,7 +300,7 @@ mod tests {
         const NX: usize = 4;
         const NF: usize = 2;
         let (nx, nu, n) = (NX, NF, 6usize);
-        let mut seed = 3u64;
+        let mut seed = Lcg(3);
         let spd = |m: DMatrix<f64>, shift: f64| {
             &m * m.transpose() + DMatrix::identity(m.nrows(), m.nrows()) * shift
         };

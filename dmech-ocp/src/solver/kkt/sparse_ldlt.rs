@@ -444,18 +444,19 @@ mod tests {
     use super::*;
     use crate::solver::kkt::global_riccati::{global_forward, global_sweep};
     use crate::solver::kkt::riccati::{solve_lq, sweep_lq};
+    use dmech_lie::lcg::Lcg;
     use nalgebra::DMatrix;
 
     const NX: usize = 4;
     const NF: usize = 2;
     const NT: usize = 2;
 
-    fn mat<const R: usize, const C: usize>(seed: &mut u64) -> SMatrix<f64, R, C> {
-        SMatrix::from_fn(|_, _| crate::test_rng::uniform(seed))
+    fn mat<const R: usize, const C: usize>(seed: &mut Lcg) -> SMatrix<f64, R, C> {
+        SMatrix::from_fn(|_, _| seed.uniform())
     }
 
     /// Random stages: convex costs, dynamics near the identity.
-    fn stages(n: usize, seed: &mut u64) -> Vec<LqStage<NX, NF>> {
+    fn stages(n: usize, seed: &mut Lcg) -> Vec<LqStage<NX, NF>> {
         (0..n)
             .map(|_| {
                 let (q, r): (SMatrix<f64, NX, NX>, SMatrix<f64, NF, NF>) = (mat(seed), mat(seed));
@@ -524,7 +525,7 @@ mod tests {
     #[test]
     fn sparse_ldlt_equals_riccati_on_a_fixed_time_problem() {
         let n = 30;
-        let mut seed = 5u64;
+        let mut seed = Lcg(5);
         let st = stages(n, &mut seed);
         let q_n: SMatrix<f64, NX, NX> = SMatrix::identity();
         let q_vec_n: SVector<f64, NX> = mat(&mut seed);
@@ -555,7 +556,7 @@ mod tests {
     #[test]
     fn sparse_ldlt_equals_augmented_riccati_with_globals() {
         let (n, ng) = (30, 3);
-        let mut seed = 9u64;
+        let mut seed = Lcg(9);
         let st = stages(n, &mut seed);
         let cps: Vec<LqCoupling<NX, NF, NT>> = (0..n)
             .map(|_| {
