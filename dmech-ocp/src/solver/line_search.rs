@@ -207,19 +207,8 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 let mut found = None;
                 for _ in 0..SOC_MAX {
                     let t_soc = Instant::now();
-                    let sstep = if self.opts.kkt == KktMethod::SparseLdlt {
-                        self.sparse_correction(
-                            it, ws, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
-                        )
-                    } else if self.globals.is_some() {
-                        self.global_correction(
-                            it, ws, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
-                        )
-                    } else {
-                        self.second_order_correction(
-                            it, ws, &soc_vals, &soc_trial, soc_alpha, mu, dc, delta,
-                        )
-                    };
+                    let correction = (&soc_vals[..], &soc_trial, soc_alpha);
+                    let sstep = self.second_order_correction(it, ws, correction, mu, dc, delta);
                     let Some(sstep) = sstep else {
                         break;
                     };

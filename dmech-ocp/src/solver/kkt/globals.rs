@@ -21,6 +21,7 @@ use crate::nlp::Globals;
 use crate::solver::kkt::global_riccati::{global_forward, global_sweep, GlobalSchur, LqCoupling};
 use crate::solver::kkt::riccati::LqSolution;
 use crate::solver::kkt::sparse_ldlt::GlobalTerms;
+use crate::solver::kkt::{Correction, KktBackend};
 use nalgebra::{DMatrix, DVector};
 
 /// The globals' part of an iterate: `p`, the multipliers of its lower and upper bounds
@@ -340,62 +341,6 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         Some((dp, y))
     }
 
-    /// The Newton step of a problem with globals (see [`Solver::newton_step`]).
-    pub(in crate::solver) fn newton_step_global(
-        &self,
-        it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NF, NC>,
-        inertia: &mut InertiaCorrection,
-        mu: f64,
-        dc: f64,
-        tm: &mut Timings,
-    ) -> Result<(Step<NX, NW, NC>, f64), Failure> {
-        let t1 = Instant::now();
-        let (first, t_sweep) = self.condense_workspace(it, ws, mu, dc, 0.0, None)?;
-        let Workspace {
-            ders,
-            lq,
-            elim,
-            qn,
-            constants,
-            couplings,
-            sweep,
-            ..
-        } = ws;
-        self.couplings(it, ders, (constants, qn), elim, mu, couplings)?;
-        tm.riccati += t_sweep;
-        let mut attempt = Some(first);
-        let mut delta = 0.0;
-        let solved = loop {
-            tm.factorizations += 1;
-            let t_r = Instant::now();
-            let swept = match attempt.take() {
-                Some(s) => s,
-                None => {
-                    sweep.reshift(delta);
-                    sweep.sweep_all(lq)
-                }
-            };
-            let solved = swept.ok().and_then(|()| {
-                let schur = self.schur(sweep, lq, couplings)?;
-                let (dp, y) = self.reduced_global_step(&schur, &it.globals, mu, delta)?;
-                Some((schur, dp, y))
-            });
-            tm.riccati += t_r.elapsed().as_secs_f64();
-            match solved {
-                Some(s) => break s,
-                None => match inertia.next(delta) {
-                    Some(next) => delta = next,
-                    None => return Err(Failure::InertiaCorrection),
-                },
-            }
-        };
-        inertia.succeeded(delta);
-        let step = self.global_recover(it, ders, lq, elim, couplings, sweep, solved, mu, dc);
-        tm.kkt += t1.elapsed().as_secs_f64();
-        Ok((step, delta))
-    }
-
     fn schur(
         &self,
         sweep: &BackwardSweep<NX, NF>,
@@ -480,43 +425,93 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         };
         step
     }
+}
 
-    /// The second-order correction of a problem with globals (see
-    /// [`Solver::second_order_correction`]): the same system with the residuals of the
-    /// dynamics and stage equalities replaced, at the iteration's shift `delta`.
-    #[allow(clippy::too_many_arguments)]
-    pub(in crate::solver) fn global_correction(
+/// The Riccati recursion augmented by the globals' columns (module documentation): the
+/// stages condensed and swept as without globals, their couplings to the globals, the
+/// Schur complement in `δp` solved densely with its inertia checked.
+pub(in crate::solver) struct RiccatiWithGlobals;
+
+impl<const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    KktBackend<NX, NW, NE, NF, NC> for RiccatiWithGlobals
+{
+    fn condense_and_solve(
         &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
         it: &Iterate<NX, NW, NC>,
         ws: &mut Workspace<NX, NW, NE, NF, NC>,
-        trial_vals: &[StageValues<NX, NE, NC>],
-        trial: &Iterate<NX, NW, NC>,
-        alpha: f64,
         mu: f64,
         dc: f64,
         delta: f64,
-    ) -> Option<Step<NX, NW, NC>> {
-        let correction = Some((trial_vals, trial, alpha));
-        let (swept, _) = self
-            .condense_workspace(it, ws, mu, dc, delta, correction)
-            .ok()?;
-        swept.ok()?;
+        correction: Option<Correction<'_, NX, NW, NE, NC>>,
+        tm: &mut Timings,
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure> {
+        let (swept, t_sweep) = s.condense_workspace(it, ws, mu, dc, delta, correction)?;
+        // The couplings read no residual: a correction's are the iteration's (with the
+        // corrected `w0`).
         let Workspace {
             ders,
-            lq,
             elim,
             qn,
             constants,
             couplings,
-            sweep,
             ..
         } = ws;
-        // The couplings read no residual: those of the iteration's derivatives (with the
-        // corrected `w0`).
-        self.couplings(it, ders, (constants, qn), elim, mu, couplings)
-            .ok()?;
-        let schur = self.schur(sweep, lq, couplings)?;
-        let (dp, y) = self.reduced_global_step(&schur, &it.globals, mu, delta)?;
-        Some(self.global_recover(it, ders, lq, elim, couplings, sweep, (schur, dp, y), mu, dc))
+        s.couplings(it, ders, (constants, qn), elim, mu, couplings)?;
+        tm.riccati += t_sweep;
+        let t = Instant::now();
+        let step = swept
+            .ok()
+            .and_then(|()| self.step(s, it, ws, mu, dc, delta));
+        tm.riccati += t.elapsed().as_secs_f64();
+        Ok(step)
+    }
+
+    fn solve_again(
+        &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+        tm: &mut Timings,
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure> {
+        let t = Instant::now();
+        ws.sweep.reshift(delta);
+        let swept = ws.sweep.sweep_all(&ws.lq);
+        let step = swept
+            .ok()
+            .and_then(|()| self.step(s, it, ws, mu, dc, delta));
+        tm.riccati += t.elapsed().as_secs_f64();
+        Ok(step)
+    }
+}
+
+impl RiccatiWithGlobals {
+    /// From a completed backward sweep: the globals' Schur complement and reduced step at
+    /// shift `delta` (`None` if its inertia is wrong), then the forward pass and recovery.
+    fn step<const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>(
+        &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
+        it: &Iterate<NX, NW, NC>,
+        ws: &Workspace<NX, NW, NE, NF, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+    ) -> Option<Step<NX, NW, NC>> {
+        let schur = s.schur(&ws.sweep, &ws.lq, &ws.couplings)?;
+        let (dp, y) = s.reduced_global_step(&schur, &it.globals, mu, delta)?;
+        Some(s.global_recover(
+            it,
+            &ws.ders,
+            &ws.lq,
+            &ws.elim,
+            &ws.couplings,
+            &ws.sweep,
+            (schur, dp, y),
+            mu,
+            dc,
+        ))
     }
 }

@@ -1,7 +1,8 @@
-//! The KKT system: the Newton step with its inertia correction, a stage condensed
-//! (dependent decisions and slacks eliminated), the state equalities' dual-regularised
-//! rows, and the condense-and-sweep pass with its second-order correction. The KKT error
-//! is in `kkt_error.rs`.
+//! The KKT system: the Newton step with its inertia correction over one [`KktBackend`]
+//! (the Riccati recursion, the recursion with global variables, or a sparse `LDLᵀ`), a
+//! stage condensed (dependent decisions and slacks eliminated), the state equalities'
+//! dual-regularised rows, the condense-and-sweep pass, and the second-order correction.
+//! The KKT error is in `kkt_error.rs`.
 
 use super::*;
 
@@ -20,14 +21,131 @@ pub(super) struct StageCurvature<'c, const NX: usize, const NW: usize, const NE:
     pub(super) qn: Option<&'c QuasiNewton<NX, NW, NE>>,
 }
 
+/// A second-order correction's data: the trial point's values, the trial point and the
+/// step length `α` that reached it (the residuals become `α r(x) + r(x_trial)`).
+pub(super) type Correction<'c, const NX: usize, const NW: usize, const NE: usize, const NC: usize> =
+    (&'c [StageValues<NX, NE, NC>], &'c Iterate<NX, NW, NC>, f64);
+
+/// A linear solver of the condensed KKT system. The solver condenses every stage the same
+/// way ([`Solver::condense`]); a back-end solves what the condensing leaves, and reports a
+/// wrong inertia so that the one inertia-correction loop ([`Solver::newton_step`]) can
+/// shift it. Three back-ends: the Riccati recursion ([`Riccati`]), the recursion augmented
+/// by the global variables' columns ([`RiccatiWithGlobals`], `globals.rs`), and faer's
+/// sparse `LDLᵀ` of the whole condensed matrix ([`SparseLdlt`], `sparse_step.rs`).
+pub(super) trait KktBackend<
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>
+{
+    /// Every stage condensed into the workspace (from the iteration's derivatives, or a
+    /// second-order correction's) and the system solved at the primal shift `delta`: the
+    /// step, or `None` if the inertia is wrong at that shift. `Err` if a stage cannot be
+    /// condensed or the back-end fails otherwise.
+    #[allow(clippy::too_many_arguments)]
+    fn condense_and_solve(
+        &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+        correction: Option<Correction<'_, NX, NW, NE, NC>>,
+        tm: &mut Timings,
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure>;
+
+    /// The condensed stages solved again at another shift `delta`.
+    #[allow(clippy::too_many_arguments)]
+    fn solve_again(
+        &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+        tm: &mut Timings,
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure>;
+}
+
+/// The Riccati recursion over the condensed stages, its backward sweep run behind the
+/// condensing ([`Solver::condense_and_sweep`]).
+pub(super) struct Riccati;
+
+impl<const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    KktBackend<NX, NW, NE, NF, NC> for Riccati
+{
+    fn condense_and_solve(
+        &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+        correction: Option<Correction<'_, NX, NW, NE, NC>>,
+        tm: &mut Timings,
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure> {
+        let (swept, t_sweep) = s.condense_workspace(it, ws, mu, dc, delta, correction)?;
+        tm.riccati += t_sweep;
+        Ok(swept.ok().map(|()| self.step(s, it, ws, mu, dc)))
+    }
+
+    fn solve_again(
+        &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+        tm: &mut Timings,
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure> {
+        let t = Instant::now();
+        ws.sweep.reshift(delta);
+        let swept = ws.sweep.sweep_all(&ws.lq);
+        tm.riccati += t.elapsed().as_secs_f64();
+        Ok(swept.ok().map(|()| self.step(s, it, ws, mu, dc)))
+    }
+}
+
+impl Riccati {
+    /// The step from a completed backward sweep: the forward pass and the stages' recovery.
+    fn step<const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>(
+        &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
+        it: &Iterate<NX, NW, NC>,
+        ws: &Workspace<NX, NW, NE, NF, NC>,
+        mu: f64,
+        dc: f64,
+    ) -> Step<NX, NW, NC> {
+        let sol = ws.sweep.forward(&ws.lq, &SVector::zeros());
+        s.recover(it, &ws.ders, &ws.elim, sol, mu, dc, None)
+    }
+}
+
 impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
     Solver<'a, NX, NW, NE, NF, NC>
 {
-    /// The Newton step at `it` and the primal shift it took: every stage condensed, the
-    /// Riccati recursion run behind the condensing with no shift, and, while some stage's
-    /// `H_uu` is not positive definite, again over the condensed stages with the next shift
-    /// of the inertia correction. `Err` when a stage cannot be condensed or the shifts are
-    /// exhausted.
+    /// The back-end of this solve's Newton systems ([`KktBackend`]).
+    fn kkt_backend(&self) -> &'static dyn KktBackend<NX, NW, NE, NF, NC> {
+        if self.opts.kkt == KktMethod::SparseLdlt {
+            &sparse_step::SparseLdlt
+        } else if self.globals.is_some() {
+            &globals::RiccatiWithGlobals
+        } else {
+            &Riccati
+        }
+    }
+
+    /// The Newton step at `it` and the primal shift it took: every stage condensed and the
+    /// system solved with no shift, and, while its inertia is wrong (some stage's `H_uu`
+    /// not positive definite, or the globals' reduced system of the wrong inertia), again
+    /// over the condensed stages with the next shift of the inertia correction. `Err` when
+    /// a stage cannot be condensed, the back-end fails, or the shifts are exhausted.
     pub(super) fn newton_step(
         &self,
         it: &Iterate<NX, NW, NC>,
@@ -37,49 +155,42 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         dc: f64,
         tm: &mut Timings,
     ) -> Result<(Step<NX, NW, NC>, f64), Failure> {
-        if self.opts.kkt == KktMethod::SparseLdlt {
-            return self.newton_step_sparse(it, ws, inertia, mu, dc, tm);
-        }
-        if self.globals.is_some() {
-            return self.newton_step_global(it, ws, inertia, mu, dc, tm);
-        }
         let t1 = Instant::now();
-        let (first, t_sweep) = self.condense_workspace(it, ws, mu, dc, 0.0, None)?;
-        tm.riccati += t_sweep;
-        let Workspace {
-            ders,
-            lq,
-            elim,
-            sweep,
-            ..
-        } = ws;
-        let mut attempt = Some(first);
+        let backend = self.kkt_backend();
         let mut delta = 0.0;
-        loop {
+        let mut solved = backend.condense_and_solve(self, it, ws, mu, dc, delta, None, tm)?;
+        let step = loop {
             tm.factorizations += 1;
-            let swept = match attempt.take() {
-                Some(r) => r,
-                None => {
-                    let t_r = Instant::now();
-                    sweep.reshift(delta);
-                    let r = sweep.sweep_all(lq);
-                    tm.riccati += t_r.elapsed().as_secs_f64();
-                    r
-                }
-            };
-            match swept {
-                Ok(()) => break,
-                Err(_) => match inertia.next(delta) {
-                    Some(next) => delta = next,
-                    None => return Err(Failure::InertiaCorrection),
-                },
+            if let Some(step) = solved {
+                break step;
             }
-        }
+            delta = inertia.next(delta).ok_or(Failure::InertiaCorrection)?;
+            solved = backend.solve_again(self, it, ws, mu, dc, delta, tm)?;
+        };
         inertia.succeeded(delta);
-        let sol = sweep.forward(lq, &SVector::zeros());
-        let step = self.recover(it, ders, elim, sol, mu, dc, None);
         tm.kkt += t1.elapsed().as_secs_f64();
         Ok((step, delta))
+    }
+
+    /// The second-order correction step: the KKT system of the iterate (same curvature,
+    /// same inertia shift `delta`) with the residuals of the dynamics and the stage
+    /// equalities replaced by `α r(x) + r(x_trial)` (`correction`), condensed into the
+    /// iteration's buffers (its own step is already recovered from them). `None` if it
+    /// cannot be solved.
+    pub(super) fn second_order_correction(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
+        correction: Correction<'_, NX, NW, NE, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+    ) -> Option<Step<NX, NW, NC>> {
+        let mut untimed = Timings::default();
+        self.kkt_backend()
+            .condense_and_solve(self, it, ws, mu, dc, delta, Some(correction), &mut untimed)
+            .ok()
+            .flatten()
     }
 
     /// Condense stage `k`: eliminate the dependent decisions and the inequality slacks,
@@ -405,33 +516,6 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         }
     }
 
-    /// The second-order correction step: the KKT system of the iterate (same curvature,
-    /// same inertia shift `delta`) with the residuals of the dynamics and the stage
-    /// equalities replaced by `α r(x) + r(x_trial)`, condensed into the iteration's buffers
-    /// `lq`, `elim` (its own step is already recovered from them). `None` if it cannot be
-    /// solved.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn second_order_correction(
-        &self,
-        it: &Iterate<NX, NW, NC>,
-        ws: &mut Workspace<NX, NW, NE, NF, NC>,
-        trial_vals: &[StageValues<NX, NE, NC>],
-        trial: &Iterate<NX, NW, NC>,
-        alpha: f64,
-        mu: f64,
-        dc: f64,
-        delta: f64,
-    ) -> Option<Step<NX, NW, NC>> {
-        // The iteration's step is recovered already: its sweep's buffers are free.
-        let correction = Some((trial_vals, trial, alpha));
-        let (swept, _) = self
-            .condense_workspace(it, ws, mu, dc, delta, correction)
-            .ok()?;
-        swept.ok()?;
-        let sol = ws.sweep.forward(&ws.lq, &SVector::zeros());
-        Some(self.recover(it, &ws.ders, &ws.elim, sol, mu, dc, None))
-    }
-
     /// Every stage condensed into the workspace's buffers (`lq`, `elim`) with the Riccati
     /// sweep restarted at the primal shift `shift` and run behind the condensing
     /// ([`Solver::condense_and_sweep`]): from the iteration's derivatives, or, with
@@ -445,7 +529,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         mu: f64,
         dc: f64,
         shift: f64,
-        correction: Option<(&[StageValues<NX, NE, NC>], &Iterate<NX, NW, NC>, f64)>,
+        correction: Option<Correction<'_, NX, NW, NE, NC>>,
     ) -> Result<(Result<(), RiccatiError>, f64), Failure> {
         let (q_n, q_vec_n) = self.terminal_lq(it, &ws.terminal, dc);
         let Workspace {

@@ -3,7 +3,7 @@
 //! stages and couplings as the Riccati path, the inertia read from `D`, the same inertia
 //! correction. With or without globals.
 
-use super::kkt::corrected_derivatives;
+use super::kkt::{corrected_derivatives, Correction, KktBackend};
 use super::*;
 use crate::solver::kkt::global_riccati::LqCoupling;
 use crate::solver::kkt::sparse_ldlt::{SparseKkt, SparseKktError};
@@ -69,59 +69,44 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         }
     }
 
-    /// The Newton step by the sparse path (see [`Solver::newton_step`]).
-    pub(in crate::solver) fn newton_step_sparse(
+    /// Every stage condensed into the workspace (from the iteration's derivatives, or a
+    /// second-order correction's), in parallel, with no sweep behind it.
+    fn condense_stages(
         &self,
         it: &Iterate<NX, NW, NC>,
         ws: &mut Workspace<NX, NW, NE, NF, NC>,
-        inertia: &mut InertiaCorrection,
         mu: f64,
         dc: f64,
-        tm: &mut Timings,
-    ) -> Result<(Step<NX, NW, NC>, f64), Failure> {
-        let t1 = Instant::now();
-        {
-            let (ders, qn, constants) = (&ws.ders, &ws.qn, &ws.constants);
-            let condense = |k: usize, l: &mut LqStage<NX, NF>, e: &mut Elimination<NX, NW, NF>| {
-                let curvature = self.stage_curvature(k, constants, qn);
-                self.condense(k, it, &ders[k], curvature, mu, dc, l, e)
-            };
-            // The closure borrows `ws` immutably; condense into fresh buffers, then move.
-            let mut lq = std::mem::take(&mut ws.lq);
-            let mut elim = std::mem::take(&mut ws.elim);
-            let failed = std::sync::Mutex::new(None::<(usize, Failure)>);
-            par_zip(&mut lq, &mut elim, self.opts.threads, |k, l, e| {
-                if let Err(msg) = condense(k, l, e) {
-                    let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
-                    if f.as_ref().is_none_or(|(j, _)| k < *j) {
-                        *f = Some((k, msg));
-                    }
+        correction: Option<Correction<'_, NX, NW, NE, NC>>,
+    ) -> Result<(), Failure> {
+        let (ders, qn, constants) = (&ws.ders, &ws.qn, &ws.constants);
+        // The closure borrows `ws` immutably; condense into its buffers taken out, then
+        // put them back.
+        let mut lq = std::mem::take(&mut ws.lq);
+        let mut elim = std::mem::take(&mut ws.elim);
+        let failed = std::sync::Mutex::new(None::<(usize, Failure)>);
+        par_zip(&mut lq, &mut elim, self.opts.threads, |k, l, e| {
+            let curvature = self.stage_curvature(k, constants, qn);
+            let condensed = match correction {
+                None => self.condense(k, it, &ders[k], curvature, mu, dc, l, e),
+                Some((trial_vals, trial, alpha)) => {
+                    let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
+                    self.condense(k, it, &d, curvature, mu, dc, l, e)
                 }
-            });
-            ws.lq = lq;
-            ws.elim = elim;
-            if let Some((_, msg)) = failed.into_inner().unwrap_or_else(|p| p.into_inner()) {
-                return Err(msg);
+            };
+            if let Err(failure) = condensed {
+                let mut f = failed.lock().unwrap_or_else(|p| p.into_inner());
+                if f.as_ref().is_none_or(|(j, _)| k < *j) {
+                    *f = Some((k, failure));
+                }
             }
+        });
+        ws.lq = lq;
+        ws.elim = elim;
+        match failed.into_inner().unwrap_or_else(|p| p.into_inner()) {
+            Some((_, failure)) => Err(failure),
+            None => Ok(()),
         }
-        self.fill_couplings(it, ws, mu)?;
-        let mut delta = 0.0;
-        let step = loop {
-            tm.factorizations += 1;
-            let t_r = Instant::now();
-            let r = self.sparse_solve(it, ws, mu, dc, delta)?;
-            tm.riccati += t_r.elapsed().as_secs_f64();
-            match r {
-                Some(s) => break s,
-                None => match inertia.next(delta) {
-                    Some(next) => delta = next,
-                    None => return Err(Failure::InertiaCorrection),
-                },
-            }
-        };
-        inertia.succeeded(delta);
-        tm.kkt += t1.elapsed().as_secs_f64();
-        Ok((step, delta))
     }
 
     /// The couplings of the condensed stages (zero without globals).
@@ -147,40 +132,43 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             Ok(())
         }
     }
+}
 
-    /// The second-order correction by the sparse path (see
-    /// [`Solver::second_order_correction`]).
-    #[allow(clippy::too_many_arguments)]
-    pub(in crate::solver) fn sparse_correction(
+/// faer's sparse `LDLᵀ` of the whole condensed KKT matrix, its inertia read from `D`.
+pub(in crate::solver) struct SparseLdlt;
+
+impl<const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
+    KktBackend<NX, NW, NE, NF, NC> for SparseLdlt
+{
+    fn condense_and_solve(
         &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
         it: &Iterate<NX, NW, NC>,
         ws: &mut Workspace<NX, NW, NE, NF, NC>,
-        trial_vals: &[StageValues<NX, NE, NC>],
-        trial: &Iterate<NX, NW, NC>,
-        alpha: f64,
         mu: f64,
         dc: f64,
         delta: f64,
-    ) -> Option<Step<NX, NW, NC>> {
-        let mut lq = std::mem::take(&mut ws.lq);
-        let mut elim = std::mem::take(&mut ws.elim);
-        let failed = std::sync::atomic::AtomicBool::new(false);
-        {
-            let (ders, qn, constants) = (&ws.ders, &ws.qn, &ws.constants);
-            par_zip(&mut lq, &mut elim, self.opts.threads, |k, l, e| {
-                let d = corrected_derivatives(k, it, &ders[k], &trial_vals[k], trial, alpha);
-                let curvature = self.stage_curvature(k, constants, qn);
-                if self.condense(k, it, &d, curvature, mu, dc, l, e).is_err() {
-                    failed.store(true, std::sync::atomic::Ordering::Relaxed);
-                }
-            });
-        }
-        ws.lq = lq;
-        ws.elim = elim;
-        if failed.into_inner() {
-            return None;
-        }
-        self.fill_couplings(it, ws, mu).ok()?;
-        self.sparse_solve(it, ws, mu, dc, delta).ok().flatten()
+        correction: Option<Correction<'_, NX, NW, NE, NC>>,
+        tm: &mut Timings,
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure> {
+        s.condense_stages(it, ws, mu, dc, correction)?;
+        s.fill_couplings(it, ws, mu)?;
+        self.solve_again(s, it, ws, mu, dc, delta, tm)
+    }
+
+    fn solve_again(
+        &self,
+        s: &Solver<'_, NX, NW, NE, NF, NC>,
+        it: &Iterate<NX, NW, NC>,
+        ws: &mut Workspace<NX, NW, NE, NF, NC>,
+        mu: f64,
+        dc: f64,
+        delta: f64,
+        tm: &mut Timings,
+    ) -> Result<Option<Step<NX, NW, NC>>, Failure> {
+        let t = Instant::now();
+        let step = s.sparse_solve(it, ws, mu, dc, delta);
+        tm.riccati += t.elapsed().as_secs_f64();
+        step
     }
 }
