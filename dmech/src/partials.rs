@@ -18,8 +18,8 @@ type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
 /// With `c = −h`, `D = −dexp⁻¹(hξ)A` it is the discrete momentum leaving a node; with
 /// `c = 0`, `D = −A` the continuous `P − Aᵀμ`. A system's closed-form partials
 /// ([`PrincipalKinematicSystem::closed_form_lagrangian_gradient`]) replace the dual
-/// evaluation of `ℓ` (the WIP's: a third of the `f64` residual's cost, and through the
-/// nested duals of the midpoint scheme's Jacobian, 2.6× its plan).
+/// evaluation of `ℓ` (for a Lagrangian of a few dozen terms, a third of the `f64`
+/// residual's cost, and more through the nested duals of the midpoint scheme's Jacobian).
 pub fn pulled_back_gradient<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
@@ -78,8 +78,8 @@ fn pulled_back_partials<T: Real, const DOF: usize, const NS: usize>(
 
 /// `pulled_back_partials` with `D = −dexp⁻¹ A` given by its factors: the momentum
 /// `∂ℓ/∂v + c ∂ℓ/∂s − Aᵀ (dexp⁻ᵀ ∂ℓ/∂ξ)`. Contracting `∂ℓ/∂ξ` first takes `DOF (DOF + NS)`
-/// products of duals where forming `D` takes `DOF NS (DOF + 1)`: on the WIP's equality
-/// partials the product `dexp⁻¹ A` was a sixth of their instructions.
+/// products of duals where forming `D` takes `DOF NS (DOF + 1)`: with `DOF = 3`, `NS = 5`
+/// the product `dexp⁻¹ A` is a sixth of the equality partials' instructions.
 pub fn pulled_back_partials_factored<T: Real, const DOF: usize, const NS: usize>(
     (ls, lv, lxi): (SVector<T, NS>, SVector<T, NS>, SVector<T, DOF>),
     c: f64,

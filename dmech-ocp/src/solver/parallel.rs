@@ -159,7 +159,7 @@ fn run_on_threads(threads: usize, work: &(dyn Fn() + Sync)) {
 /// Stack of a stage-loop thread. The generic second derivatives evaluate a stage in
 /// nested duals whose numbers are kilobytes each (an RK stage's exact curvature: a
 /// vector dual of a dual of a hyper-dual, 576 lanes); the default 2 MiB of a spawned
-/// thread overflowed on `wip plan --integrator rk1 --hessian exact`. The size is
+/// thread overflowed on an RK1 plan with the exact Hessian of a five-dimensional shape. The size is
 /// reserved address space, not memory: only the pages touched are committed.
 pub const STAGE_THREAD_STACK: usize = 64 << 20;
 

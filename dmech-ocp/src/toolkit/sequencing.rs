@@ -69,8 +69,9 @@ where
 /// The last problem solved directly from the start; only if that fails, the
 /// [`continuation`] over all of them from the same start, within what is left of the time
 /// limit. The failed attempt's iterations and times are added to the result. For problems
-/// whose continuation is a safeguard rather than a necessity (measured on the WIP's RK1 and
-/// RK2 plans: the direct solve takes fewer iterations, `docs/ocp.md`).
+/// whose continuation is a safeguard rather than a necessity (a continuation over a
+/// stiff friction term on an explicit Runge–Kutta plan, say: the direct solve takes
+/// fewer iterations, `docs/ocp.md`).
 pub fn direct_or_continuation<
     P,
     const NX: usize,

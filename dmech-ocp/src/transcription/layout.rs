@@ -11,7 +11,8 @@ use nalgebra::SVector;
 /// derivative; the connection and the forcing not at all) and neither do the cost, the
 /// inequalities or the conditions. Its velocity stays in the state and the decisions; its
 /// position is not carried (the stage functions see it at zero), so the state is smaller
-/// by one per ignorable coordinate. The WIP's wheel angles and charges are such.
+/// by one per ignorable coordinate. Wheel angles and motor charges are often such: a
+/// robot on a level floor whose forces read only their rates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Layout {
     /// The pose's coordinates, `coords(g)` (SE(2): 3).

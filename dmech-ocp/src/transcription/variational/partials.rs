@@ -106,7 +106,7 @@ impl<S> VarIntStages<'_, S> {
         // interval, seeded in its velocity and the carried shape coordinates, gives both
         // velocity blocks and the shape columns as the sum of the two passes' shape lanes
         // (each term is evaluated in exactly one of them). Against a separate shape pass
-        // through every term this saves one evaluation of both momenta (on the WIP a
+        // through every term this saves one evaluation of both momenta (with `NS = 5`, a
         // sixth of the partials' instructions). A midpoint force reads both intervals and
         // would count its shape derivative twice: it keeps the separate passes, as does a
         // system too wide for the lane counts below.
