@@ -168,6 +168,7 @@ pub struct Solver<
     /// The problem's global variables, if any (`globals.rs`).
     globals: Option<GlobalSpec>,
     /// The sparse KKT matrix's symbolic factorisation, once the sparse path needs it.
+    #[cfg(feature = "sparse-ldlt")]
     sparse: std::sync::OnceLock<Result<crate::solver::kkt::sparse_ldlt::SparseKkt, Failure>>,
 }
 
@@ -226,6 +227,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             eqs,
             eqs_at,
             globals,
+            #[cfg(feature = "sparse-ldlt")]
             sparse: Default::default(),
         }
     }
@@ -301,6 +303,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
             globals,
+            #[cfg(feature = "sparse-ldlt")]
             sparse: Default::default(),
         }
     }

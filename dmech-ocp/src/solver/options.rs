@@ -61,7 +61,8 @@ pub enum KktMethod {
     /// complement) when the problem has globals.
     #[default]
     Riccati,
-    /// The whole condensed KKT matrix by faer's sparse `LDLᵀ` (built on faer).
+    /// The whole condensed KKT matrix by faer's sparse `LDLᵀ` (in builds with the
+    /// `sparse-ldlt` feature; otherwise the solve fails at its first step).
     SparseLdlt,
 }
 

@@ -20,9 +20,22 @@ use super::*;
 use crate::nlp::Globals;
 use crate::solver::kkt::global_riccati::{global_forward, global_sweep, GlobalSchur, LqCoupling};
 use crate::solver::kkt::riccati::LqSolution;
-use crate::solver::kkt::sparse_ldlt::GlobalTerms;
 use crate::solver::kkt::{Correction, KktBackend};
 use nalgebra::{DMatrix, DVector};
+
+/// The globals' own terms, which the Riccati path adds to its reduced system: a diagonal
+/// (barrier curvature and shift), a gradient, and equalities `A_g δp = r_g`.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct GlobalTerms {
+    /// The diagonal.
+    pub(crate) diag: Vec<f64>,
+    /// The gradient.
+    pub(crate) grad: Vec<f64>,
+    /// The equalities' rows `A_g`.
+    pub(crate) eq_a: Vec<Vec<f64>>,
+    /// Their right-hand sides `r_g`.
+    pub(crate) eq_rhs: Vec<f64>,
+}
 
 /// The globals' part of an iterate: `p`, the multipliers of its lower and upper bounds
 /// (zero where there is none) and of its equalities.

@@ -9,7 +9,9 @@ use super::*;
 pub(crate) mod global_riccati;
 pub(super) mod globals;
 pub mod riccati;
+#[cfg(feature = "sparse-ldlt")]
 pub(crate) mod sparse_ldlt;
+#[cfg(feature = "sparse-ldlt")]
 mod sparse_step;
 
 /// What stage `k`'s Hessian takes besides its derivatives: the cost's constant curvature
@@ -130,14 +132,21 @@ impl Riccati {
 impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
     Solver<'a, NX, NW, NE, NF, NC>
 {
-    /// The back-end of this solve's Newton systems ([`KktBackend`]).
-    fn kkt_backend(&self) -> &'static dyn KktBackend<NX, NW, NE, NF, NC> {
+    /// The back-end of this solve's Newton systems ([`KktBackend`]). `Err` for the sparse
+    /// one in a build without it (feature `sparse-ldlt`).
+    fn kkt_backend(&self) -> Result<&'static dyn KktBackend<NX, NW, NE, NF, NC>, Failure> {
         if self.opts.kkt == KktMethod::SparseLdlt {
-            &sparse_step::SparseLdlt
-        } else if self.globals.is_some() {
-            &globals::RiccatiWithGlobals
+            #[cfg(feature = "sparse-ldlt")]
+            return Ok(&sparse_step::SparseLdlt);
+            #[cfg(not(feature = "sparse-ldlt"))]
+            return Err(Failure::SparseKkt(
+                "this build has no sparse LDLᵀ back-end (dmech-ocp's feature sparse-ldlt)".into(),
+            ));
+        }
+        if self.globals.is_some() {
+            Ok(&globals::RiccatiWithGlobals)
         } else {
-            &Riccati
+            Ok(&Riccati)
         }
     }
 
@@ -156,7 +165,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         tm: &mut Timings,
     ) -> Result<(Step<NX, NW, NC>, f64), Failure> {
         let t1 = Instant::now();
-        let backend = self.kkt_backend();
+        let backend = self.kkt_backend()?;
         let mut delta = 0.0;
         let mut solved = backend.condense_and_solve(self, it, ws, mu, dc, delta, None, tm)?;
         let step = loop {
@@ -188,6 +197,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
     ) -> Option<Step<NX, NW, NC>> {
         let mut untimed = Timings::default();
         self.kkt_backend()
+            .ok()?
             .condense_and_solve(self, it, ws, mu, dc, delta, Some(correction), &mut untimed)
             .ok()
             .flatten()

@@ -27,22 +27,13 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat, Triplet};
 use faer::{Conj, Mat, Par, Side};
+use crate::solver::kkt::globals::GlobalTerms;
 use nalgebra::{DVector, SMatrix, SVector};
 
 /// `δ_d`: the dual regularisation of the factorised matrix (refined away).
 const DUAL_REGULARISATION: f64 = 1e-10;
 /// Refinement steps against the unregularised matrix.
 const REFINEMENT_STEPS: usize = 2;
-
-/// The globals' own terms, which the Riccati path adds to its reduced system: a diagonal
-/// (barrier curvature and shift), a gradient, and equalities `A_g δp = r_g`.
-#[derive(Clone, Debug, Default)]
-pub struct GlobalTerms {
-    pub diag: Vec<f64>,
-    pub grad: Vec<f64>,
-    pub eq_a: Vec<Vec<f64>>,
-    pub eq_rhs: Vec<f64>,
-}
 
 /// Why a sparse solve failed.
 #[derive(Clone, Debug, PartialEq)]
