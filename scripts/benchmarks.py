@@ -142,9 +142,10 @@ def span(runs, key, fmt="{:.2f}", unit=" s"):
     if not vals:
         return "–"
     m = fmt.format(statistics.median(vals))
-    if len(vals) == 1:
+    lo, hi = fmt.format(min(vals)), fmt.format(max(vals))
+    if len(vals) == 1 or lo == hi:
         return m + unit
-    return f"{m}{unit} ({fmt.format(min(vals))}–{fmt.format(max(vals))})"
+    return f"{m}{unit} ({lo}–{hi})"
 
 
 def same(runs, key):
