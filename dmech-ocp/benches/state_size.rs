@@ -3,7 +3,7 @@
 //! `Q + H_xv D + (H_xv D)ᵀ + Dᵀ H_vv D` and `A = F_x + F_v D` (`D` the dependent
 //! velocity's `NE × NX` sensitivity). 15 is the WIP's VI state; 13 and 11 are that state
 //! without the wheel angles, and without the charges too, which its equations of motion
-//! do not read (docs/ocp.md, "What is left"). Random stages, 4235 of them (the eight at
+//! do not read (the transcriptions' reduced layout). Random stages, 4235 of them (the eight at
 //! 5 ms), so that each pass streams its data as the solver's does.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use dmech_lie::lcg::Lcg;

@@ -20,7 +20,8 @@
 //!
 //! Every stage function is generic over the scalar, so exact Jacobians and Hessians come
 //! from dual numbers, stage by stage. Sizes are said once, by the robot and its problem
-//! ([`transcription::sizes`]). The design is written up in `docs/ocp.md`.
+//! ([`transcription::sizes`]). The design is written up in `docs/ocp.md` (transcriptions, toolkit) and
+//! `docs/solver.md` (the interior point).
 
 #![warn(missing_docs)]
 

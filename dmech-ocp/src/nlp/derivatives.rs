@@ -7,7 +7,7 @@
 //! comes from three second-order passes (`xx`, `ww` by `Dual2`, `xw` by hyper-duals).
 //! The curvature of the dynamics and of the stage equality, `∇²(λᵀf + νᵀe)`, is formed only
 //! when the exact Hessian is asked for ([`StageProblem::constraint_curvature`]); by default
-//! the solver approximates it by SR1 from the Jacobians (`docs/ocp.md`).
+//! the solver approximates it by SR1 from the Jacobians (`docs/solver.md`).
 
 use crate::nlp::{HessianBlocks, StageProblem};
 use dmech_lie::dual::{grad_part as grad, jacobian_part, seeded as seed, split_passes};

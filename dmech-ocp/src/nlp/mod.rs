@@ -22,7 +22,7 @@
 //! equalities and a linear cost. A stage reads the globals it depends on through the last
 //! `per_stage` entries of its decision `w_k`, which the solver keeps equal to
 //! `p[support(k)]`: the stage functions keep their signature, and their derivatives in
-//! those entries are the derivatives in `p` (`docs/ocp.md`, "Free waypoint timing").
+//! those entries are the derivatives in `p` (`docs/solver.md`, "Global variables and the two KKT paths").
 
 use dmech_lie::dual::{lift_vec, seeded, split_passes};
 use dmech_lie::Real;

@@ -1,5 +1,5 @@
 //! The iteration table (`IpOptions::verbose`, on stderr): IPOPT's columns, one row per
-//! iterate (`docs/ocp.md`, "The solver").
+//! iterate (`docs/solver.md`, "The algorithm").
 
 use super::*;
 

@@ -10,7 +10,7 @@
 //! a stage's `H_uu` is not positive definite (`inertia.rs`); IPOPT's filter line search
 //! with the fraction-to-the-boundary rule and second-order corrections
 //! (`line_search.rs`, `filter.rs`). The barrier parameter follows IPOPT's monotone rule.
-//! Algorithm and options: `docs/ocp.md`.
+//! Algorithm and options: `docs/solver.md`.
 
 // Stage loops index several per-stage arrays (derivatives, iterate, step) in step.
 #![allow(clippy::needless_range_loop)]
@@ -124,7 +124,7 @@ impl StallWatch {
 
 /// Line-search trials (the first one included) after which the quasi-Newton curvature is
 /// reset: a step cut by 2⁵. At 4 (a cut by 2³) the midpoint VI's resets themselves kept
-/// its barrier subproblem cycling (docs/ocp.md).
+/// its barrier subproblem cycling (docs/solver.md).
 const QN_RESET_BACKTRACKS: usize = 6;
 
 /// Steps taken without line-search acceptance, at most, per solve, and their length as
@@ -452,7 +452,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 }
             }
             // A step accepted only after cutting it by 2⁵ or more says the secant model
-            // predicts badly: start it over from the exact cost curvature (docs/ocp.md).
+            // predicts badly: start it over from the exact cost curvature (docs/solver.md).
             if last.accepted.is_some() && last.trials >= QN_RESET_BACKTRACKS {
                 ws.reset_quasi_newton();
             }

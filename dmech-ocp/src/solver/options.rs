@@ -26,12 +26,12 @@ pub struct IpOptions {
     /// The update's norm is `‖r‖²/|sᵀr|`, at most `‖r‖/(sr1_skip ‖s‖)`: this bounds how far
     /// one stage's curvature may leap past what the secant observed. One stage's leap
     /// into negative curvature forces the inertia shift on all stages, so the bound is
-    /// tight (1e-2, not the textbook 1e-8: measurements in `docs/ocp.md`).
+    /// tight (1e-2, not the textbook 1e-8: `docs/solver.md`).
     pub sr1_skip: f64,
     /// Wall-clock limit in seconds (reported as `TimeLimit`).
     pub time_limit: f64,
-    /// How the Newton step's linear system is solved (`docs/ocp.md`, "Free waypoint
-    /// timing": measured, the Riccati recursion is the faster).
+    /// How the Newton step's linear system is solved (`docs/solver.md`, "Global variables
+    /// and the two KKT paths": measured, the Riccati recursion is the faster).
     pub kkt: KktMethod,
     /// Stop, solved, once the barrier problem at this `μ` is solved (IPOPT's test,
     /// `E_μ ≤ κ_ε μ`), the barrier never decreased below it; `None`: solve to `tol`. For

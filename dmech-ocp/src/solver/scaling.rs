@@ -3,7 +3,7 @@
 //! objectives whose terms are of order one. A barrier term `μ log t` per inequality and
 //! stage competes with each stage's cost: where the cost per stage is far below one, the
 //! barrier dominates the early iterations, and the iterates reach a region the monotone
-//! barrier rule does not leave (measured in `docs/ocp.md`, "Objective scaling": a steered
+//! barrier rule does not leave (`docs/solver.md`, "Objective scaling": a steered
 //! vehicle whose cost per stage is 6e-4 stalls at 500 iterations, and solves in 23 with
 //! its cost scaled by 1/s ≈ 1.2e4).
 //!

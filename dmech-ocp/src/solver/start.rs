@@ -9,7 +9,7 @@ use super::*;
 /// every nearly active bound, which the next steps had to undo: measured on the friction
 /// continuation's second phase (iterations, floor 1 → 1e-2): eight 65 → 58, zigzag
 /// 40 → 38, eight at h = 1.25 ms 96 → 86, eight RK4 75 → 67, zigzag RK1 55 → 57, zigzag
-/// RK2 algebraic 39 → 40 (`docs/ocp.md`).
+/// RK2 algebraic 39 → 40 (`docs/solver.md`, "Starts").
 const WARM_MULT_FLOOR: f64 = 1e-2;
 
 impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>

@@ -2,7 +2,7 @@
 //! structured vector-dual passes: each block of `(s_k, v_{k−1}, u_{k−1}, v_k, u_k)` is
 //! seeded only in the passes whose terms read it (the interval passes of a force at one end
 //! of the step, or separate passes), the group coordinates never
-//! (`docs/ocp.md`, "Derivatives").
+//! (`docs/solver.md`, "The algorithm").
 
 use crate::transcription::layout::Layout;
 use crate::transcription::variational::stages::{NodePoint, Terms, VarIntStages, D};
