@@ -42,6 +42,11 @@ pub struct SolveResult<const NX: usize, const NW: usize, const NC: usize> {
     /// Largest constraint violation (dynamics, stage equalities, inequalities, state
     /// equalities), recomputed at the returned point.
     pub max_violation: f64,
+    /// `Σ zᵢ tᵢ` over every bound at the returned point: the barrier problem's duality gap,
+    /// `m μ` on its central path. For a convex problem the objective lies at most this far
+    /// above the optimum; near a local optimum that satisfies the second-order conditions,
+    /// the same holds to first order. In the problem's units.
+    pub duality_gap: f64,
     /// Where the time went.
     pub timings: Timings,
 }

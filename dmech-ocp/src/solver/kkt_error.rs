@@ -165,6 +165,27 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
     }
 
     /// The largest `|t z − μ|` over all bounded sides, scaled by `s_d`.
+    /// `Σ zᵢ tᵢ` over every bound, the stages' and the globals': the duality gap of the
+    /// barrier problem (`m μ` at a point on its central path).
+    pub(super) fn duality_gap(&self, it: &Iterate<NX, NW, NC>) -> f64 {
+        let mut gap = 0.0;
+        for k in 0..self.n {
+            let b = &self.bounds[k];
+            for i in 0..NC {
+                if b.has_lo[i] > 0.0 {
+                    gap += it.t_lo[k][i] * it.z_lo[k][i];
+                }
+                if b.has_hi[i] > 0.0 {
+                    gap += it.t_hi[k][i] * it.z_hi[k][i];
+                }
+            }
+        }
+        if let Some(gs) = &self.globals {
+            gap += gs.duality_gap(&it.globals);
+        }
+        gap
+    }
+
     pub(super) fn complementarity(&self, it: &Iterate<NX, NW, NC>, mu: f64, s_d: f64) -> f64 {
         let mut compl = 0.0f64;
         for k in 0..self.n {

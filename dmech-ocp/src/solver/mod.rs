@@ -282,6 +282,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         SolveResult {
             iterate: r.iterate.with_duals_scaled(1.0 / c, true),
             objective: r.objective / c,
+            duality_gap: r.duality_gap / c,
             ..r
         }
     }

@@ -112,12 +112,14 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             objective += gs.cost(&it.globals.p);
             max_violation = max_violation.max(gs.violation(&it.globals.p).1);
         }
+        let duality_gap = self.duality_gap(&it);
         SolveResult {
             status,
             iterate: it,
             iterations,
             objective,
             max_violation,
+            duality_gap,
             timings: tm,
         }
     }

@@ -5,11 +5,9 @@
 //! - `clarabel_oracle`: a convex linear–quadratic OCP against `clarabel` on the same QP;
 //! - `free_timing`: global variables (free waypoint timing) against a golden-section search;
 //! - `ipm_small`: small problems of known structure;
-//! - `restoration`: feasibility restoration and the infeasible status;
-//! - `steered_car_bounds`: a steered car with an active torque bound, and a sweep of it.
+//! - `restoration`: feasibility restoration and the infeasible status.
 
 mod clarabel_oracle;
 mod free_timing;
 mod ipm_small;
 mod restoration;
-mod steered_car_bounds;

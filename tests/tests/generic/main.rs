@@ -6,11 +6,14 @@
 //! - `midpoint_integrator`: both discretisations of the reduced LDAP principle on random
 //!   systems (order, reversibility, energy, momentum);
 //! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
+//! - `steered_car_bounds`: the solver on a steered car with an active torque bound, and a
+//!   sweep of it;
 //! - `varint_curvature`: the VI transcription's exact constraint curvature by blocks;
 //! - `varint_reduced_state`: its Jacobians on a state without some shape positions.
 
 mod generic_integrator;
 mod midpoint_integrator;
 mod rk_transcription;
+mod steered_car_bounds;
 mod varint_curvature;
 mod varint_reduced_state;

@@ -121,6 +121,20 @@ impl GlobalSpec {
     }
 
     /// The largest `|t z − μ|` over the bounds.
+    /// `Σ zⱼ tⱼ` over the globals' bounds.
+    pub(in crate::solver) fn duality_gap(&self, gi: &GlobalIterate) -> f64 {
+        let mut gap = 0.0;
+        for j in 0..gi.p.len() {
+            if self.has_lo[j] {
+                gap += (gi.p[j] - self.g.lo[j]) * gi.z_lo[j];
+            }
+            if self.has_hi[j] {
+                gap += (self.g.hi[j] - gi.p[j]) * gi.z_hi[j];
+            }
+        }
+        gap
+    }
+
     pub(in crate::solver) fn complementarity(&self, gi: &GlobalIterate, mu: f64) -> f64 {
         let mut c = 0.0f64;
         for j in 0..gi.p.len() {

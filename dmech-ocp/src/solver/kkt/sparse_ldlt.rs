@@ -18,6 +18,7 @@
 //! dynamics in the Riccati convention are `λ_k = −ν_k`.
 
 use crate::solver::kkt::global_riccati::LqCoupling;
+use crate::solver::kkt::globals::GlobalTerms;
 use crate::solver::kkt::riccati::{LqSolution, LqStage};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::ldlt::factor::{LdltParams, LdltRegularization};
@@ -27,7 +28,6 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat, Triplet};
 use faer::{Conj, Mat, Par, Side};
-use crate::solver::kkt::globals::GlobalTerms;
 use nalgebra::{DVector, SMatrix, SVector};
 
 /// `δ_d`: the dual regularisation of the factorised matrix (refined away).
