@@ -2,6 +2,7 @@
 //! front-wheel-steered car, and the file formats of their tools (`wip`, `car`).
 
 pub mod car;
+pub mod check;
 pub mod cli;
 pub mod diagnose;
 pub mod io;

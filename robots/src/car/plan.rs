@@ -65,24 +65,118 @@ pub struct CarPlan<'a> {
     pub stages: Vec<usize>,
 }
 
+/// Why a car plan cannot be set up.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CarPlanError {
+    /// The duration is not a whole number of steps.
+    #[error("the duration {duration} s is not a whole number of steps of {h} s ({steps:.4})")]
+    NotWholeSteps { duration: f64, h: f64, steps: f64 },
+    /// Fewer than two steps: a rest-to-rest plan needs at least two.
+    #[error(
+        "the duration {duration} s is {steps:.0} step(s) of {h} s; a plan needs at least 2: use \
+         --step {half} or less"
+    )]
+    TooFewSteps {
+        duration: f64,
+        h: f64,
+        steps: f64,
+        half: f64,
+    },
+    /// Two consecutive poses are the same: nothing to move.
+    #[error("{first} and {second} are the same pose {pose:?}: nothing to plan, the car is already there")]
+    SamePose {
+        first: String,
+        second: String,
+        pose: [f64; 3],
+    },
+    /// Two consecutive poses at one position with different headings.
+    #[error(
+        "{first} and {second} are both at ({x}, {y}) with headings {from} and {to}: a car \
+         cannot turn in place (and the timing follows the path's length); add a waypoint that \
+         moves it, e.g. the corners of a three-point turn"
+    )]
+    TurnInPlace {
+        first: String,
+        second: String,
+        x: f64,
+        y: f64,
+        from: f64,
+        to: f64,
+    },
+    /// Two poses' stages coincide on this mesh.
+    #[error("{first} and {second} fall on one stage at {h} s: use a smaller step")]
+    SharedStage {
+        first: String,
+        second: String,
+        h: f64,
+    },
+}
+
+/// The name of pose `i` of `n` in messages: `start`, `waypoints[j]`, `end`.
+fn pose_name(i: usize, n: usize) -> String {
+    match i {
+        0 => "start".into(),
+        i if i + 1 == n => "end".into(),
+        i => format!("waypoints[{}]", i - 1),
+    }
+}
+
 impl<'a> CarPlan<'a> {
     /// The plan of `problem` at step `h`; an error if the duration is not a whole number of
-    /// steps, or two poses fall on one stage.
-    pub fn new(problem: &'a CarProblem, bounds: CarBounds, h: f64) -> Result<Self, String> {
+    /// at least two steps, if two consecutive poses share a position (the same pose, or a
+    /// turn in place), or if two poses fall on one stage.
+    pub fn new(problem: &'a CarProblem, bounds: CarBounds, h: f64) -> Result<Self, CarPlanError> {
         let steps = problem.duration / h;
         let n = steps.round() as usize;
-        if n < 2 || (steps - n as f64).abs() > 1e-6 * steps {
-            return Err(format!(
-                "the duration {} s is not a whole number of steps of {h} s ({steps:.4})",
-                problem.duration
-            ));
+        if (steps - n as f64).abs() > 1e-6 * steps.max(1.0) {
+            return Err(CarPlanError::NotWholeSteps {
+                duration: problem.duration,
+                h,
+                steps,
+            });
         }
-        let stages: Vec<usize> = path_fractions(&problem.poses())
+        if n < 2 {
+            return Err(CarPlanError::TooFewSteps {
+                duration: problem.duration,
+                h,
+                steps,
+                half: problem.duration / 2.0,
+            });
+        }
+        let poses = problem.poses();
+        let count = poses.len();
+        for (i, w) in poses.windows(2).enumerate() {
+            let (a, b) = (w[0], w[1]);
+            if (b[0] - a[0]).hypot(b[1] - a[1]) < 1e-9 {
+                let (first, second) = (pose_name(i, count), pose_name(i + 1, count));
+                return Err(if (b[2] - a[2]).abs() < 1e-9 {
+                    CarPlanError::SamePose {
+                        first,
+                        second,
+                        pose: a,
+                    }
+                } else {
+                    CarPlanError::TurnInPlace {
+                        first,
+                        second,
+                        x: a[0],
+                        y: a[1],
+                        from: a[2],
+                        to: b[2],
+                    }
+                });
+            }
+        }
+        let stages: Vec<usize> = path_fractions(&poses)
             .iter()
             .map(|&f| (time_of_path_fraction(f) * n as f64).round() as usize)
             .collect();
-        if stages.windows(2).any(|s| s[0] >= s[1]) {
-            return Err("two poses fall on one stage: use a smaller step".into());
+        if let Some(i) = stages.windows(2).position(|s| s[0] >= s[1]) {
+            return Err(CarPlanError::SharedStage {
+                first: pose_name(i, count),
+                second: pose_name(i + 1, count),
+                h,
+            });
         }
         Ok(CarPlan {
             problem,
@@ -337,7 +431,7 @@ pub fn plan(
     h: f64,
     discretisation: Discretisation,
     opts: IpOptions,
-) -> Result<CarOutcome, String> {
+) -> Result<CarOutcome, CarPlanError> {
     let finest = CarMesh {
         plan: CarPlan::new(problem, bounds, h)?,
     };

@@ -1,6 +1,7 @@
 //! The car's planning problems: the built-in `parallel-park` and `lane-change`, and pose
 //! files (`docs/car.md`).
 
+use crate::io::{JsonError, JsonObject};
 use serde::Deserialize;
 
 /// A pose `(x, y, θ)` of the rear-axle midpoint (m, m, rad).
@@ -57,11 +58,61 @@ impl CarProblem {
             _ => None,
         }
     }
-    /// All poses in order.
+    /// All poses in order, each heading taken modulo 2π to within π of the one before
+    /// (the start's as given): the car turns the short way between two poses, 3.0 → −3.0
+    /// being a turn of 0.28 rad, not of 6 rad.
     pub fn poses(&self) -> Vec<Pose> {
         let mut p = vec![self.start];
-        p.extend(self.waypoints.iter().copied());
-        p.push(self.end);
+        for q in self.waypoints.iter().chain(std::iter::once(&self.end)) {
+            let before = p.last().expect("the start")[2];
+            let d = q[2] - before;
+            let turn = d - std::f64::consts::TAU * (d / std::f64::consts::TAU).round();
+            p.push([q[0], q[1], before + turn]);
+        }
         p
+    }
+
+    /// Read a pose file's text (docs/car.md): an object with `name`, `start`, `end`,
+    /// `duration` and the optional `waypoints` and `reverse`. Anything but an object, an
+    /// unknown key, a `null`, a value of the wrong type, a duration that is not positive are
+    /// errors naming the key.
+    pub fn from_json_str(text: &str) -> Result<Self, JsonError> {
+        let p: CarProblem = JsonObject::parse(
+            text,
+            &["name", "start", "waypoints", "end", "duration", "reverse"],
+        )?
+        .typed()?;
+        if p.duration <= 0.0 {
+            return Err(JsonError::WrongType {
+                key: "duration".into(),
+                expected: "a positive number of seconds".into(),
+                found: p.duration.to_string(),
+            });
+        }
+        Ok(p)
+    }
+
+    /// A built-in problem by name, or else a pose file (of at most
+    /// [`crate::io::MAX_JSON_BYTES`]).
+    pub fn load(arg: &str) -> Result<Self, crate::io::ReadError> {
+        if let Some(p) = Self::builtin(arg) {
+            return Ok(p);
+        }
+        let path = std::path::Path::new(arg);
+        let what = format!("pose file {}", path.display());
+        let text = crate::io::read_text_limited(
+            path,
+            &what,
+            crate::io::MAX_JSON_BYTES,
+            " (built-in problems: parallel-park, lane-change)",
+        )
+        .map_err(|e| match e {
+            crate::io::ReadError::Io { what, source } => crate::io::ReadError::Io {
+                what: format!("{what} (built-in problems: parallel-park, lane-change)"),
+                source,
+            },
+            other => other,
+        })?;
+        Self::from_json_str(&text).map_err(|source| crate::io::ReadError::Json { what, source })
     }
 }

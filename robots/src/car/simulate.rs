@@ -2,6 +2,7 @@
 
 use super::model::{Car, NS};
 use super::report::CarTrajectory;
+use crate::check::{CheckError, Scheme};
 use crate::wip::simulate::InputSchedule;
 use dmech::continuous::{ContinuousModel, RungeKutta};
 use dmech::{Discretisation, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
@@ -13,6 +14,39 @@ use nalgebra::SVector;
 pub enum CarIntegrator {
     Variational(Discretisation),
     Rk4,
+}
+
+impl CarIntegrator {
+    /// The scheme as the stability checks see it.
+    pub fn scheme(&self) -> Scheme {
+        match self {
+            CarIntegrator::Rk4 => Scheme::rk(RungeKutta::Rk4),
+            CarIntegrator::Variational(Discretisation::Midpoint) => Scheme::implicit("midpoint"),
+            CarIntegrator::Variational(_) => Scheme::implicit("varint"),
+        }
+    }
+}
+
+/// Refuse a simulation whose step the car's linearised model at the start shows to be
+/// beyond the scheme's stability bound (RK4 on the drive motor's electrical mode, time
+/// constant `L_m/R_m` = 1 ms: it needs a step below 2.8 ms), or whose rates are not finite
+/// there ([`crate::check::check_step`]).
+pub fn check_simulation(
+    car: &Car,
+    scheme: CarIntegrator,
+    h: f64,
+    start: &CarState,
+    inputs: &InputSchedule,
+) -> Result<(), CheckError> {
+    let what = "simulate";
+    let x = ViState {
+        g: Se2::new(start.pose[0], start.pose[1], start.pose[2]),
+        s: start.shape,
+        v: start.velocity,
+    };
+    let u = inputs.at(0.0);
+    let modes = crate::check::linear_modes(car, &x, &SVector::<f64, 2>::new(u[0], u[1]), what)?;
+    crate::check::check_simulation_step(what, &modes, scheme.scheme(), h)
 }
 
 /// A state of the car: pose `(x, y, θ)`, shape `(φ, ψ, q)`, shape velocity `(φ̇, ψ̇, i)`.

@@ -2,7 +2,7 @@
 //! readings of a system's channels (missing where not measured). The file format is
 //! docs/formats.md, "Measured log"; the channels are the plant's.
 
-use crate::io::parse_csv;
+use crate::io::{parse_csv_with, CsvError, CsvOptions, TimeNotAfter};
 use std::fmt::Write as _;
 
 /// A measured channel: its CSV column, unit, and the largest magnitude a reading can
@@ -210,14 +210,41 @@ impl MeasuredLog {
     }
 
     /// Parse a log with the given channels and input columns. Every malformed input is an
-    /// error naming the line and the column.
+    /// error naming the line and the column; a column that is neither `t`, an input nor a
+    /// channel is not read (whatever it holds) and named in a warning.
     pub fn parse(
         text: &str,
         what: &str,
         channels: &[ChannelSpec],
         inputs: &[String],
-    ) -> Result<Self, String> {
-        let csv = parse_csv(text, what, true)?;
+    ) -> Result<Self, LogError> {
+        Self::parse_limited(text, what, channels, inputs, usize::MAX, "")
+    }
+
+    /// [`MeasuredLog::parse`] of at most `max_rows` data rows (`hint` says how to raise
+    /// the limit).
+    pub fn parse_limited(
+        text: &str,
+        what: &str,
+        channels: &[ChannelSpec],
+        inputs: &[String],
+        max_rows: usize,
+        hint: &str,
+    ) -> Result<Self, LogError> {
+        let known: Vec<&str> = std::iter::once("t")
+            .chain(inputs.iter().map(String::as_str))
+            .chain(channels.iter().map(|c| c.name.as_str()))
+            .collect();
+        let csv = parse_csv_with(
+            text,
+            what,
+            CsvOptions {
+                allow_missing: true,
+                max_rows,
+                rows_hint: hint,
+                columns: Some(&known),
+            },
+        )?;
         let need = || {
             std::iter::once("t".to_string())
                 .chain(inputs.iter().cloned())
@@ -225,24 +252,25 @@ impl MeasuredLog {
                 .join(", ")
         };
         let col = |n: &str| {
-            csv.column(n)
-                .ok_or_else(|| format!("{what}: missing required column '{n}' (need {})", need()))
+            csv.column(n).ok_or_else(|| LogError::MissingColumn {
+                what: what.to_string(),
+                name: n.to_string(),
+                need: need(),
+            })
         };
         let ct = col("t")?;
         let cin: Vec<usize> = inputs.iter().map(|n| col(n)).collect::<Result<_, _>>()?;
         let mut warnings = Vec::new();
         for h in &csv.header {
-            let known =
-                h == "t" || inputs.iter().any(|n| n == h) || channels.iter().any(|c| &c.name == h);
-            if !known {
+            if !known.contains(&h.as_str()) {
                 warnings.push(format!("{what}: unknown column '{h}' ignored"));
             }
         }
         if csv.rows.len() < 2 {
-            return Err(format!(
-                "{what}: needs at least two data rows, found {}",
-                csv.rows.len()
-            ));
+            return Err(LogError::TooFewRows {
+                what: what.to_string(),
+                rows: csv.rows.len(),
+            });
         }
         let chan_cols: Vec<(usize, usize)> = channels
             .iter()
@@ -251,10 +279,10 @@ impl MeasuredLog {
             .collect();
         if chan_cols.is_empty() {
             let names: Vec<&str> = channels.iter().map(|c| c.name.as_str()).collect();
-            return Err(format!(
-                "{what}: no measured channel (expected some of {})",
-                names.join(", ")
-            ));
+            return Err(LogError::NoChannel {
+                what: what.to_string(),
+                expected: names.join(", "),
+            });
         }
         let h = csv.rows[1][ct] - csv.rows[0][ct];
         let mut log = MeasuredLog::empty(h, inputs.len(), channels.len());
@@ -266,23 +294,31 @@ impl MeasuredLog {
                 .chain(cin.iter().zip(inputs).map(|(&c, n)| (c, n.as_str())))
             {
                 if row[c].is_nan() {
-                    return Err(format!(
-                        "{what}: line {line}, column '{name}': missing value"
-                    ));
+                    return Err(LogError::Missing {
+                        what: what.to_string(),
+                        line,
+                        name: name.to_string(),
+                    });
                 }
             }
             let t = row[ct];
             if let Some(&prev) = log.t.last() {
                 if t <= prev {
-                    return Err(format!(
-                        "{what}: line {line}, column 't': time {t} is not after the previous {prev}"
-                    ));
+                    return Err(TimeNotAfter {
+                        what: what.to_string(),
+                        line,
+                        t,
+                        previous: prev,
+                    }
+                    .into());
                 }
                 if ((t - prev) - h).abs() > 1e-3 * h {
-                    return Err(format!(
-                        "{what}: line {line}, column 't': step {} differs from the first step {h} (the grid must be uniform)",
-                        t - prev
-                    ));
+                    return Err(LogError::NotUniform {
+                        what: what.to_string(),
+                        line,
+                        step: t - prev,
+                        first: h,
+                    });
                 }
             }
             for (j, &c) in cin.iter().enumerate() {
@@ -297,12 +333,50 @@ impl MeasuredLog {
         log.channels_present_from_data();
         for &(c, _) in &chan_cols {
             if !log.present[c] {
-                return Err(format!(
-                    "{what}: column '{}' has no values (every sample empty or NaN)",
-                    channels[c].name
-                ));
+                return Err(LogError::EmptyColumn {
+                    what: what.to_string(),
+                    name: channels[c].name.clone(),
+                });
             }
         }
         Ok(log)
     }
+}
+
+/// Why a measured log was refused; the message names the file, and the line and column
+/// where there is one.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LogError {
+    #[error(transparent)]
+    Csv(#[from] CsvError),
+    #[error("{what}: missing required column '{name}' (need {need})")]
+    MissingColumn {
+        what: String,
+        name: String,
+        need: String,
+    },
+    #[error("{what}: needs at least two data rows, found {rows}")]
+    TooFewRows { what: String, rows: usize },
+    #[error("{what}: no measured channel (expected some of {expected})")]
+    NoChannel { what: String, expected: String },
+    #[error("{what}: line {line}, column '{name}': missing value")]
+    Missing {
+        what: String,
+        line: usize,
+        name: String,
+    },
+    #[error(transparent)]
+    NotIncreasing(#[from] TimeNotAfter),
+    #[error(
+        "{what}: line {line}, column 't': step {step} differs from the first step {first} (the \
+         grid must be uniform)"
+    )]
+    NotUniform {
+        what: String,
+        line: usize,
+        step: f64,
+        first: f64,
+    },
+    #[error("{what}: column '{name}' has no values (every sample empty or NaN)")]
+    EmptyColumn { what: String, name: String },
 }

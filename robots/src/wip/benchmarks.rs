@@ -2,6 +2,7 @@
 //! files: the polyline, the boundary poses and the waypoint stages from the trapezoidal
 //! speed profile.
 
+use crate::io::{JsonError, JsonObject};
 use std::path::Path;
 
 /// A planning problem: waypoints (positions) at stages, full poses at both ends.
@@ -62,7 +63,10 @@ pub fn trapezoid_times(s: &[f64], total_time: f64, a: f64) -> Option<Vec<f64>> {
     if disc < 0.0 || a <= 0.0 || total_time <= 0.0 {
         return None;
     }
-    let vc = 0.5 * a * (total_time - disc.sqrt());
+    // The smaller root `a (T − √D)/2` in the form without cancellation: at a large `a` the
+    // difference of `T` and `√D` loses every digit (and gave `v_c = 0`, waypoints at
+    // infinite times).
+    let vc = 2.0 * total / (total_time + disc.sqrt());
     let t1 = vc / a;
     let s1 = 0.5 * a * t1 * t1;
     let s2 = total - s1;
@@ -90,16 +94,28 @@ fn from_timing(
     h: f64,
     start_heading: f64,
     end_heading: f64,
-) -> Result<PlanProblem, String> {
+) -> Result<PlanProblem, WaypointError> {
     let s = arc_lengths(&points);
-    let times = trapezoid_times(&s, total_time, a).ok_or_else(|| {
-        format!(
-            "{name}: no trapezoidal profile covers {:.3} m in {total_time} s at {a} m/s² (needs T² ≥ 4S/a)",
-            s.last().unwrap_or(&0.0)
-        )
-    })?;
+    let no_profile = || WaypointError::NoProfile {
+        name: name.to_string(),
+        length: *s.last().unwrap_or(&0.0),
+        duration: total_time,
+        accel: a,
+    };
+    let times = trapezoid_times(&s, total_time, a).ok_or_else(no_profile)?;
     let n = (total_time / h).round() as usize;
-    let stages: Vec<usize> = times.iter().map(|t| (t / h).round() as usize).collect();
+    // Every waypoint at a stage of the horizon: a time that is not finite or lies outside
+    // [0, T] (a profile the arithmetic cannot represent) would name a stage past the end.
+    if times
+        .iter()
+        .any(|t| !t.is_finite() || *t < -1e-9 * total_time || *t > total_time * (1.0 + 1e-9))
+    {
+        return Err(no_profile());
+    }
+    let stages: Vec<usize> = times
+        .iter()
+        .map(|t| ((t / h).round() as usize).min(n))
+        .collect();
     Ok(PlanProblem {
         name: name.to_string(),
         h,
@@ -146,66 +162,36 @@ pub fn by_name(name: &str, h: f64) -> Option<PlanProblem> {
     }
 }
 
-/// Read a waypoint file (JSON, documented in `docs/ocp.md`):
-/// ```json
-/// { "name": "square", "points": [[0,0],[1,0],[1,1]], "duration": 12.0, "accel": 0.2,
-///   "start_heading": 0.0, "end_heading": 1.5708 }
-/// ```
-/// `name` and `accel` (default 0.2 m/s²) are optional. Every problem is named in the error.
-pub fn from_json_str(text: &str, h: f64) -> Result<PlanProblem, String> {
-    let text = text.trim_start_matches('\u{feff}');
-    if !text.trim_start().starts_with('{') {
-        return Err("expected a JSON object (docs/formats.md, \"Waypoint file\")".into());
-    }
-    // serde names the line and column of a missing, unknown or mistyped key.
-    let file: WaypointFile = serde_json::from_str(text).map_err(|e| e.to_string())?;
-    let name = file.name.unwrap_or_else(|| "waypoints".to_string());
-    let points = file.points;
-    if points.len() < 2 {
-        return Err(format!(
-            "'points' needs at least 2 points, got {}",
-            points.len()
-        ));
-    }
-    for (i, p) in points.iter().enumerate() {
-        if !p.iter().all(|v| v.is_finite()) {
-            return Err(format!("points[{i}] must hold two finite numbers"));
-        }
-    }
-    let s = arc_lengths(&points);
-    if let Some(i) = s.windows(2).position(|w| w[1] - w[0] < 1e-9) {
-        return Err(format!("points[{}] repeats points[{i}]", i + 1));
-    }
-    let duration = file.duration;
-    if !(duration > 0.0 && duration.is_finite()) {
-        return Err(format!("'duration' must be positive, got {duration}"));
-    }
-    let accel = file.accel.unwrap_or(0.2);
-    if !(accel > 0.0 && accel.is_finite()) {
-        return Err(format!("'accel' must be positive, got {accel}"));
-    }
-    let problem = from_timing(
-        &name,
-        points,
-        duration,
-        accel,
-        h,
-        file.start_heading,
-        file.end_heading,
-    )?;
-    if let Some(w) = problem.stages.windows(2).position(|w| w[1] <= w[0]) {
-        return Err(format!(
-            "points[{}] and points[{}] fall on the same stage at h = {h}: use a smaller h",
-            w,
-            w + 1
-        ));
-    }
-    Ok(problem)
+/// Why a waypoint file was refused; the message names the key or the point.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WaypointError {
+    /// Not a JSON object of the format's keys, or a value of the wrong type.
+    #[error("{0} (docs/formats.md, \"Waypoint file\")")]
+    Json(#[from] JsonError),
+    #[error("'points' needs at least 2 points, got {count}")]
+    TooFewPoints { count: usize },
+    #[error("points[{index}] repeats points[{previous}]")]
+    Repeated { index: usize, previous: usize },
+    #[error("'{key}' must be positive, got {value}")]
+    NotPositive { key: &'static str, value: f64 },
+    #[error(
+        "{name}: no trapezoidal profile covers {length:.3} m in {duration} s at {accel} m/s² \
+         (needs T² ≥ 4S/a)"
+    )]
+    NoProfile {
+        name: String,
+        length: f64,
+        duration: f64,
+        accel: f64,
+    },
+    #[error(
+        "points[{first}] and points[{second}] fall on the same stage at h = {h}: use a smaller h"
+    )]
+    SameStage { first: usize, second: usize, h: f64 },
 }
 
-/// A waypoint file as written (docs/formats.md); unknown keys are an error.
+/// A waypoint file as written (docs/formats.md); its keys are checked by [`JsonObject`].
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
 struct WaypointFile {
     name: Option<String>,
     points: Vec<[f64; 2]>,
@@ -215,10 +201,69 @@ struct WaypointFile {
     end_heading: f64,
 }
 
+/// The keys of a waypoint file.
+const WAYPOINT_KEYS: [&str; 6] = [
+    "name",
+    "points",
+    "duration",
+    "accel",
+    "start_heading",
+    "end_heading",
+];
+
+/// Read a waypoint file (JSON, documented in `docs/formats.md`):
+/// ```json
+/// { "name": "square", "points": [[0,0],[1,0],[1,1]], "duration": 12.0, "accel": 0.2,
+///   "start_heading": 0.0, "end_heading": 1.5708 }
+/// ```
+/// `name` and `accel` (default 0.2 m/s²) are optional; an unknown key, a `null` and a value
+/// of the wrong type are errors naming the key. Every problem is named in the error.
+pub fn from_json_str(text: &str, h: f64) -> Result<PlanProblem, WaypointError> {
+    let file: WaypointFile = JsonObject::parse(text, &WAYPOINT_KEYS)?.typed()?;
+    let name = file.name.unwrap_or_else(|| "waypoints".to_string());
+    let points = file.points;
+    let (duration, accel) = (file.duration, file.accel.unwrap_or(0.2));
+    let (start_heading, end_heading) = (file.start_heading, file.end_heading);
+    if points.len() < 2 {
+        return Err(WaypointError::TooFewPoints {
+            count: points.len(),
+        });
+    }
+    let s = arc_lengths(&points);
+    if let Some(i) = s.windows(2).position(|w| w[1] - w[0] < 1e-9) {
+        return Err(WaypointError::Repeated {
+            index: i + 1,
+            previous: i,
+        });
+    }
+    for (key, value) in [("duration", duration), ("accel", accel)] {
+        if value <= 0.0 {
+            return Err(WaypointError::NotPositive { key, value });
+        }
+    }
+    let problem = from_timing(
+        &name,
+        points,
+        duration,
+        accel,
+        h,
+        start_heading,
+        end_heading,
+    )?;
+    if let Some(w) = problem.stages.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(WaypointError::SameStage {
+            first: w,
+            second: w + 1,
+            h,
+        });
+    }
+    Ok(problem)
+}
+
 /// [`from_json_str`] for a file, with its path in the message.
 pub fn from_file(path: &Path, h: f64) -> Result<PlanProblem, crate::io::ReadError> {
     let what = format!("waypoint file {}", path.display());
-    let text = crate::io::read_text(path, &what)?;
+    let text = crate::io::read_text_limited(path, &what, crate::io::MAX_JSON_BYTES, "")?;
     from_json_str(&text, h).map_err(|e| crate::io::ReadError::Content(format!("{what}: {e}")))
 }
 
@@ -293,7 +338,7 @@ mod tests {
             ("[1,2]", "expected a JSON object"),
             (
                 r#"{"points": [[0,0],[1,0]], "duration": 5, "start_heading": 0}"#,
-                "missing field `end_heading` at line 1",
+                "missing key 'end_heading'",
             ),
             (
                 r#"{"points": [[0,0]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
@@ -301,7 +346,7 @@ mod tests {
             ),
             (
                 r#"{"points": [[0,0],[1,"a"]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
-                "expected f64 at line 1 column 24",
+                "'points': invalid type: string \"a\", expected f64 at line 1 column 24",
             ),
             (
                 r#"{"points": [[0,0],[0,0]], "duration": 5, "start_heading": 0, "end_heading": 0}"#,
@@ -313,12 +358,16 @@ mod tests {
             ),
             (
                 r#"{"points": [[0,0],[1,0]], "duration": 5, "start_heading": 0, "end_heading": 0, "speed": 1}"#,
-                "unknown field `speed`",
+                "unknown key 'speed'",
             ),
             ("{", "EOF while parsing an object at line 1 column 1"),
+            (
+                r#"{"points": [[0,0],[1,0]], "duration": 5, "accel": null, "start_heading": 0, "end_heading": 0}"#,
+                "'accel' must be a value, got null",
+            ),
         ];
         for (text, msg) in bad {
-            let e = from_json_str(text, 0.005).unwrap_err();
+            let e = from_json_str(text, 0.005).unwrap_err().to_string();
             assert!(e.contains(msg), "'{e}' should contain '{msg}'");
         }
         let ok = from_json_str(
@@ -328,5 +377,22 @@ mod tests {
         .unwrap();
         assert_eq!(ok.n, 2400);
         assert_eq!(ok.stages.len(), 3);
+    }
+
+    /// A huge acceleration is a constant speed with instant starts and stops: the
+    /// waypoints' times are those of the cruise, all within the horizon (the cancelling form
+    /// of the root put them at infinite times, past the last stage).
+    #[test]
+    fn a_huge_acceleration_keeps_the_waypoints_in_the_horizon() {
+        for accel in [1e15, 1e20, 1e300] {
+            let p = from_json_str(
+                &format!(
+                    r#"{{"points": [[0,0],[0.25,0],[0.5,0]], "duration": 5, "accel": {accel}, "start_heading": 0, "end_heading": 0}}"#
+                ),
+                0.02,
+            )
+            .unwrap();
+            assert_eq!(p.stages, vec![0, 125, 250], "accel {accel}");
+        }
     }
 }

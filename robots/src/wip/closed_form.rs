@@ -13,19 +13,20 @@ use nalgebra::{SMatrix, SVector};
 
 /// `Ẋ = f(X, u)`, `X = (x, y, θ, α, v_α, v_d, v_θ, iR, iL)`, `u = (uR, uL)`: the pose
 /// rates, the mechanical accelerations of [`shape_acceleration`] in `(v̇_d, v̇_θ)`, and the
-/// motor circuits `L_m i̇ = u − R_m i − k_e n_wm (φ̇ − α̇)`.
+/// motor circuits `L_m i̇ = u − R_m i − k_e n_wm (φ̇ − α̇)`. `None` where the projected
+/// mass matrix `SᵀMS` cannot be factorised: at a state that is not finite (a diverged
+/// simulation), never at a finite state of a physical robot, where it is positive definite.
 pub fn state_derivative(
     p: &WipParams,
     x: &SVector<f64, 9>,
     u: &SVector<f64, 2>,
-) -> SVector<f64, 9> {
+) -> Option<SVector<f64, 9>> {
     let (th, al) = (x[2], x[3]);
     let (va, vd, vt, ir, il) = (x[4], x[5], x[6], x[7], x[8]);
     let (phrd, phld) = ((vd + p.d * vt) / p.r, (vd - p.d * vt) / p.r);
-    let a = shape_acceleration(&Wip::new(*p), al, [va, phrd, phld], [ir, il], [0.0; 3])
-        .expect("SᵀMS is positive definite");
+    let a = shape_acceleration(&Wip::new(*p), al, [va, phrd, phld], [ir, il], [0.0; 3])?;
     let di = |u: f64, i: f64, phid: f64| current_rate(p, u, i, phid - va);
-    SVector::<f64, 9>::from_column_slice(&[
+    Some(SVector::<f64, 9>::from_column_slice(&[
         vd * th.cos(),
         vd * th.sin(),
         vt,
@@ -35,7 +36,7 @@ pub fn state_derivative(
         p.r * (a[1] - a[2]) / (2.0 * p.d),
         di(u[0], ir, phrd),
         di(u[1], il, phld),
-    ])
+    ]))
 }
 
 /// `i̇` of a motor circuit, `L_m i̇ = u − R_m i − k_e n_wm w`, at voltage `u`, current `i` and

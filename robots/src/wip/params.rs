@@ -1,6 +1,7 @@
 //! The WIP's parameters (docs/wip.md, table of parameters; the file format in
 //! docs/formats.md): defaults, validation, and the JSON parameter file.
 
+use crate::io::{JsonError, JsonObject};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -195,36 +196,25 @@ impl WipParams<f64> {
     }
 
     /// Parse a JSON parameter file's text: an object with any subset of the keys; a key not
-    /// given keeps its default. Malformed JSON, an unknown key or a value that is not a
-    /// number is an error with its line and column; then [`WipParams::validate`].
+    /// given keeps its default. Malformed JSON (with its line and column), anything but an
+    /// object, an unknown key, and a value that is not a number (`null` included: it is
+    /// never read as "the default") are errors that name the key; then
+    /// [`WipParams::validate`].
     pub fn from_json_str(text: &str) -> Result<Self, ParamError> {
-        let given: WipParams<Option<f64>> =
-            serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| {
-                let msg = e.to_string();
-                match msg.strip_prefix("unknown field `") {
-                    Some(rest) => ParamError::Json(format!(
-                        "unknown parameter '{}' at line {} column {} (`wip params` lists the keys)",
-                        rest.split('`').next().unwrap_or(""),
-                        e.line(),
-                        e.column()
-                    )),
-                    // serde names the line and column; name the key too.
-                    None => match serde_json::from_str::<serde_json::Value>(text) {
-                        Ok(serde_json::Value::Object(m)) => {
-                            match m.iter().find(|(_, v)| !v.is_number()) {
-                                Some((k, v)) => ParamError::Json(format!(
-                                    "parameter '{k}' must be a number, got {v} (line {} column {})",
-                                    e.line(),
-                                    e.column()
-                                )),
-                                None => ParamError::Json(msg),
-                            }
-                        }
-                        _ => ParamError::Json(msg),
-                    },
-                }
-            })?;
-        let p = WipParams::default().zip(&given, |d, g| g.unwrap_or(d));
+        let mut p = WipParams::default();
+        let keys: Vec<&str> = p.named_mut().iter().map(|(k, _)| *k).collect();
+        let given = JsonObject::parse(text, &keys).map_err(|e| match e {
+            JsonError::UnknownKey { key, .. } => ParamError::UnknownKey { key },
+            other => ParamError::Json(other),
+        })?;
+        for (key, v) in p.named_mut() {
+            if let Some(x) = given.number(key).map_err(|e| match e {
+                JsonError::WrongType { found, .. } => ParamError::NotANumber { key, found },
+                other => ParamError::Json(other),
+            })? {
+                *v = x;
+            }
+        }
         p.validate()?;
         Ok(p)
     }
@@ -237,7 +227,7 @@ impl WipParams<f64> {
     /// Read a parameter file (JSON).
     pub fn from_file(path: &Path) -> Result<Self, crate::io::ReadError> {
         let what = format!("parameter file {}", path.display());
-        let text = crate::io::read_text(path, &what)?;
+        let text = crate::io::read_text_limited(path, &what, crate::io::MAX_JSON_BYTES, "")?;
         Self::from_json_str(&text)
             .map_err(|e| crate::io::ReadError::Content(format!("{what}: {e}")))
     }
@@ -263,9 +253,15 @@ impl Sign {
 /// Why a parameter set was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ParamError {
-    /// Not a JSON object of known keys and numbers (serde's message, with line and column).
+    /// Not JSON (serde's message, with line and column), or not an object.
     #[error("{0}")]
-    Json(String),
+    Json(JsonError),
+    /// A key that is not a parameter.
+    #[error("unknown parameter '{key}' (`wip params` lists the keys)")]
+    UnknownKey { key: String },
+    /// A value that is not a finite number.
+    #[error("parameter '{key}' must be a number, got {found}")]
+    NotANumber { key: &'static str, found: String },
     /// A value outside its physical range.
     #[error("parameter '{key}' must be {need}, got {value}")]
     OutOfRange {

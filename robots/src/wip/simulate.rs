@@ -2,6 +2,7 @@
 
 use super::state::{from_reduced, to_reduced, ReducedState};
 use super::Wip;
+use crate::check::{CheckError, Scheme};
 pub use crate::io::InputSchedule;
 use dmech::continuous::{ContinuousModel, RungeKutta};
 use dmech::{
@@ -57,6 +58,13 @@ impl Integrator {
             discretisation: Discretisation::Midpoint,
             quadrature: ForcingQuadrature::Right,
             jacobian: JacobianPolicy::ReuseAcrossSteps,
+        }
+    }
+    /// The scheme as the stability checks see it.
+    pub fn scheme(&self) -> Scheme {
+        match self {
+            Integrator::Rk(m) => Scheme::rk(*m),
+            Integrator::VarInt { .. } => Scheme::implicit(self.name()),
         }
     }
     pub fn name(&self) -> &'static str {
@@ -205,100 +213,53 @@ pub fn simulate(
     Ok(traj)
 }
 
-/// Refuse an explicit Runge–Kutta step that the linearised model at the start shows to be
-/// beyond the method's stability bound: a damped mode `λ` (Re λ < 0) resolved by less than
-/// a step (`|hλ| > 1`) whose stability function `R(hλ) = Σ_{j≤p} (hλ)^j / j!` amplifies
-/// it (`|R| > 1`), which is the blow-up explicit methods show on the motor circuit's fast
-/// electrical mode. Slow or growing modes are the physics and are left alone. The Jacobian
-/// of `(s, v) ↦ (v, v̇)` is taken by central differences (a diagnostic, not a derivative
-/// the results depend on).
+/// The modes of the WIP's linearised shape dynamics at a reduced state and input
+/// ([`crate::check::linear_modes`]).
+pub fn modes_at(
+    w: &Wip,
+    x0: &ReducedState,
+    u: [f64; 2],
+    what: &'static str,
+) -> Result<Vec<Complex<f64>>, CheckError> {
+    let (g, s, v) = from_reduced(&w.params, x0, [0.0; 4]);
+    crate::check::linear_modes(
+        w,
+        &ViState { g, s, v },
+        &SVector::<f64, 2>::new(u[0], u[1]),
+        what,
+    )
+}
+
+/// Refuse a plan whose step a growing mode of the model at rest outruns (the robot's own
+/// fall, e-fold in 0.13 s, at 0.1 s), or whose rates are not finite there
+/// ([`crate::check::check_step`] as for an implicit scheme: a plan's transcription meets
+/// its dynamics as constraints, and the explicit ones at steps beyond their stability
+/// bound on the motor circuit are the paper's comparison, `wip bench`).
+pub fn check_plan_step(w: &Wip, transcription: &str, h: f64) -> Result<(), CheckError> {
+    let what = "plan";
+    let modes = modes_at(w, &ReducedState::zeros(), [0.0; 2], what)?;
+    let name = match transcription {
+        "rk1" => "rk1",
+        "rk2" => "rk2",
+        "rk4" => "rk4",
+        "midpoint" => "midpoint",
+        _ => "varint",
+    };
+    crate::check::check_step(what, &modes, Scheme::implicit(name), h, "--step", "")
+}
+
+/// Refuse a simulation whose step the linearised model at the start shows to be beyond
+/// the scheme's stability bound ([`crate::check::check_step`]: a damped mode an explicit
+/// scheme amplifies, such as the motor circuit's electrical one; a growing mode faster
+/// than the step, for any scheme), or whose rates are not finite there.
 pub fn check_stability(
     w: &Wip,
     integrator: Integrator,
     h: f64,
     x0: &ReducedState,
     inputs: &InputSchedule,
-) -> Result<(), String> {
-    let Integrator::Rk(method) = integrator else {
-        return Ok(());
-    };
-    let order = match method {
-        RungeKutta::Rk1 => 1,
-        RungeKutta::Rk2 => 2,
-        RungeKutta::Rk4 => 4,
-    };
-    let lambdas = shape_modes(w, x0, inputs.at(0.0));
-    let amplification = |z: Complex<f64>| {
-        let (mut term, mut sum) = (Complex::new(1.0, 0.0), Complex::new(1.0, 0.0));
-        for j in 1..=order {
-            term = term * z / j as f64;
-            sum += term;
-        }
-        sum.norm()
-    };
-    let beyond =
-        |h: f64, l: &Complex<f64>| l.re < 0.0 && (l * h).norm() > 1.0 && amplification(l * h) > 1.0;
-    let Some(worst) = lambdas
-        .iter()
-        .filter(|l| beyond(h, l))
-        .max_by(|a, b| a.norm().total_cmp(&b.norm()))
-    else {
-        return Ok(());
-    };
-    // The largest stable step: bisection on h for the modes flagged at this one.
-    let (mut lo, mut hi) = (0.0, h);
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if lambdas.iter().any(|l| beyond(mid, l)) {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    Err(format!(
-        "{} at a step of {h} s is beyond its stability bound for this model: the mode \
-         λ = {:.3e}{:+.3e}i 1/s (time constant {:.2e} s) grows ×{:.3} per step; use --step ≤ {:.3e} \
-         or --integrator varint",
-        integrator.name(),
-        worst.re,
-        worst.im,
-        -1.0 / worst.re,
-        amplification(worst * h),
-        lo
-    ))
-}
-
-/// Eigenvalues of the linearised shape dynamics `(s, v) ↦ (v, v̇)` at a reduced state.
-fn shape_modes(w: &Wip, x0: &ReducedState, u: [f64; 2]) -> Vec<Complex<f64>> {
-    const NS: usize = super::NS;
-    let p = w.params;
-    let (g, s, v) = from_reduced(&p, x0, [0.0; 4]);
-    let u = SVector::<f64, 2>::new(u[0], u[1]);
-    let rhs = |z: &SVector<f64, { 2 * NS }>| -> Option<SVector<f64, { 2 * NS }>> {
-        let x = ViState {
-            g,
-            s: z.fixed_rows::<NS>(0).into_owned(),
-            v: z.fixed_rows::<NS>(NS).into_owned(),
-        };
-        let (_, sdot, a) = ContinuousModel::derivative(w, &x, &u).ok()?;
-        let mut out = SVector::<f64, { 2 * NS }>::zeros();
-        out.fixed_rows_mut::<NS>(0).copy_from(&sdot);
-        out.fixed_rows_mut::<NS>(NS).copy_from(&a);
-        Some(out)
-    };
-    let mut z0 = SVector::<f64, { 2 * NS }>::zeros();
-    z0.fixed_rows_mut::<NS>(0).copy_from(&s);
-    z0.fixed_rows_mut::<NS>(NS).copy_from(&v);
-    let mut jac = nalgebra::SMatrix::<f64, { 2 * NS }, { 2 * NS }>::zeros();
-    for j in 0..2 * NS {
-        let d = 1e-6 * (1.0 + z0[j].abs());
-        let (mut zp, mut zm) = (z0, z0);
-        zp[j] += d;
-        zm[j] -= d;
-        match (rhs(&zp), rhs(&zm)) {
-            (Some(fp), Some(fm)) => jac.set_column(j, &((fp - fm) / (2.0 * d))),
-            _ => return Vec::new(),
-        }
-    }
-    jac.complex_eigenvalues().iter().copied().collect()
+) -> Result<(), CheckError> {
+    let what = "simulate";
+    let modes = modes_at(w, x0, inputs.at(0.0), what)?;
+    crate::check::check_simulation_step(what, &modes, integrator.scheme(), h)
 }

@@ -5,6 +5,7 @@
 //!
 //! - `car`: `car plan` and `car simulate`;
 //! - `diagnose`: `wip generate` and `wip diagnose`;
+//! - `hostile`: both tools under hostile use, second round (issue 57);
 //! - `plan`: `wip plan`;
 //! - `reliability`: every subcommand under careless or hostile use (issue 24);
 //! - `simulate`: `wip simulate`;
@@ -17,6 +18,7 @@ mod common;
 
 mod car;
 mod diagnose;
+mod hostile;
 mod plan;
 mod reliability;
 mod simulate;

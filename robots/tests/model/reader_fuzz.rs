@@ -1,13 +1,19 @@
-//! Fuzz-style property tests of every reader of the `wip` tool: random bytes, random CSV
-//! rows built from plausible and hostile tokens, and random JSON. A reader may accept or
-//! refuse its input; it must never panic, and what it accepts must be finite.
+//! Fuzz-style property tests of every reader of the `wip` and `car` tools and of the
+//! closed loop's: random bytes, random CSV rows built from plausible and hostile tokens, and
+//! random JSON. A reader may accept or refuse its input; it must never panic, and what it
+//! accepts must be finite (and, for the checks after it, what they pass must hold).
 
 use proptest::prelude::*;
+use robots::car::plan::{CarBounds, CarPlan};
+use robots::car::problems::CarProblem;
 use robots::diagnose::Plant;
-use robots::io::{parse_csv, parse_inputs};
+use robots::io::{parse_csv, parse_input_columns, parse_inputs};
 use robots::wip::benchmarks;
 use robots::wip::diagnose::{Channel, WipPlant};
-use robots::wip::WipParams;
+use robots::wip::track::monte_carlo::perturbed;
+use robots::wip::track::plant::substeps;
+use robots::wip::track::report::{parse_plan, HOLE_RATIO};
+use robots::wip::{ReducedState, WipParams};
 
 /// Cases per property: enough to hit every token pool many times, small enough for CI.
 const CASES: u32 = 1024;
@@ -46,6 +52,8 @@ fn column() -> impl Strategy<Value = String> {
         Just("phiL_rel"),
         Just("iR"),
         Just("iL"),
+        Just("tau_s"),
+        Just("u_d"),
         Just("extra"),
         Just(""),
     ]
@@ -128,8 +136,65 @@ fn key() -> impl Strategy<Value = String> {
         Just("end_heading"),
         Just("name"),
         Just("mass"),
+        Just("start"),
+        Just("end"),
+        Just("waypoints"),
+        Just("reverse"),
     ]
     .prop_map(String::from)
+}
+
+/// A `trajectory.csv` with the twelve columns and hostile rows: times from a grid with
+/// gaps and repeats, values from the token pool.
+fn plan_text() -> impl Strategy<Value = String> {
+    (
+        proptest::collection::vec(
+            (
+                0u32..60,
+                proptest::collection::vec(
+                    prop_oneof![
+                        30 => (-1e3f64..1e3).prop_map(|v| v.to_string()),
+                        1 => token(),
+                    ],
+                    11,
+                ),
+            ),
+            0..40,
+        ),
+        any::<bool>(),
+    )
+        .prop_map(|(rows, from_zero)| {
+            let mut s = String::from("t,x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL,uR,uL\n");
+            let mut k = if from_zero { 0 } else { 1 };
+            for (gap, vals) in rows {
+                // Mostly one step of 20 ms, sometimes a hole or a repeat.
+                k += match gap {
+                    0 => 0,
+                    1..=3 => 30,
+                    _ => 1,
+                };
+                s += &format!("{}", k as f64 * 0.02);
+                for v in vals {
+                    s += ",";
+                    s += &v;
+                }
+                s.push('\n');
+            }
+            s
+        })
+}
+
+/// A car's inputs file: `t` on and off a 5-ms grid, hostile values.
+fn car_inputs_text() -> impl Strategy<Value = String> {
+    proptest::collection::vec((0u32..400, token(), token()), 1..30).prop_map(|rows| {
+        let mut s = String::from("t,tau_s,u_d\n0,0,0\n");
+        let mut t = 0u32;
+        for (dt, a, b) in rows {
+            t += dt + 1;
+            s += &format!("{},{a},{b}\n", t as f64 * 0.001);
+        }
+        s
+    })
 }
 
 proptest! {
@@ -183,7 +248,67 @@ proptest! {
             }
             if let Ok(problem) = benchmarks::from_json_str(t, 0.02) {
                 prop_assert!(problem.n > 0 && problem.h == 0.02);
+                // Every waypoint at a stage of the horizon (a huge `accel` put one past it).
+                prop_assert!(problem.stages.iter().all(|&k| k <= problem.n));
             }
+        }
+    }
+
+    #[test]
+    fn the_car_readers_never_panic(v in json_value(), text in car_inputs_text(), bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
+        for t in [v.to_string(), String::from_utf8_lossy(&bytes).into_owned()] {
+            if let Ok(problem) = CarProblem::from_json_str(&t) {
+                prop_assert!(problem.duration > 0.0 && problem.duration.is_finite());
+                prop_assert!(problem.poses().iter().flatten().all(|x| x.is_finite()));
+                // The plan's checks refuse or accept; they never panic.
+                let _ = CarPlan::new(&problem, CarBounds::default(), 0.02);
+            }
+        }
+        for t in [text.as_str(), &String::from_utf8_lossy(&bytes)] {
+            if let Ok(s) = parse_input_columns(t, "fuzz", ["tau_s", "u_d"]) {
+                prop_assert!(s.u.iter().flatten().all(|x| x.is_finite()));
+                let _ = s.check_limits("fuzz", [("tau_s", 1.0, "N m", "--max-torque"), ("u_d", 24.0, "V", "--max-voltage")]);
+                if let Ok(n) = s.steps_on_grid(0.005, "fuzz", "--step") {
+                    prop_assert!(n >= 1 && (n as f64 * 0.005 - s.end()).abs() < 1e-9);
+                    for &tj in &s.t {
+                        let m = tj / 0.005;
+                        prop_assert!((m - m.round()).abs() <= 1e-6 * m.max(1.0), "row at {tj}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_closed_loops_plan_reader_never_panics(text in plan_text(), bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+        for t in [text.as_str(), &String::from_utf8_lossy(&bytes)] {
+            if let Ok(plan) = parse_plan(t, "fuzz", 30, "") {
+                prop_assert!(plan.t.len() >= 2 && plan.t.len() <= 30 && plan.t[0] == 0.0);
+                prop_assert!(plan.t.windows(2).all(|w| w[1] > w[0]));
+                let mut steps: Vec<f64> = plan.t.windows(2).map(|w| w[1] - w[0]).collect();
+                steps.sort_by(f64::total_cmp);
+                let median = steps[steps.len() / 2];
+                prop_assert!(steps.iter().all(|&s| s <= HOLE_RATIO * median));
+                prop_assert!(plan.x.iter().flatten().chain(plan.u.iter().flatten()).all(|v| v.is_finite()));
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// The closed loop's plants: every Monte Carlo draw below a relative error of 1 is a
+    /// valid parameter set, and its substeps are chosen or refused, never a panic; the
+    /// substeps chosen keep at least the default 10.
+    #[test]
+    fn monte_carlo_plants_are_valid_and_checked(rel in 0.0f64..0.99, seed in 1u64..10_000, tilt in -0.5f64..0.5) {
+        let p = perturbed(&WipParams::default(), rel, seed);
+        prop_assert!(p.validate().is_ok(), "{p:?}");
+        let mut x = ReducedState::zeros();
+        x[3] = tilt;
+        if let Ok(n) = substeps(&p, &x, 0.005) {
+            prop_assert!(n >= 10);
         }
     }
 }

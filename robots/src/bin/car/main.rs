@@ -4,13 +4,14 @@
 use clap::{Parser, Subcommand, ValueEnum};
 use dmech::Discretisation;
 use dmech_ocp::solver::{IpOptions, Status};
-use robots::car::plan::{plan, CarBounds};
+use robots::car::plan::{plan, CarBounds, CarPlan};
 use robots::car::problems::CarProblem;
 use robots::car::report::{plots, summary_json, CarTrajectory};
-use robots::car::simulate::{simulate, CarIntegrator, CarState};
+use robots::car::simulate::{check_simulation, simulate, CarIntegrator, CarState};
 use robots::car::Car;
+use robots::check::check_size;
 use robots::cli::HessianArg;
-use robots::io::{parse_input_columns, read_text, OutputSet};
+use robots::io::{read_input_columns, OutputSet};
 use robots::{progress, say};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -90,10 +91,27 @@ struct SimulateArgs {
     /// Output directory
     #[arg(long, default_value = "out")]
     out: PathBuf,
+    /// Largest number of steps accepted (each row of trajectory.csv takes about 300 bytes)
+    #[arg(long, value_name = "N", default_value_t = 2_000_000, value_parser = clap::value_parser!(u64).range(1..))]
+    max_steps: u64,
+    /// Largest |u_d| accepted in the inputs file, in volts; the model has no saturation, and
+    /// the plans drive the motor within 6 V
+    #[arg(long, value_name = "VOLTS", default_value_t = 24.0, value_parser = positive)]
+    max_voltage: f64,
+    /// Largest |tau_s| accepted in the inputs file, in N m (the plans' bound is 0.05 N m)
+    #[arg(long, value_name = "NM", default_value_t = 1.0, value_parser = positive)]
+    max_torque: f64,
 }
 
 #[derive(Clone, Copy, Debug)]
 struct Vec9([f64; 9]);
+
+fn positive(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a positive, finite number")),
+    }
+}
 
 fn step(s: &str) -> Result<f64, String> {
     let h: f64 = s
@@ -129,24 +147,8 @@ fn discretisation(s: Scheme) -> Result<Discretisation, String> {
     }
 }
 
-fn load_problem(arg: &str) -> Result<CarProblem, String> {
-    if let Some(p) = CarProblem::builtin(arg) {
-        return Ok(p);
-    }
-    let path = PathBuf::from(arg);
-    let what = format!("pose file {}", path.display());
-    let text = read_text(&path, &what)
-        .map_err(|e| format!("{e} (built-in problems: parallel-park, lane-change)"))?;
-    let p: CarProblem = serde_json::from_str(&text).map_err(|e| format!("{what}: {e}"))?;
-    let finite = p.poses().iter().flatten().all(|v| v.is_finite());
-    if !(finite && p.duration.is_finite() && p.duration > 0.0) {
-        return Err(format!("{what}: poses must be finite and the duration > 0"));
-    }
-    Ok(p)
-}
-
 fn run_plan(a: PlanArgs) -> Result<(), String> {
-    let problem = load_problem(&a.problem)?;
+    let problem = CarProblem::load(&a.problem).map_err(|e| e.to_string())?;
     let disc = discretisation(a.integrator)?;
     let stages = problem.duration / a.step;
     if stages > 200_000.0 {
@@ -155,7 +157,9 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
             problem.duration, a.step
         ));
     }
-    let mut files = OutputSet::create(&a.out)?;
+    // The mesh's checks (whole steps, distinct poses, no two on one stage) before any work.
+    CarPlan::new(&problem, CarBounds::default(), a.step).map_err(|e| e.to_string())?;
+    let mut files = OutputSet::create(&a.out).map_err(|e| e.to_string())?;
     let name = a
         .integrator
         .to_possible_value()
@@ -178,18 +182,24 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
         ..defaults
     });
     let bounds = CarBounds::default();
-    let o = plan(&Car::default(), &problem, bounds, a.step, disc, opts)?;
+    let o =
+        plan(&Car::default(), &problem, bounds, a.step, disc, opts).map_err(|e| e.to_string())?;
     let traj = CarTrajectory::from_plan(&o);
     let pose_error = traj.pose_error_max(&o.stages, &problem);
-    files.write("trajectory.csv", traj.csv()?.as_bytes())?;
-    files.write(
-        "summary.json",
-        summary_json(&problem, &name, &o, pose_error).as_bytes(),
-    )?;
+    let put = |e: robots::io::OutputError| e.to_string();
+    files
+        .write("trajectory.csv", traj.csv()?.as_bytes())
+        .map_err(put)?;
+    files
+        .write(
+            "summary.json",
+            summary_json(&problem, &name, &o, pose_error).as_bytes(),
+        )
+        .map_err(put)?;
     for (file, svg) in plots(&problem, &traj, &bounds) {
-        files.write(&file, svg.as_bytes())?;
+        files.write(&file, svg.as_bytes()).map_err(put)?;
     }
-    files.commit()?;
+    files.commit().map_err(put)?;
     say!(
         "{}: {} after {} iterations in {:.2} s; objective {:.6}, max violation {:.1e}, pose error {:.1e}",
         problem.name,
@@ -212,23 +222,36 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
 
 fn run_simulate(a: SimulateArgs) -> Result<(), String> {
     let what = format!("inputs file {}", a.inputs.display());
-    let text = read_text(&a.inputs, &what).map_err(|e| e.to_string())?;
-    let inputs = parse_input_columns(&text, &what, ["tau_s", "u_d"])?;
-    let steps = inputs.end() / a.step;
-    let n = steps.round() as usize;
-    if (steps - n as f64).abs() > 1e-6 * steps.max(1.0) {
-        return Err(format!(
-            "{what}: the last row's t = {} is not a whole number of steps of {} s ({steps:.4})",
-            inputs.end(),
-            a.step
-        ));
-    }
-    if n > 2_000_000 {
-        return Err(format!(
-            "{n} steps is more than 2000000: use a larger --step"
-        ));
-    }
-    let mut files = OutputSet::create(&a.out)?;
+    let text = |e: &dyn std::fmt::Display| e.to_string();
+    let max_steps = usize::try_from(a.max_steps).unwrap_or(usize::MAX);
+    // Every row lies on the step grid, so the file holds at most one row per step.
+    let inputs = read_input_columns(
+        &a.inputs,
+        ["tau_s", "u_d"],
+        max_steps.saturating_add(1),
+        " (one row a step at most: raise it with --max-steps)",
+    )
+    .map_err(|e| text(&e))?;
+    inputs
+        .check_limits(
+            &what,
+            [
+                ("tau_s", a.max_torque, "N m", "--max-torque"),
+                ("u_d", a.max_voltage, "V", "--max-voltage"),
+            ],
+        )
+        .map_err(|e| text(&e))?;
+    check_size(
+        "simulate: steps",
+        inputs.end() / a.step,
+        max_steps,
+        300.0,
+        "--max-steps",
+    )
+    .map_err(|e| text(&e))?;
+    let n = inputs
+        .steps_on_grid(a.step, &what, "--step")
+        .map_err(|e| text(&e))?;
     let scheme = match a.integrator {
         Scheme::Rk4 => CarIntegrator::Rk4,
         s => CarIntegrator::Variational(discretisation(s)?),
@@ -239,9 +262,14 @@ fn run_simulate(a: SimulateArgs) -> Result<(), String> {
         shape: nalgebra::Vector3::new(x[3], x[4], x[5]),
         velocity: nalgebra::Vector3::new(x[6], x[7], x[8]),
     };
-    let traj = simulate(&Car::default(), scheme, a.step, &start, &inputs, n)?;
-    files.write("trajectory.csv", traj.csv()?.as_bytes())?;
-    files.commit()?;
+    let car = Car::default();
+    check_simulation(&car, scheme, a.step, &start, &inputs).map_err(|e| text(&e))?;
+    let mut files = OutputSet::create(&a.out).map_err(|e| text(&e))?;
+    let traj = simulate(&car, scheme, a.step, &start, &inputs, n)?;
+    files
+        .write("trajectory.csv", traj.csv()?.as_bytes())
+        .map_err(|e| text(&e))?;
+    files.commit().map_err(|e| text(&e))?;
     let last = traj.pose.last().expect("at least the start");
     say!(
         "simulated {n} steps of {} s; final pose x={:.6} y={:.6} theta={:.6}",
@@ -255,6 +283,8 @@ fn run_simulate(a: SimulateArgs) -> Result<(), String> {
 }
 
 fn main() -> ExitCode {
+    // First, before any thread starts: SIGINT and SIGTERM remove the staging directories.
+    robots::io::clean_up_on_signals();
     robots::cli::on_solver_stack(run_command)
 }
 

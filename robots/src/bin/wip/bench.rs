@@ -1,7 +1,7 @@
 //! `wip bench`: the paper's computation-time comparison rerun with our solver.
 
 use crate::common::{positive_number, CurrentArg, Failure, IntegratorArg};
-use dmech_ocp::solver::IpOptions;
+use dmech_ocp::solver::{IpOptions, Status};
 use robots::io::OutputSet;
 use robots::wip::benchmarks;
 use robots::wip::plan::{plan, CurrentModel, PlanBounds};
@@ -45,7 +45,8 @@ pub struct BenchArgs {
         default_value = "dynamic,algebraic"
     )]
     currents: Vec<CurrentArg>,
-    /// Stop each plan after this many seconds (status max_iterations); default: none
+    /// Stop each plan after this many seconds (status time_limit: objective and violation
+    /// null, the run did not reach its end); default: none
     #[arg(long, value_name = "SECONDS", allow_negative_numbers = true, value_parser = positive_number)]
     time_limit: Option<f64>,
     /// Output directory
@@ -145,20 +146,27 @@ pub fn run(a: BenchArgs) -> Result<(), Failure> {
                     c,
                     opts,
                 );
+                // A plan stopped by the clock did not reach its end: the iterate it returns
+                // may be a mesh's start (mesh sequencing falls back to the finest mesh with
+                // no time left) or a continuation phase's, so its figures are not the
+                // plan's and are left out.
+                let reached_end = o.status != Status::TimeLimit;
+                let figure = |v: f64| (reached_end && v.is_finite()).then_some(v);
+                let (objective, max_violation) = (figure(o.objective), figure(o.max_violation));
                 let paper_s = if name == "eight" {
                     paper_time(i, c)
                 } else {
                     None
                 };
                 say!(
-                    "{:<8} {:<7} {:<9} {:<14} {:>6} {:>10.2} {:>14.4} {:>12}",
+                    "{:<8} {:<7} {:<9} {:<14} {:>6} {:>10.2} {:>14} {:>12}",
                     name,
                     i.name(),
                     c.name(),
                     o.status.code(),
                     o.iterations,
                     o.timings.total,
-                    o.objective,
+                    objective.map_or_else(|| "-".into(), |v| format!("{v:.4}")),
                     paper_s
                         .map(|v| format!("{v:.0}"))
                         .unwrap_or_else(|| "-".into())
@@ -170,8 +178,8 @@ pub fn run(a: BenchArgs) -> Result<(), Failure> {
                     status: o.status.code(),
                     iterations: o.iterations,
                     solve_time_s: o.timings.total,
-                    objective: o.objective.is_finite().then_some(o.objective),
-                    max_violation: o.max_violation.is_finite().then_some(o.max_violation),
+                    objective,
+                    max_violation,
                     time_breakdown_s: Breakdown {
                         derivatives: o.timings.derivatives,
                         kkt: o.timings.kkt,

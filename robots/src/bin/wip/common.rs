@@ -1,6 +1,6 @@
 //! What the subcommands share: the failure type and its exit status, value parsers that
-//! check ranges, the integrator and current-model value enums, parameter loading, and the
-//! size check that refuses runs too large for memory before they start.
+//! check ranges, the integrator and current-model value enums, and parameter loading (the
+//! checks of a run before it starts are `robots::check`).
 
 use clap::CommandFactory;
 use robots::wip::plan::{CurrentModel, Transcription};
@@ -15,11 +15,24 @@ pub enum Failure {
     Run(String),
 }
 
-impl From<robots::io::ReadError> for Failure {
-    fn from(e: robots::io::ReadError) -> Self {
-        Failure::Run(e.to_string())
-    }
+/// A library error is a failed run: its message is the line printed.
+macro_rules! run_failures {
+    ($($t:ty),*) => {$(
+        impl From<$t> for Failure {
+            fn from(e: $t) -> Self {
+                Failure::Run(e.to_string())
+            }
+        }
+    )*};
 }
+
+run_failures!(
+    robots::io::ReadError,
+    robots::io::OutputError,
+    robots::io::InputError,
+    robots::check::CheckError,
+    robots::wip::track::closed_loop::TrackError
+);
 
 impl From<String> for Failure {
     fn from(m: String) -> Self {
@@ -73,6 +86,19 @@ pub fn positive_number(s: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!("must be positive, got {v}"))
+    }
+}
+
+/// A relative error in (0, 1): below 1, so that every perturbed parameter stays positive.
+pub fn relative_error(s: &str) -> Result<f64, String> {
+    let v = finite(s)?;
+    if v > 0.0 && v < 1.0 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "must be in (0, 1) (a relative error of 1 or more can make a mass or an \
+             inductance zero or negative), got {v}"
+        ))
     }
 }
 
@@ -153,24 +179,4 @@ pub fn load_params(path: Option<&Path>) -> Result<WipParams, Failure> {
         None => Ok(WipParams::default()),
         Some(p) => Ok(WipParams::from_file(p)?),
     }
-}
-
-/// Refuse a run of `count` items (stages, steps) above `limit`, before it allocates:
-/// the message gives the memory it would take and the option that raises the limit.
-pub fn check_size(
-    what: &str,
-    count: f64,
-    limit: usize,
-    bytes_each: f64,
-    option: &str,
-) -> Result<(), Failure> {
-    if count.is_finite() && count <= limit as f64 {
-        return Ok(());
-    }
-    Err(Failure::Run(format!(
-        "{what}: {count:.0} would need about {:.1} GB, above the limit of {limit} ({:.1} GB); \
-         check the units (seconds) or raise the limit with {option}",
-        count * bytes_each / 1e9,
-        limit as f64 * bytes_each / 1e9
-    )))
 }

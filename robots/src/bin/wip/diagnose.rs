@@ -52,6 +52,10 @@ pub struct DiagnoseArgs {
     /// Leave effects of the catalogue out (comma-separated names)
     #[arg(long, value_name = "NAMES")]
     exclude: Option<String>,
+    /// Largest number of data rows accepted (a larger file is refused from its size before
+    /// it is read; `wip generate`'s longest log, 3600 s at 5 ms, has 720,001)
+    #[arg(long, value_name = "N", default_value = "1000000", value_parser = positive_count)]
+    max_rows: usize,
     /// The most effects named together (added one at a time while the chosen ones leave
     /// the error above the noise)
     #[arg(long, value_name = "N", default_value = "2", value_parser = positive_count)]
@@ -85,7 +89,13 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
     }
     let p = load_params(a.params.as_deref())?;
     let plant = WipPlant::new(p);
-    let log = plant.read_log(&a.data)?;
+    let hint = format!(
+        " ({} bytes a row of --max-rows {}: raise it with --max-rows)",
+        robots::wip::diagnose::plant::LOG_ROW_BYTES,
+        a.max_rows
+    );
+    let log = plant.read_log(&a.data, a.max_rows, &hint)?;
+    plant.check_model(log.h)?;
     let mut files = OutputSet::create(&a.out)?;
     if !a.quiet {
         for w in &log.warnings {

@@ -5,7 +5,7 @@ use robots::diagnose::Plant;
 use robots::io::OutputSet;
 use robots::say;
 use robots::wip::diagnose::effects::Effect;
-use robots::wip::diagnose::generate::{draw_effect, generate, Rng, RunSettings};
+use robots::wip::diagnose::generate::{draw_effect, generate, truth_substeps, Rng, RunSettings};
 use robots::wip::diagnose::WipPlant;
 use std::path::PathBuf;
 
@@ -83,10 +83,11 @@ pub fn run(a: GenerateArgs) -> Result<(), Failure> {
         .iter()
         .map(|&e| (e, draw_effect(e, &p, &mut rng)))
         .collect();
-    let settings = RunSettings {
+    let mut settings = RunSettings {
         duration: a.duration,
         ..Default::default()
     };
+    settings.substeps = truth_substeps(&p, &effects, &settings)?;
     let g = generate(&p, &effects, a.seed, &settings)?;
     let plant = WipPlant::new(p);
     files.write(

@@ -56,6 +56,8 @@ fn print_subcommand_usage(rendered: &str) {
 }
 
 fn main() -> ExitCode {
+    // First, before any thread starts: SIGINT and SIGTERM remove the staging directories.
+    robots::io::clean_up_on_signals();
     robots::cli::on_solver_stack(run_command)
 }
 

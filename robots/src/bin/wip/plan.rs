@@ -1,18 +1,19 @@
 //! `wip plan`: the constrained energy-optimal trajectory through waypoints.
 
 use crate::common::{
-    check_size, load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg,
-    Failure, IntegratorArg,
+    load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg, Failure,
+    IntegratorArg,
 };
 use dmech_ocp::solver::{IpOptions, KktMethod, Status};
 use dmech_ocp::transcription::free_timing::TotalTime;
+use robots::check::check_size;
 use robots::cli::HessianArg;
 use robots::io::OutputSet;
 use robots::wip::benchmarks;
 use robots::wip::plan::{plan, PlanBounds};
 use robots::wip::plan_free_timing::plan_free_timing;
 use robots::wip::plan_report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
-use robots::wip::simulate::trajectory_csv;
+use robots::wip::simulate::{check_plan_step, trajectory_csv};
 use robots::wip::Wip;
 use robots::{progress, say};
 use std::path::PathBuf;
@@ -152,6 +153,7 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         ));
     }
     let wip = Wip::new(load_params(a.params.as_deref())?);
+    check_plan_step(&wip, a.integrator.name(), h)?;
     let mut files = OutputSet::create(&a.out)?;
     let defaults = IpOptions::default();
     let opts = a.hessian.apply(IpOptions {

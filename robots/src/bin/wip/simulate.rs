@@ -1,6 +1,7 @@
 //! `wip simulate`: open-loop simulation from a state with zero-order-hold voltages.
 
-use crate::common::{check_size, load_params, positive_count, sim_step, Failure, IntegratorArg};
+use crate::common::{load_params, positive_count, sim_step, Failure, IntegratorArg};
+use robots::check::check_size;
 use robots::io::{read_inputs, OutputSet};
 use robots::say;
 use robots::wip::simulate::trajectory_csv;
@@ -47,34 +48,24 @@ pub fn run(a: SimulateArgs) -> Result<(), Failure> {
     let h = a.step;
     let x = parse_state(&a.x0)?;
     let params = load_params(a.params.as_deref())?;
-    let sched = read_inputs(&a.inputs)?;
-    if let Some((j, u)) = sched
-        .u
-        .iter()
-        .enumerate()
-        .find(|(_, u)| u[0].abs().max(u[1].abs()) > a.max_voltage)
-    {
-        return Err(Failure::Run(format!(
-            "inputs file {}: data row {} (t = {}): voltage ({}, {}) V is beyond ±{} V (--max-voltage)",
-            a.inputs.display(),
-            j + 1,
-            sched.t[j],
-            u[0],
-            u[1],
-            a.max_voltage
-        )));
-    }
+    // Every row lies on the step grid, so the file holds at most one row per step.
+    let sched = read_inputs(
+        &a.inputs,
+        a.max_steps.saturating_add(1),
+        " (one row a step at most: raise it with --max-steps)",
+    )?;
+    let what = format!("inputs file {}", a.inputs.display());
+    let v = a.max_voltage;
+    sched.check_limits(
+        &what,
+        [
+            ("uR", v, "V", "--max-voltage"),
+            ("uL", v, "V", "--max-voltage"),
+        ],
+    )?;
     let steps = sched.end() / h;
     check_size("simulate: steps", steps, a.max_steps, 300.0, "--max-steps")?;
-    let n = steps.round() as usize;
-    if n == 0 || (n as f64 * h - sched.end()).abs() > 1e-9 * sched.end().max(1.0) {
-        return Err(Failure::Run(format!(
-            "inputs file {}: the horizon ends at t = {} s, which is {steps:.4} steps of {h} s; \
-             end the file at a whole number of steps or choose a --step that divides it",
-            a.inputs.display(),
-            sched.end()
-        )));
-    }
+    let n = sched.steps_on_grid(h, &what, "--step")?;
 
     let wip = Wip::new(params);
     let integrator: Integrator = a.integrator.integrator();

@@ -1,14 +1,16 @@
 //! `wip track`: the closed loop along a plan (feedforward + LQ + guidance + observer).
 
 use crate::common::{load_params, Failure};
+use robots::check::check_size;
 use robots::io::OutputSet;
 use robots::say;
 use robots::wip::simulate::Trajectory;
-use robots::wip::track::closed_loop::{track, Controller, TrackConfig};
-use robots::wip::track::lq::LqController;
+use robots::wip::track::closed_loop::{track_with_substeps, Controller, TrackConfig, TrackError};
+use robots::wip::track::lq::{LqController, SAMPLE};
 use robots::wip::track::monte_carlo::{monte_carlo, perturbed, quantile, with_mean_delay, McRun};
 use robots::wip::track::mpc::MpcController;
 use robots::wip::track::observer::SensorModel;
+use robots::wip::track::plant::substeps;
 use robots::wip::track::report::{plan_path, plots, read_plan, tracking_csv, tracking_json};
 use std::path::PathBuf;
 
@@ -41,7 +43,7 @@ pub struct TrackArgs {
     monte_carlo: Option<usize>,
     /// Relative error of every mass, inertia and motor parameter of the plant in a Monte
     /// Carlo run (uniform in ±REL)
-    #[arg(long, value_name = "REL", default_value = "0.1", value_parser = crate::common::positive_number)]
+    #[arg(long, value_name = "REL", default_value = "0.1", allow_negative_numbers = true, value_parser = crate::common::relative_error)]
     param_error: f64,
     /// Mean delay of the external pose (s); the paper's law (13–148 ms, mean 63 ms) scaled
     #[arg(long, value_name = "SECONDS", value_parser = crate::common::positive_number)]
@@ -59,6 +61,10 @@ pub struct TrackArgs {
     /// Output directory
     #[arg(long, value_name = "DIR", default_value = "out")]
     out: PathBuf,
+    /// Largest number of 5-ms samples of a run, and of rows of the plan (each row of
+    /// tracking.csv takes about 300 bytes)
+    #[arg(long, value_name = "N", default_value = "1000000", value_parser = crate::common::positive_count)]
+    max_samples: usize,
 }
 
 /// The tracking controllers.
@@ -74,7 +80,26 @@ pub enum ControllerArg {
 pub fn run(a: TrackArgs) -> Result<(), Failure> {
     let params = load_params(a.params.as_deref())?;
     let path = plan_path(&a.plan);
-    let plan = read_plan(&path)?;
+    let plan = read_plan(&path, a.max_samples, " (raise it with --max-samples)")?;
+    check_size(
+        "track: samples",
+        plan.t.last().copied().unwrap_or(0.0) / SAMPLE,
+        a.max_samples,
+        300.0,
+        "--max-samples",
+    )?;
+    let plant = a
+        .plant_seed
+        .map_or(params, |n| perturbed(&params, a.param_error, n));
+    // The plant's RK4 substeps, before the controller's design: a plant that cannot be
+    // simulated is refused at once (a Monte Carlo run checks every seed's plant).
+    let substeps = substeps(&plant, &plan.x[0], SAMPLE).map_err(|e| match a.plant_seed {
+        Some(seed) => Failure::from(TrackError::Seed {
+            seed,
+            source: Box::new(e),
+        }),
+        None => Failure::from(e),
+    })?;
     let lq = LqController::design(&params)
         .map_err(|e| Failure::Run(format!("the LQ design failed: {e}")))?;
     let mpc = match a.controller {
@@ -83,9 +108,7 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
     };
     let controller = mpc.as_ref().map_or(Controller::Lq(&lq), Controller::Mpc);
     let cfg = TrackConfig {
-        plant: a
-            .plant_seed
-            .map_or(params, |n| perturbed(&params, a.param_error, n)),
+        plant,
         nominal: params,
         sensors: match (a.ideal, a.mean_delay) {
             (true, _) => SensorModel::ideal(),
@@ -103,13 +126,20 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
     let mut files = OutputSet::create(&a.out)?;
     let t0 = std::time::Instant::now();
     let long = *plan.t.last().unwrap_or(&0.0) > 2.0;
-    let run = track(&plan, controller, &cfg, |f| {
+    let run = track_with_substeps(&plan, controller, &cfg, substeps, |f| {
         if long {
             robots::progress!("\rtrack: {:3.0} %", 100.0 * f);
         }
-    })?;
+    });
     if long {
         robots::progress!("\rtrack: done ");
+    }
+    if let Some((t, why)) = &run.diverged {
+        return Err(Failure::Run(format!(
+            "the simulation of the plant diverged at t = {t:.3} s ({why}; {} RK4 substeps per \
+             sample): a numerical failure, not a fall; nothing written",
+            run.substeps
+        )));
     }
     let elapsed = t0.elapsed().as_secs_f64();
     let fig = run.figures();
@@ -122,6 +152,7 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         controller.name(),
         run.fell_at,
         duration,
+        run.substeps,
     );
     files.write("tracking.json", json.as_bytes())?;
     for (name, svg) in plots(&run) {
@@ -183,26 +214,35 @@ fn monte_carlo_run(
         a.threads,
     )?;
     let elapsed = t0.elapsed().as_secs_f64();
-    let pos: Vec<f64> = runs
-        .iter()
-        .map(|r| r.figures.position_error_max_m)
-        .collect();
-    let head: Vec<f64> = runs
-        .iter()
-        .map(|r| r.figures.heading_error_max_rad)
-        .collect();
+    // A diverged run's figures are not a result: the quantiles are over the others.
+    let results = || runs.iter().filter(|r| r.diverged_at.is_none());
+    let pos: Vec<f64> = results().map(|r| r.figures.position_error_max_m).collect();
+    let head: Vec<f64> = results().map(|r| r.figures.heading_error_max_rad).collect();
     let falls: Vec<u64> = runs
         .iter()
         .filter(|r| r.figures.fell)
         .map(|r| r.seed)
         .collect();
-    say!("seed  fell  pos_max[mm]  pos_rms[mm]  head_max[deg]  tilt_max[deg]  fb_max[V]");
+    let diverged: Vec<u64> = runs
+        .iter()
+        .filter(|r| r.diverged_at.is_some())
+        .map(|r| r.seed)
+        .collect();
+    say!("seed  outcome    pos_max[mm]  pos_rms[mm]  head_max[deg]  tilt_max[deg]  fb_max[V]");
     for r in &runs {
         let f = &r.figures;
+        if let Some(t) = r.diverged_at {
+            say!(
+                "{:4}  {:9}  (the plant's simulation diverged at t = {t:.3} s: no figures)",
+                r.seed,
+                f.outcome
+            );
+            continue;
+        }
         say!(
-            "{:4}  {:5}  {:11.2}  {:11.2}  {:13.2}  {:13.2}  {:9.2}",
+            "{:4}  {:9}  {:11.2}  {:11.2}  {:13.2}  {:13.2}  {:9.2}",
             r.seed,
-            f.fell,
+            f.outcome,
             1e3 * f.position_error_max_m,
             1e3 * f.position_error_rms_m,
             f.heading_error_max_rad.to_degrees(),
@@ -217,6 +257,8 @@ fn monte_carlo_run(
         "mean_delay_s": a.mean_delay.unwrap_or(0.063),
         "falls": falls.len(),
         "fallen_seeds": falls,
+        "diverged": diverged.len(),
+        "diverged_seeds": diverged,
         "position_error_max_m": { "median": quantile(&pos, 0.5), "p95": quantile(&pos, 0.95) },
         "heading_error_max_rad": { "median": quantile(&head, 0.5), "p95": quantile(&head, 0.95) },
         "wall_time_s": elapsed,
@@ -236,7 +278,20 @@ fn monte_carlo_run(
         1e3 * quantile(&pos, 0.95)
     );
     say!("wrote {}", a.out.join("montecarlo.json").display());
-    Ok(())
+    diverged_runs(&diverged)
+}
+
+/// Exit 1 if the plant's simulation diverged in any run (seeds listed in the files).
+fn diverged_runs(seeds: &[u64]) -> Result<(), Failure> {
+    if seeds.is_empty() {
+        return Ok(());
+    }
+    let list: Vec<String> = seeds.iter().map(u64::to_string).collect();
+    Err(Failure::Run(format!(
+        "the simulation of the plant diverged for seed(s) {} (a numerical failure, not a fall; \
+         their figures are left out)",
+        list.join(", ")
+    )))
 }
 
 /// `--delay-sweep`: for each mean pose delay, seeds 1..=n with the nominal plant; a table
@@ -251,6 +306,7 @@ fn delay_sweep(
     let mut files = OutputSet::create(&a.out)?;
     let mut rows = Vec::new();
     let mut tolerated: Option<f64> = None;
+    let mut all_diverged: Vec<u64> = Vec::new();
     say!("mean_delay[s]  falls  pos_max_median[mm]  pos_max_p95[mm]");
     for factor in [1.0, 2.0, 4.0, 8.0, 16.0] {
         let delay = 0.063 * factor;
@@ -266,11 +322,24 @@ fn delay_sweep(
         )?;
         let pos: Vec<f64> = runs
             .iter()
+            .filter(|r| r.diverged_at.is_none())
             .map(|r| r.figures.position_error_max_m)
             .collect();
         let falls = runs.iter().filter(|r| r.figures.fell).count();
-        // The largest delay with no fall at it nor at any smaller one.
-        if falls == 0 && rows.iter().all(|r: &serde_json::Value| r["falls"] == 0) {
+        let diverged: Vec<u64> = runs
+            .iter()
+            .filter(|r| r.diverged_at.is_some())
+            .map(|r| r.seed)
+            .collect();
+        all_diverged.extend(&diverged);
+        // The largest delay with no fall (and no run that diverged) at it nor at any
+        // smaller one.
+        if falls == 0
+            && diverged.is_empty()
+            && rows
+                .iter()
+                .all(|r: &serde_json::Value| r["falls"] == 0 && r["diverged"] == 0)
+        {
             tolerated = Some(delay);
         }
         say!(
@@ -279,7 +348,7 @@ fn delay_sweep(
             1e3 * quantile(&pos, 0.95)
         );
         rows.push(serde_json::json!({
-            "mean_delay_s": delay, "runs": n, "falls": falls,
+            "mean_delay_s": delay, "runs": n, "falls": falls, "diverged": diverged.len(),
             "position_error_max_m": { "median": quantile(&pos, 0.5), "p95": quantile(&pos, 0.95) },
         }));
     }
@@ -304,5 +373,7 @@ fn delay_sweep(
         ),
     }
     say!("wrote {}", a.out.join("delay_sweep.json").display());
-    Ok(())
+    all_diverged.sort_unstable();
+    all_diverged.dedup();
+    diverged_runs(&all_diverged)
 }

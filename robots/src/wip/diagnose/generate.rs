@@ -120,6 +120,37 @@ impl Default for RunSettings {
     }
 }
 
+/// The RK4 substeps per control step that keep the true model of `p` with `effects` within
+/// RK4's stability bound ([`crate::check::stable_substeps`] on its modes at rest):
+/// `settings.substeps` where that suffices (the paper's robot), more for a faster motor
+/// circuit, an error where none would do or the model's rates are not finite. Set
+/// `settings.substeps` to it before [`generate`], whose plant would otherwise blow up (and
+/// the blow-up read as a fall).
+pub fn truth_substeps(
+    p: &WipParams,
+    effects: &[(Effect, Vec<f64>)],
+    settings: &RunSettings,
+) -> Result<usize, crate::check::CheckError> {
+    let what = "generate: the model";
+    let cat = wip_catalogue(p);
+    let layout = Layout::new(&cat, p);
+    let ext: ModelExtension<f64> = layout.extension(p, &layout.theta_with(&cat, effects));
+    let x = TrueState {
+        g: Se2::new(0.0, 0.0, 0.0),
+        s: SVector::zeros(),
+        v: SVector::zeros(),
+    };
+    let modes = crate::check::linear_modes(&ext.system(), &x, &SVector::zeros(), what)?;
+    crate::check::stable_substeps(
+        what,
+        &modes,
+        crate::check::Scheme::rk(RungeKutta::Rk4),
+        settings.h,
+        settings.substeps,
+        4000,
+    )
+}
+
 /// The true model's state: pose in SE(2), shape `(α, φR, φL, qR, qL)`, shape velocity
 /// `(v_α, φ̇R, φ̇L, iR, iL)`.
 type TrueState = ContinuousState<Se2<f64>, 5>;

@@ -6,6 +6,7 @@ use super::effects::{wip_catalogue, Layout};
 use super::prediction::{Command, Predictor, Wheel, NZ};
 use super::reversal_lockout::passed_fractions;
 use crate::diagnose::conditions::{above_median, near_zero, positive};
+use crate::diagnose::log::LogError;
 use crate::diagnose::model::Catalogue;
 use crate::diagnose::{ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant};
 use crate::wip::WipParams;
@@ -86,6 +87,11 @@ pub struct WipPlant {
 /// before the first window.
 const MAX_DELAY: f64 = 0.1;
 
+/// The bytes a row of a measured log is allowed (the twelve columns `wip generate` writes
+/// take about 180), for the size limit of [`WipPlant::read_log`]: a log of a million rows
+/// may have 256 MB, and one of ten million rows (400 MB) is refused from its size.
+pub const LOG_ROW_BYTES: u64 = 256;
+
 impl WipPlant {
     pub fn new(params: WipParams) -> Self {
         let catalogue = wip_catalogue(&params);
@@ -104,15 +110,82 @@ impl WipPlant {
     }
 
     /// Parse a measured log with the WIP's columns.
-    pub fn parse_log(&self, text: &str, what: &str) -> Result<MeasuredLog, String> {
+    pub fn parse_log(&self, text: &str, what: &str) -> Result<MeasuredLog, LogError> {
         MeasuredLog::parse(text, what, &self.channels, &self.inputs)
     }
 
-    pub fn read_log(&self, path: &std::path::Path) -> Result<MeasuredLog, crate::io::ReadError> {
+    /// Refuse a log whose step the prediction model cannot follow: the model's predictions
+    /// (the current algebraic) take RK4 substeps of at most
+    /// [`super::prediction::MAX_SUBSTEP`] of the log's step `h`, which must stay within
+    /// RK4's stability bound on the model's modes at rest, whose rates must be finite
+    /// ([`crate::check::check_step`]).
+    pub fn check_model(&self, h: f64) -> Result<(), crate::check::CheckError> {
+        use crate::wip::algebraic_current::WipAlgebraicCurrent;
+        let what = "diagnose: the model";
+        let mut sys = crate::wip::Wip::new(self.params);
+        let p = &self.params;
+        sys.quasi_static_inertia = (p.k_e * p.n_wm).powi(2) * p.L_m / (p.R_m * p.R_m);
+        let model = WipAlgebraicCurrent::new(sys);
+        let x = dmech::continuous::ContinuousState {
+            g: dmech_lie::Se2::new(0.0, 0.0, 0.0),
+            s: SVector::<f64, 3>::zeros(),
+            v: SVector::<f64, 3>::zeros(),
+        };
+        let modes = crate::check::linear_modes(&model, &x, &SVector::zeros(), what)?;
+        let substep = super::prediction::MAX_SUBSTEP;
+        let scheme = crate::check::Scheme {
+            name: "rk4 in 8 substeps",
+            ..crate::check::Scheme::rk(dmech::RungeKutta::Rk4)
+        };
+        // Said of the log's step: its 8 substeps, the growth over all of them.
+        crate::check::check_step(what, &modes, scheme, h * substep, "a log step", "").map_err(|e| {
+            match e {
+                crate::check::CheckError::Step {
+                    h_max,
+                    mode,
+                    failure,
+                    ..
+                } => crate::check::CheckError::Step {
+                    what,
+                    scheme: scheme.name,
+                    h,
+                    mode,
+                    h_max: h_max / substep,
+                    option: "a log step",
+                    alternative: "",
+                    failure: match failure {
+                        crate::check::StepFailure::Amplified { growth } => {
+                            crate::check::StepFailure::Amplified {
+                                growth: growth.powf(1.0 / substep),
+                            }
+                        }
+                        f => f,
+                    },
+                },
+                other => other,
+            }
+        })
+    }
+
+    /// Read a measured log of at most `max_rows` data rows: a file too large for that is
+    /// refused from its size before it is read (`hint` says how to raise the limit).
+    pub fn read_log(
+        &self,
+        path: &std::path::Path,
+        max_rows: usize,
+        hint: &str,
+    ) -> Result<MeasuredLog, crate::io::ReadError> {
         let what = format!("{}", path.display());
-        let text = crate::io::read_text(path, &what)?;
-        self.parse_log(&text, &what)
-            .map_err(crate::io::ReadError::Content)
+        let limit = crate::io::csv_byte_limit(max_rows, LOG_ROW_BYTES);
+        let text = crate::io::read_text_limited(path, &what, limit, hint)?;
+        Ok(MeasuredLog::parse_limited(
+            &text,
+            &what,
+            &self.channels,
+            &self.inputs,
+            max_rows,
+            hint,
+        )?)
     }
 
     /// The reversal lockout's passed fractions of both motors for the window, and the row

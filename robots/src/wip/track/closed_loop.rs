@@ -6,7 +6,8 @@ use super::guidance;
 use super::lq::{LqController, SAMPLE};
 use super::mpc::MpcController;
 use super::observer::{Estimate, Observer, OnBoard, PoseMeasurement, SensorModel};
-use super::plant::Plant;
+use super::plant::{check_physical, substeps, Divergence, Plant};
+use crate::check::CheckError;
 use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
 use crate::wip::{ReducedState, WipParams};
@@ -39,11 +40,16 @@ pub struct Sample {
     pub u: [f64; 2],
 }
 
-/// The closed loop's record and whether (and when) the WIP fell.
+/// The closed loop's record and whether (and when) the WIP fell, or the simulation of the
+/// plant diverged (a numerical failure, never counted as a fall).
 #[derive(Clone, Debug, Default)]
 pub struct TrackRun {
     pub samples: Vec<Sample>,
     pub fell_at: Option<f64>,
+    /// When and why the plant's simulation diverged; the samples end before it.
+    pub diverged: Option<(f64, Divergence)>,
+    /// RK4 substeps per sample of the plant ([`super::plant::substeps`]).
+    pub substeps: usize,
     /// The MPC's QP solve time per sample (s, the thread's CPU time); empty for LQ.
     pub qp_solve_s: Vec<f64>,
     /// The same as wall-clock time (s).
@@ -117,6 +123,9 @@ pub struct TrackFigures {
     pub feedback_voltage_max: f64,
     pub feedback_voltage_rms: f64,
     pub fell: bool,
+    /// `"completed"`, `"fell"` (|α| > 45°) or `"diverged"` (the plant's simulation, not the
+    /// robot, failed: its figures are not a result).
+    pub outcome: &'static str,
     /// The MPC's QP solve time per sample as CPU time, median and largest (ms), and the
     /// largest wall-clock time (ms); `null` for LQ.
     pub qp_solve_ms_median: Option<f64>,
@@ -126,6 +135,15 @@ pub struct TrackFigures {
 }
 
 impl TrackRun {
+    /// `"completed"`, `"fell"` or `"diverged"`.
+    pub fn outcome(&self) -> &'static str {
+        match (self.diverged.is_some(), self.fell_at.is_some()) {
+            (true, _) => "diverged",
+            (false, true) => "fell",
+            (false, false) => "completed",
+        }
+    }
+
     pub fn figures(&self) -> TrackFigures {
         let n = self.samples.len().max(1) as f64;
         let mut f = TrackFigures {
@@ -137,6 +155,7 @@ impl TrackRun {
             feedback_voltage_max: 0.0,
             feedback_voltage_rms: 0.0,
             fell: self.fell_at.is_some(),
+            outcome: self.outcome(),
             qp_solve_ms_median: ms_quantile(&self.qp_solve_s, 0.5),
             qp_solve_ms_max: ms_quantile(&self.qp_solve_s, 1.0),
             qp_wall_ms_max: ms_quantile(&self.qp_wall_s, 1.0),
@@ -185,21 +204,52 @@ fn error_state(e: &Estimate, r: &ReducedState) -> SVector<f64, 8> {
     ])
 }
 
+/// Why a closed loop was not run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TrackError {
+    /// The plant cannot be simulated within RK4's stability bound, or its rates are not
+    /// finite at the start.
+    #[error(transparent)]
+    Plant(#[from] CheckError),
+    /// The same for the plant of one Monte Carlo seed.
+    #[error("Monte Carlo seed {seed}: {source}")]
+    Seed {
+        seed: u64,
+        #[source]
+        source: Box<CheckError>,
+    },
+}
+
 /// Run the closed loop along `plan` with `controller` (LQ or MPC). `progress` is called with
-/// the fraction done every 5 % of the run.
+/// the fraction done every 5 % of the run. The plant's RK4 substeps are chosen from its
+/// modes first ([`super::plant::substeps`]); a refusal there is the error. A fall (|α| >
+/// 45°) ends the run, and so does a divergence of the plant's simulation (a state not
+/// finite or beyond [`super::plant::PHYSICAL_BOUNDS`]): that is not a fall.
 pub fn track<'a>(
     plan: &Trajectory,
     controller: impl Into<Controller<'a>>,
     cfg: &TrackConfig,
+    progress: impl FnMut(f64),
+) -> Result<TrackRun, TrackError> {
+    let n = substeps(&cfg.plant, &plan.x[0], SAMPLE)?;
+    Ok(track_with_substeps(plan, controller, cfg, n, progress))
+}
+
+/// [`track`] with the plant's substeps given (checked by the caller).
+pub fn track_with_substeps<'a>(
+    plan: &Trajectory,
+    controller: impl Into<Controller<'a>>,
+    cfg: &TrackConfig,
+    substeps: usize,
     mut progress: impl FnMut(f64),
-) -> Result<TrackRun, String> {
+) -> TrackRun {
     let controller = controller.into();
     let reference = Reference { plan };
     let n = (reference.end() / SAMPLE).round() as usize;
     let sens = &cfg.sensors;
     let mut rng = Rng::new(cfg.seed);
     let x0 = plan.x[0];
-    let mut plant = Plant::new(cfg.plant, &x0);
+    let mut plant = Plant::with_substeps(cfg.plant, &x0, substeps);
     let start = Estimate {
         pose: [x0[0], x0[1], x0[2]],
         alpha: x0[3],
@@ -217,13 +267,20 @@ pub fn track<'a>(
     let ideal = *sens == SensorModel::ideal();
     // Poses in flight: (arrival sample, measurement).
     let mut in_flight: Vec<(usize, PoseMeasurement)> = Vec::new();
-    let mut run = TrackRun::default();
+    let mut run = TrackRun {
+        substeps,
+        ..TrackRun::default()
+    };
     let mut u_prev = plan.u[0];
     let every = (n / 20).max(1);
     for k in 0..=n {
         let t = k as f64 * SAMPLE;
         let x = plant.reduced();
-        if x[3].abs() > FALL_TILT || !x.iter().all(|v| v.is_finite()) {
+        if let Err(d) = check_physical(&x) {
+            run.diverged = Some((t, d));
+            break;
+        }
+        if x[3].abs() > FALL_TILT {
             run.fell_at = Some(t);
             break;
         }
@@ -301,14 +358,15 @@ pub fn track<'a>(
         if k == n {
             break;
         }
-        plant
-            .advance(SAMPLE, u)
-            .map_err(|e| format!("the plant's step at t = {t:.3} s failed: {e}"))?;
+        if let Err(d) = plant.advance(SAMPLE, u) {
+            run.diverged = Some((t, d));
+            break;
+        }
         if k % every == 0 {
             progress(k as f64 / n as f64);
         }
     }
-    Ok(run)
+    run
 }
 
 /// A quantile of times in seconds, in ms; `None` for no samples (LQ has no QP).

@@ -3,8 +3,10 @@
 //! design), run in parallel on `std::thread`s; and the delay-scaled sensor model of the
 //! delay sweep.
 
-use super::closed_loop::{track, Controller, TrackConfig, TrackFigures};
+use super::closed_loop::{track_with_substeps, Controller, TrackConfig, TrackError, TrackFigures};
+use super::lq::SAMPLE;
 use super::observer::SensorModel;
+use super::plant::substeps;
 use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
 use crate::wip::WipParams;
@@ -15,7 +17,8 @@ pub const PERTURBED: [&str; 13] = [
     "R_m",
 ];
 
-/// The plant of seed `seed`: each of [`PERTURBED`] times `1 + U(−rel, rel)`.
+/// The plant of seed `seed`: each of [`PERTURBED`] times `1 + U(−rel, rel)` (`rel < 1`
+/// keeps every one positive).
 pub fn perturbed(nominal: &WipParams, rel: f64, seed: u64) -> WipParams {
     let mut p = *nominal;
     // A stream apart from the sensors' (which use `seed` itself).
@@ -46,10 +49,13 @@ pub fn with_mean_delay(mean: f64) -> SensorModel {
 pub struct McRun {
     pub seed: u64,
     pub figures: TrackFigures,
+    /// When the plant's simulation diverged (its figures are then not a result).
+    pub diverged_at: Option<f64>,
 }
 
 /// Run seeds `1..=n` on `threads` threads with `controller`: plant parameter error `rel`,
-/// sensors `sensors`.
+/// sensors `sensors`. Every seed's plant is checked (its RK4 substeps chosen) before any
+/// runs: a plant that cannot be simulated is the error, naming its seed.
 pub fn monte_carlo(
     plan: &Trajectory,
     controller: Controller<'_>,
@@ -58,7 +64,18 @@ pub fn monte_carlo(
     rel: f64,
     n: u64,
     threads: usize,
-) -> Result<Vec<McRun>, String> {
+) -> Result<Vec<McRun>, TrackError> {
+    let plants: Vec<(WipParams, usize)> = (1..=n)
+        .map(|seed| {
+            let p = perturbed(nominal, rel, seed);
+            substeps(&p, &plan.x[0], SAMPLE)
+                .map(|k| (p, k))
+                .map_err(|e| TrackError::Seed {
+                    seed,
+                    source: Box::new(e),
+                })
+        })
+        .collect::<Result<_, _>>()?;
     let next = std::sync::atomic::AtomicU64::new(1);
     let results = std::sync::Mutex::new(Vec::new());
     std::thread::scope(|scope| {
@@ -68,25 +85,24 @@ pub fn monte_carlo(
                 if seed > n {
                     break;
                 }
+                let (plant, k) = plants[(seed - 1) as usize];
                 let cfg = TrackConfig {
-                    plant: perturbed(nominal, rel, seed),
+                    plant,
                     nominal: *nominal,
                     sensors: sensors.clone(),
                     seed,
                 };
-                let r = track(plan, controller, &cfg, |_| {}).map(|run| McRun {
+                let run = track_with_substeps(plan, controller, &cfg, k, |_| {});
+                let r = McRun {
                     seed,
+                    diverged_at: run.diverged.as_ref().map(|(t, _)| *t),
                     figures: run.figures(),
-                });
+                };
                 results.lock().expect("no panics while held").push(r);
             });
         }
     });
-    let mut out = results
-        .into_inner()
-        .expect("no panics while held")
-        .into_iter()
-        .collect::<Result<Vec<_>, _>>()?;
+    let mut out = results.into_inner().expect("no panics while held");
     out.sort_by_key(|r| r.seed);
     Ok(out)
 }

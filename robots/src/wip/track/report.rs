@@ -2,7 +2,7 @@
 //! `tracking.csv`, `tracking.json` and the plots.
 
 use super::closed_loop::{TrackFigures, TrackRun};
-use crate::io::{parse_csv, read_text, ReadError};
+use crate::io::{parse_csv_with, read_text_limited, CsvError, CsvOptions, ReadError};
 use crate::plot::{Plot, Series};
 use crate::wip::simulate::Trajectory;
 use crate::wip::ReducedState;
@@ -22,38 +22,101 @@ pub fn plan_path(arg: &Path) -> PathBuf {
     }
 }
 
-/// Read a `trajectory.csv` (columns by name; at least two rows, strictly increasing `t`
-/// starting at 0).
-pub fn read_plan(path: &Path) -> Result<Trajectory, ReadError> {
+/// The bytes a row of a `trajectory.csv` is allowed (twelve numbers of `wip plan`'s
+/// format take about 290), for the size limit of [`read_plan`].
+pub const PLAN_ROW_BYTES: u64 = 512;
+
+/// A step of the plan's grid longer than this many times its median step is a hole (rows
+/// missing), not a plan: `wip plan --free-timing` varies its steps within [0.5, 2] of the
+/// nominal one, a ratio of 4 at most.
+pub const HOLE_RATIO: f64 = 5.0;
+
+/// Why a plan to track was refused; the message names the file and the line.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlanError {
+    #[error(transparent)]
+    Csv(#[from] CsvError),
+    #[error("{what}: no column '{name}' (a trajectory.csv of wip plan)")]
+    MissingColumn { what: String, name: String },
+    #[error("{what}: line {line}: t = {t} does not continue a time grid starting at 0")]
+    NotOnGrid { what: String, line: usize, t: f64 },
+    #[error("{what}: a plan needs at least two rows")]
+    TooFewRows { what: String },
+    /// A step far longer than the plan's typical one: rows are missing.
+    #[error(
+        "{what}: line {line}: t jumps from {from} to {to} s, a step of {step:.4} s against the \
+         plan's typical {typical:.4} s: rows are missing (a plan to track has no holes)"
+    )]
+    Hole {
+        what: String,
+        line: usize,
+        from: f64,
+        to: f64,
+        step: f64,
+        typical: f64,
+    },
+}
+
+/// Read a `trajectory.csv` of at most `max_rows` rows (a larger file is refused from its
+/// size before it is read; `hint` says how to raise the limit): see [`parse_plan`].
+pub fn read_plan(path: &Path, max_rows: usize, hint: &str) -> Result<Trajectory, ReadError> {
     let what = path.display().to_string();
-    let text = read_text(path, &format!("plan {what}"))?;
-    let bad = |m: String| ReadError::Content(m);
-    let csv = parse_csv(&text, &what, false).map_err(bad)?;
+    let limit = crate::io::csv_byte_limit(max_rows, PLAN_ROW_BYTES);
+    let text = read_text_limited(path, &format!("plan {what}"), limit, hint)?;
+    Ok(parse_plan(&text, &what, max_rows, hint)?)
+}
+
+/// A `trajectory.csv`'s text as a plan: columns by name; at least two rows, strictly
+/// increasing `t` from 0, and no hole (a step more than [`HOLE_RATIO`] times the median).
+pub fn parse_plan(
+    text: &str,
+    what: &str,
+    max_rows: usize,
+    hint: &str,
+) -> Result<Trajectory, PlanError> {
     const COLS: [&str; 12] = [
         "t", "x", "y", "theta", "alpha", "v_alpha", "v_d", "v_theta", "iR", "iL", "uR", "uL",
     ];
+    let csv = parse_csv_with(text, what, CsvOptions::rows(max_rows, hint))?;
     let mut idx = [0usize; 12];
     for (i, c) in COLS.iter().enumerate() {
-        idx[i] = csv.column(c).ok_or_else(|| {
-            bad(format!(
-                "{what}: no column '{c}' (a trajectory.csv of wip plan)"
-            ))
+        idx[i] = csv.column(c).ok_or_else(|| PlanError::MissingColumn {
+            what: what.to_string(),
+            name: c.to_string(),
         })?;
     }
     let mut traj = Trajectory::default();
-    for (row, line) in csv.rows.iter().zip(&csv.lines) {
+    for (row, &line) in csv.rows.iter().zip(&csv.lines) {
         let t = row[idx[0]];
         if traj.t.last().is_some_and(|&tp| t <= tp) || (traj.t.is_empty() && t.abs() > 1e-12) {
-            return Err(bad(format!(
-                "{what}: line {line}: t = {t} does not continue a time grid starting at 0"
-            )));
+            return Err(PlanError::NotOnGrid {
+                what: what.to_string(),
+                line,
+                t,
+            });
         }
         traj.t.push(t);
         traj.x.push(ReducedState::from_fn(|i, _| row[idx[1 + i]]));
         traj.u.push([row[idx[10]], row[idx[11]]]);
     }
     if traj.t.len() < 2 {
-        return Err(bad(format!("{what}: a plan needs at least two rows")));
+        return Err(PlanError::TooFewRows {
+            what: what.to_string(),
+        });
+    }
+    let mut steps: Vec<f64> = traj.t.windows(2).map(|w| w[1] - w[0]).collect();
+    let gaps = steps.clone();
+    let mid = steps.len() / 2;
+    let typical = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
+    if let Some(k) = gaps.iter().position(|&s| s > HOLE_RATIO * typical) {
+        return Err(PlanError::Hole {
+            what: what.to_string(),
+            line: csv.lines[k + 1],
+            from: traj.t[k],
+            to: traj.t[k + 1],
+            step: gaps[k],
+            typical,
+        });
     }
     Ok(traj)
 }
@@ -102,6 +165,7 @@ pub fn tracking_json(
     controller: &str,
     fell_at: Option<f64>,
     duration: f64,
+    plant_substeps: usize,
 ) -> String {
     let mut v = serde_json::to_value(f).expect("plain numbers");
     let o = v.as_object_mut().expect("an object");
@@ -113,6 +177,7 @@ pub fn tracking_json(
         "fell_at_s".into(),
         fell_at.map_or(serde_json::Value::Null, Into::into),
     );
+    o.insert("plant_substeps".into(), plant_substeps.into());
     o.insert(
         "paper_hardware".into(),
         serde_json::json!({
