@@ -12,7 +12,7 @@ use dmech_ocp::nlp::StageProblem;
 use nalgebra::SVector;
 use num_dual::DualSVec64;
 use robots::wip::algebraic_current::WipAlgebraicCurrent;
-use robots::wip::benchmarks::eight;
+use robots::wip::plan::problems::eight;
 use robots::wip::plan::{rk_plan, rk_start, varint_plan, varint_start, PlanBounds};
 use robots::wip::Wip;
 use std::hint::black_box;

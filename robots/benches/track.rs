@@ -4,9 +4,9 @@
 //! Real-time factor = 30 s / the measured time (docs/tracking.md).
 use criterion::{criterion_group, criterion_main, Criterion};
 use dmech_ocp::solver::IpOptions;
-use robots::wip::benchmarks;
+use robots::wip::plan::problems;
+use robots::wip::plan::report::reduced_trajectory;
 use robots::wip::plan::{plan, CurrentModel, PlanBounds, Transcription};
-use robots::wip::plan_report::reduced_trajectory;
 use robots::wip::simulate::Trajectory;
 use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::lq::LqController;
@@ -20,7 +20,7 @@ const DURATION: f64 = 30.0;
 /// The eight at 20 ms, held at its final (rest) state up to [`DURATION`].
 fn reference() -> Trajectory {
     let wip = Wip::default();
-    let problem = benchmarks::by_name("eight", 0.02).expect("built in");
+    let problem = problems::by_name("eight", 0.02).expect("built in");
     let opts = IpOptions {
         verbose: false,
         ..Default::default()

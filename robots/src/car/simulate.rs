@@ -3,7 +3,7 @@
 use super::model::{Car, NS};
 use super::report::CarTrajectory;
 use crate::check::{CheckError, Scheme};
-use crate::wip::simulate::InputSchedule;
+use crate::io::InputSchedule;
 use dmech::continuous::{ContinuousModel, RungeKutta};
 use dmech::{Discretisation, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
 use dmech_lie::Se2;

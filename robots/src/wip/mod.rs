@@ -5,18 +5,12 @@
 //! angles are absolute (measured from the inertial frame).
 
 pub mod algebraic_current;
-pub mod benchmarks;
 pub mod closed_form;
 pub mod diagnose;
 pub mod invariants;
 pub mod model;
 pub mod params;
 pub mod plan;
-pub mod plan_free_timing;
-mod plan_problem;
-pub mod plan_report;
-mod plan_sequence;
-pub mod plan_start;
 pub mod simulate;
 pub mod state;
 pub mod track;

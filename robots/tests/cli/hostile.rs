@@ -203,7 +203,7 @@ fn a_plant_that_blows_up_is_diverged_not_fallen() {
     let f = run.figures();
     assert!(!f.fell && f.outcome == "diverged");
     // The checked count for the same plant: 10, and the run completes.
-    let n = robots::wip::track::plant::substeps(&p, &plan.x[0], 0.005).unwrap();
+    let n = robots::wip::track::simulated_robot::substeps(&p, &plan.x[0], 0.005).unwrap();
     assert_eq!(n, 10);
     assert_eq!(
         track_with_substeps(&plan, &lq, &cfg, n, |_| {}).outcome(),

@@ -8,7 +8,7 @@ use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::lq::{LqController, SAMPLE};
 use robots::wip::track::mpc::MpcController;
 use robots::wip::track::observer::SensorModel;
-use robots::wip::track::plant::SUBSTEPS;
+use robots::wip::track::simulated_robot::SUBSTEPS;
 use robots::wip::{ReducedState, Wip, WipParams};
 use std::path::PathBuf;
 

@@ -17,8 +17,8 @@ use dmech_ocp::transcription::variational::VarIntStages;
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualSVec64;
 use robots::wip::algebraic_current::WipAlgebraicCurrent;
-use robots::wip::benchmarks::eight;
-use robots::wip::benchmarks::PlanProblem;
+use robots::wip::plan::problems::eight;
+use robots::wip::plan::problems::PlanProblem;
 use robots::wip::plan::{
     rk_start, varint_layout, varint_plan, varint_start, PlanBounds, PlanModel, WipPlan, NC,
 };

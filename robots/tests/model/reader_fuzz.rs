@@ -8,11 +8,11 @@ use robots::car::plan::{CarBounds, CarPlan};
 use robots::car::problems::CarProblem;
 use robots::diagnose::Plant;
 use robots::io::{parse_csv, parse_input_columns, parse_inputs};
-use robots::wip::benchmarks;
 use robots::wip::diagnose::{Channel, WipPlant};
+use robots::wip::plan::problems;
 use robots::wip::track::monte_carlo::perturbed;
-use robots::wip::track::plant::substeps;
 use robots::wip::track::report::{parse_plan, HOLE_RATIO};
+use robots::wip::track::simulated_robot::substeps;
 use robots::wip::{ReducedState, WipParams};
 
 /// Cases per property: enough to hit every token pool many times, small enough for CI.
@@ -246,7 +246,7 @@ proptest! {
             if let Ok(p) = WipParams::from_json_str(t) {
                 prop_assert!(p.validate().is_ok());
             }
-            if let Ok(problem) = benchmarks::from_json_str(t, 0.02) {
+            if let Ok(problem) = problems::from_json_str(t, 0.02) {
                 prop_assert!(problem.n > 0 && problem.h == 0.02);
                 // Every waypoint at a stage of the horizon (a huge `accel` put one past it).
                 prop_assert!(problem.stages.iter().all(|&k| k <= problem.n));

@@ -3,7 +3,7 @@
 use crate::common::{positive_number, CurrentArg, Failure, IntegratorArg};
 use dmech_ocp::solver::{IpOptions, Status};
 use robots::io::OutputSet;
-use robots::wip::benchmarks;
+use robots::wip::plan::problems;
 use robots::wip::plan::{plan, CurrentModel, PlanBounds};
 use robots::wip::Wip;
 use robots::{progress, say};
@@ -129,7 +129,7 @@ pub fn run(a: BenchArgs) -> Result<(), Failure> {
             Problem::Eight => "eight",
             Problem::Zigzag => "zigzag",
         };
-        let problem = benchmarks::by_name(name, 0.005).expect("a built-in benchmark");
+        let problem = problems::by_name(name, 0.005).expect("a built-in benchmark");
         for c in unique(&a.currents) {
             let c = c.model();
             for i in unique(&a.integrators) {

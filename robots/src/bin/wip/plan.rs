@@ -9,10 +9,10 @@ use dmech_ocp::transcription::free_timing::TotalTime;
 use robots::check::check_size;
 use robots::cli::HessianArg;
 use robots::io::OutputSet;
-use robots::wip::benchmarks;
+use robots::wip::plan::free_timing::plan_free_timing;
+use robots::wip::plan::problems;
+use robots::wip::plan::report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
 use robots::wip::plan::{plan, PlanBounds};
-use robots::wip::plan_free_timing::plan_free_timing;
-use robots::wip::plan_report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
 use robots::wip::simulate::{check_plan_step, trajectory_csv};
 use robots::wip::Wip;
 use robots::{progress, say};
@@ -121,10 +121,10 @@ const BYTES_PER_STAGE: f64 = 28e3;
 pub fn run(a: PlanArgs) -> Result<(), Failure> {
     let t_setup = std::time::Instant::now();
     let h = a.step;
-    let problem = match benchmarks::by_name(&a.problem, h) {
+    let problem = match problems::by_name(&a.problem, h) {
         Some(p) => p,
         None if a.problem.ends_with(".json") || std::path::Path::new(&a.problem).exists() => {
-            benchmarks::from_file(std::path::Path::new(&a.problem), h)?
+            problems::from_file(std::path::Path::new(&a.problem), h)?
         }
         None => {
             return Err(usage_error(

@@ -10,8 +10,8 @@ use robots::wip::track::lq::{LqController, SAMPLE};
 use robots::wip::track::monte_carlo::{monte_carlo, perturbed, quantile, with_mean_delay, McRun};
 use robots::wip::track::mpc::MpcController;
 use robots::wip::track::observer::SensorModel;
-use robots::wip::track::plant::substeps;
 use robots::wip::track::report::{plan_path, plots, read_plan, tracking_csv, tracking_json};
+use robots::wip::track::simulated_robot::substeps;
 use std::path::PathBuf;
 
 /// Track a planned trajectory in closed loop.

@@ -6,7 +6,7 @@ use super::guidance;
 use super::lq::{LqController, SAMPLE};
 use super::mpc::MpcController;
 use super::observer::{Estimate, Observer, OnBoard, PoseMeasurement, SensorModel};
-use super::plant::{check_physical, substeps, Divergence, Plant};
+use super::simulated_robot::{check_physical, substeps, Divergence, Plant};
 use crate::check::CheckError;
 use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
@@ -48,7 +48,7 @@ pub struct TrackRun {
     pub fell_at: Option<f64>,
     /// When and why the plant's simulation diverged; the samples end before it.
     pub diverged: Option<(f64, Divergence)>,
-    /// RK4 substeps per sample of the plant ([`super::plant::substeps`]).
+    /// RK4 substeps per sample of the plant ([`super::simulated_robot::substeps`]).
     pub substeps: usize,
     /// The MPC's QP solve time per sample (s, the thread's CPU time); empty for LQ.
     pub qp_solve_s: Vec<f64>,
@@ -222,9 +222,9 @@ pub enum TrackError {
 
 /// Run the closed loop along `plan` with `controller` (LQ or MPC). `progress` is called with
 /// the fraction done every 5 % of the run. The plant's RK4 substeps are chosen from its
-/// modes first ([`super::plant::substeps`]); a refusal there is the error. A fall (|α| >
+/// modes first ([`super::simulated_robot::substeps`]); a refusal there is the error. A fall (|α| >
 /// 45°) ends the run, and so does a divergence of the plant's simulation (a state not
-/// finite or beyond [`super::plant::PHYSICAL_BOUNDS`]): that is not a fall.
+/// finite or beyond [`super::simulated_robot::PHYSICAL_BOUNDS`]): that is not a fall.
 pub fn track<'a>(
     plan: &Trajectory,
     controller: impl Into<Controller<'a>>,

@@ -9,5 +9,5 @@ pub mod lq;
 pub mod monte_carlo;
 pub mod mpc;
 pub mod observer;
-pub mod plant;
 pub mod report;
+pub mod simulated_robot;

@@ -6,7 +6,7 @@
 use super::closed_loop::{track_with_substeps, Controller, TrackConfig, TrackError, TrackFigures};
 use super::lq::SAMPLE;
 use super::observer::SensorModel;
-use super::plant::substeps;
+use super::simulated_robot::substeps;
 use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
 use crate::wip::WipParams;

@@ -1,11 +1,11 @@
 //! The WIP's VI plan by mesh sequencing (`docs/ocp.md`, "Mesh sequencing"): the meshes,
 //! the friction continuation's phases on the coarsest, and the sequencing's constants.
 
-use super::benchmarks::PlanProblem;
-use super::plan_problem::{
+use crate::wip::plan::problem::{
     varint_layout, varint_plan, PlanBounds, PlanModel, VarIntPlan, NC, SMOOTH_FRICTION_SLOPE,
 };
-use super::plan_start::varint_start;
+use crate::wip::plan::problems::PlanProblem;
+use crate::wip::plan::start::varint_start;
 use dmech::Discretisation;
 use dmech_ocp::solver::{IpOptions, SolveResult};
 use dmech_ocp::toolkit::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};

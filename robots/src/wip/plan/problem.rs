@@ -10,9 +10,9 @@
 //! `s` (the wheel angles, and the charges of the full model): `NX_VI = 11`,
 //! `NX_VI_ALGEBRAIC = 9` ([`varint_layout`]).
 
-use super::algebraic_current::WipAlgebraicCurrent;
-use super::benchmarks::PlanProblem;
-use super::Wip;
+use crate::wip::algebraic_current::WipAlgebraicCurrent;
+use crate::wip::plan::problems::PlanProblem;
+use crate::wip::Wip;
 use dmech::{Discretisation, PrincipalKinematicSystem, RungeKutta};
 use dmech_lie::Real;
 use dmech_ocp::transcription::layout::Layout;

@@ -1,12 +1,12 @@
 //! What `wip plan` reports about a solved plan: the trajectory in the paper's reduced
 //! state, the figures of `summary.json` measured on that trajectory, and the plots.
 
-use super::benchmarks::PlanProblem;
-use super::plan::{PlanBounds, PlanOutcome};
-use super::simulate::Trajectory;
-use super::state::to_reduced;
-use super::Wip;
 use crate::plot::{Plot, Series};
+use crate::wip::plan::problems::PlanProblem;
+use crate::wip::plan::{PlanBounds, PlanOutcome};
+use crate::wip::simulate::Trajectory;
+use crate::wip::state::to_reduced;
+use crate::wip::Wip;
 use dmech_lie::Se2;
 
 /// The planned trajectory as `trajectory.csv` rows (`u` of the last row repeats).

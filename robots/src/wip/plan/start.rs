@@ -1,9 +1,9 @@
 //! The WIP planner's starts: a kinematically consistent path along the waypoint polyline,
 //! laid out for the variational and the Runge–Kutta transcriptions.
 
-use super::benchmarks::{arc_lengths, PlanProblem};
-use super::plan_problem::{varint_layout, PlanModel};
-use super::Wip;
+use crate::wip::plan::problem::{varint_layout, PlanModel};
+use crate::wip::plan::problems::{arc_lengths, PlanProblem};
+use crate::wip::Wip;
 use dmech_ocp::transcription::layout::Layout;
 use nalgebra::SVector;
 

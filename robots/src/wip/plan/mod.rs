@@ -4,16 +4,23 @@
 //! `plan_start.rs`, the mesh sequencing in `plan_sequence.rs`, free timing in
 //! `plan_free_timing.rs`.
 
-use super::algebraic_current::WipAlgebraicCurrent;
-use super::benchmarks::PlanProblem;
-pub use super::plan_problem::{
+pub mod free_timing;
+mod problem;
+pub mod problems;
+pub mod report;
+mod sequence;
+pub mod start;
+
+use crate::wip::algebraic_current::WipAlgebraicCurrent;
+pub use crate::wip::plan::problem::{
     rk_plan, varint_layout, varint_plan, PlanBounds, PlanModel, RkPlan, VarIntPlan, WipPlan, NC,
     NX, NX_ALGEBRAIC, NX_VI, NX_VI_ALGEBRAIC, SMOOTH_FRICTION_SLOPE,
 };
-use super::plan_sequence::{friction_continuation, varint_solve};
-pub use super::plan_start::{polyline_start, rk_start, varint_start};
-use super::simulate::Integrator;
-use super::Wip;
+use crate::wip::plan::problems::PlanProblem;
+use crate::wip::plan::sequence::{friction_continuation, varint_solve};
+pub use crate::wip::plan::start::{polyline_start, rk_start, varint_start};
+use crate::wip::simulate::Integrator;
+use crate::wip::Wip;
 use dmech::{Discretisation, RungeKutta};
 use dmech_ocp::solver::{IpOptions, SolveResult};
 use dmech_ocp::toolkit::sequencing::{continuation, direct_or_continuation};

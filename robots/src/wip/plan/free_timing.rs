@@ -2,12 +2,12 @@
 //! "Free waypoint timing"): the fixed-timing plan, then from its solution the problem whose
 //! segments between waypoints each choose their own step ([`dmech_ocp::transcription::free_timing`]).
 
-use super::algebraic_current::WipAlgebraicCurrent;
-use super::benchmarks::PlanProblem;
-use super::plan::{outcome, CurrentModel, PlanOutcome};
-use super::plan_problem::{varint_plan, PlanBounds, PlanModel, NC, NX, NX_ALGEBRAIC};
-use super::plan_sequence::{friction_continuation, varint_solve};
-use super::Wip;
+use crate::wip::algebraic_current::WipAlgebraicCurrent;
+use crate::wip::plan::problem::{varint_plan, PlanBounds, PlanModel, NC, NX, NX_ALGEBRAIC};
+use crate::wip::plan::problems::PlanProblem;
+use crate::wip::plan::sequence::{friction_continuation, varint_solve};
+use crate::wip::plan::{outcome, CurrentModel, PlanOutcome};
+use crate::wip::Wip;
 use dmech::Discretisation;
 use dmech_ocp::solver::{IpOptions, Solver};
 use dmech_ocp::transcription::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
