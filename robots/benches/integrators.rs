@@ -3,10 +3,9 @@
 //! tilt of 0.05 rad with time-varying voltages: the robot falls and swings about its axle,
 //! so every step does real Newton work.
 use criterion::{criterion_group, criterion_main, Criterion};
-use dmech::continuous::RungeKutta;
-use dmech::{Discretisation, ForcingQuadrature, JacobianPolicy, VariationalIntegrator, ViState};
+use dmech::{Integrator, JacobianPolicy, VariationalIntegrator, ViState};
 use nalgebra::SVector;
-use robots::wip::simulate::{simulate, InputSchedule, Integrator};
+use robots::wip::simulate::{simulate, InputSchedule, Stepping};
 use robots::wip::state::from_reduced;
 use robots::wip::{ReducedState, Wip};
 use std::hint::black_box;
@@ -43,29 +42,28 @@ fn bench(c: &mut Criterion) {
     for (name, integ, h, n) in [
         (
             "varint h=5ms, exact Jacobian at every Newton iterate",
-            Integrator::VarInt {
-                discretisation: Discretisation::FirstOrder,
-                quadrature: ForcingQuadrature::Right,
+            Stepping {
                 jacobian: JacobianPolicy::Exact,
+                ..Stepping::from(Integrator::FirstOrder)
             },
             0.005,
             4000,
         ),
         (
             "varint h=5ms, exact Jacobian reused across steps (default)",
-            Integrator::varint(),
+            Stepping::from(Integrator::FirstOrder),
             0.005,
             4000,
         ),
         (
             "midpoint h=5ms, exact Jacobian reused across steps",
-            Integrator::midpoint(),
+            Stepping::from(Integrator::Midpoint),
             0.005,
             4000,
         ),
         (
             "rk4 h=0.5ms",
-            Integrator::Rk(RungeKutta::Rk4),
+            Stepping::from(Integrator::Rk4),
             0.0005,
             40000,
         ),

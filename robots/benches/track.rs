@@ -6,7 +6,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use dmech_ocp::solver::IpOptions;
 use robots::wip::plan::problems;
 use robots::wip::plan::report::reduced_trajectory;
-use robots::wip::plan::{plan, CurrentModel, PlanBounds, Transcription};
+use robots::wip::plan::{plan, CurrentModel, PlanBounds};
 use robots::wip::simulate::Trajectory;
 use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::lq::LqController;
@@ -29,7 +29,7 @@ fn reference() -> Trajectory {
         &wip,
         &problem,
         PlanBounds::default(),
-        Transcription::VarInt(dmech::Discretisation::FirstOrder),
+        dmech::Integrator::FirstOrder,
         CurrentModel::Dynamic,
         opts,
     );

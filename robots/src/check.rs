@@ -8,7 +8,8 @@
 //! would allocate; each refusal is one [`CheckError`] whose message is the line the tool
 //! prints.
 
-use dmech::continuous::{ContinuousModel, ContinuousState, RungeKutta};
+use dmech::continuous::{ContinuousModel, ContinuousState};
+use dmech::Integrator;
 use dmech::PrincipalKinematicSystem;
 use nalgebra::{Complex, DMatrix, SVector};
 
@@ -29,29 +30,15 @@ pub struct Scheme {
     pub kind: StepKind,
 }
 
-impl Scheme {
-    /// An explicit Runge–Kutta method.
-    pub fn rk(method: RungeKutta) -> Self {
-        match method {
-            RungeKutta::Rk1 => Scheme {
-                name: "rk1",
-                kind: StepKind::Explicit(1),
-            },
-            RungeKutta::Rk2 => Scheme {
-                name: "rk2",
-                kind: StepKind::Explicit(2),
-            },
-            RungeKutta::Rk4 => Scheme {
-                name: "rk4",
-                kind: StepKind::Explicit(4),
-            },
-        }
-    }
-    /// An implicit scheme named `name`.
-    pub fn implicit(name: &'static str) -> Self {
+impl From<Integrator> for Scheme {
+    /// The scheme's name, and explicit of its order for a Runge–Kutta method.
+    fn from(integrator: Integrator) -> Self {
         Scheme {
-            name,
-            kind: StepKind::Implicit,
+            name: integrator.name(),
+            kind: match integrator.runge_kutta() {
+                Some(_) => StepKind::Explicit(integrator.order()),
+                None => StepKind::Implicit,
+            },
         }
     }
 }
@@ -77,7 +64,7 @@ pub enum CheckError {
         mode: Complex<f64>,
         /// The largest step that passes.
         h_max: f64,
-        /// What sets the step (`--step`), and another remedy (` or --integrator varint`).
+        /// What sets the step (`--step`), and another remedy (` or --integrator first-order`).
         option: &'static str,
         alternative: &'static str,
         failure: StepFailure,
@@ -286,7 +273,7 @@ fn largest_step(modes: &[Complex<f64>], fails: impl Fn(f64, &Complex<f64>) -> bo
 /// [`linear_modes`]): for an explicit scheme, a damped mode it amplifies; for any scheme,
 /// a growing mode faster than the step. `option` is what sets the step (the message
 /// suggests the largest step that passes), `alternative` another remedy for an explicit
-/// scheme's bound (e.g. ` or --integrator varint`, or empty).
+/// scheme's bound (e.g. ` or --integrator first-order`, or empty).
 pub fn check_step(
     what: &'static str,
     modes: &[Complex<f64>],
@@ -337,7 +324,14 @@ pub fn check_simulation_step(
     scheme: Scheme,
     h: f64,
 ) -> Result<(), CheckError> {
-    check_step(what, modes, scheme, h, "--step", " or --integrator varint")
+    check_step(
+        what,
+        modes,
+        scheme,
+        h,
+        "--step",
+        " or --integrator first-order",
+    )
 }
 
 /// The number of substeps of an interval of `interval` seconds that keeps `scheme` within
@@ -394,19 +388,27 @@ mod tests {
     #[test]
     fn the_bounds_of_explicit_and_implicit_schemes() {
         let fast = [Complex::new(-3750.0, 0.0)];
-        let rk4 = Scheme::rk(RungeKutta::Rk4);
+        let rk4 = Scheme::from(Integrator::Rk4);
         assert!(check_step("t", &fast, rk4, 5e-4, "--step", "").is_ok());
         let e = check_step("t", &fast, rk4, 1e-3, "--step", "").unwrap_err();
         assert!(
             matches!(e, CheckError::Step { h_max, failure: StepFailure::Amplified { .. }, .. } if (h_max * 3750.0 - 2.785).abs() < 0.01),
             "{e}"
         );
-        assert!(check_step("t", &fast, Scheme::implicit("varint"), 1.0, "--step", "").is_ok());
+        assert!(check_step(
+            "t",
+            &fast,
+            Scheme::from(Integrator::FirstOrder),
+            1.0,
+            "--step",
+            ""
+        )
+        .is_ok());
         let growing = [Complex::new(10.0, 0.0)];
         assert!(check_step(
             "t",
             &growing,
-            Scheme::implicit("midpoint"),
+            Scheme::from(Integrator::Midpoint),
             0.05,
             "--step",
             ""
@@ -415,7 +417,7 @@ mod tests {
         let e = check_step(
             "t",
             &growing,
-            Scheme::implicit("midpoint"),
+            Scheme::from(Integrator::Midpoint),
             0.2,
             "--step",
             "",

@@ -1,5 +1,7 @@
 //! Command-line arguments shared by the robots' tools.
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use dmech::Integrator;
 use dmech_ocp::solver::{Curvature, IpOptions};
 
 /// `--hessian`: the curvature of the constraints in the solver's Newton systems.
@@ -21,6 +23,36 @@ impl HessianArg {
         };
         IpOptions { curvature, ..opts }
     }
+}
+
+/// What `--help` says of each scheme.
+fn integrator_help(i: Integrator) -> &'static str {
+    match i {
+        Integrator::FirstOrder => {
+            "the first-order variational integrator (the paper's VarInt; also `varint`)"
+        }
+        Integrator::Midpoint => "the midpoint variational integrator: second order, reversible",
+        Integrator::Rk1 => "explicit Euler on the continuous model",
+        Integrator::Rk2 => "explicit midpoint on the continuous model",
+        Integrator::Rk4 => "classical Runge–Kutta on the continuous model",
+    }
+}
+
+/// `--integrator` of every tool: parses [`dmech::Integrator`]'s names (and `varint`, the
+/// paper's name of the first-order scheme, as a hidden alias), listed with their help in
+/// `--help`. `offered` is the schemes the command takes.
+pub fn integrator_parser(
+    offered: &'static [Integrator],
+) -> impl TypedValueParser<Value = Integrator> {
+    PossibleValuesParser::new(offered.iter().map(|&i| {
+        let value = PossibleValue::new(i.name()).help(integrator_help(i));
+        if i == Integrator::FirstOrder {
+            value.alias("varint")
+        } else {
+            value
+        }
+    }))
+    .map(|name| name.parse::<Integrator>().expect("a listed name"))
 }
 
 /// `f` run on a thread with the stack of the solver's stage-loop threads

@@ -4,28 +4,10 @@ use super::model::{Car, NS};
 use super::report::CarTrajectory;
 use crate::check::{CheckError, Scheme};
 use crate::io::InputSchedule;
-use dmech::continuous::{ContinuousModel, RungeKutta};
-use dmech::{Discretisation, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
+use dmech::continuous::ContinuousModel;
+use dmech::{Integrator, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
 use dmech_lie::Se2;
 use nalgebra::SVector;
-
-/// The schemes `car simulate` offers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum CarIntegrator {
-    Variational(Discretisation),
-    Rk4,
-}
-
-impl CarIntegrator {
-    /// The scheme as the stability checks see it.
-    pub fn scheme(&self) -> Scheme {
-        match self {
-            CarIntegrator::Rk4 => Scheme::rk(RungeKutta::Rk4),
-            CarIntegrator::Variational(Discretisation::Midpoint) => Scheme::implicit("midpoint"),
-            CarIntegrator::Variational(_) => Scheme::implicit("varint"),
-        }
-    }
-}
 
 /// Refuse a simulation whose step the car's linearised model at the start shows to be
 /// beyond the scheme's stability bound (RK4 on the drive motor's electrical mode, time
@@ -33,7 +15,7 @@ impl CarIntegrator {
 /// there ([`crate::check::check_step`]).
 pub fn check_simulation(
     car: &Car,
-    scheme: CarIntegrator,
+    integrator: Integrator,
     h: f64,
     start: &CarState,
     inputs: &InputSchedule,
@@ -46,7 +28,7 @@ pub fn check_simulation(
     };
     let u = inputs.at(0.0);
     let modes = crate::check::linear_modes(car, &x, &SVector::<f64, 2>::new(u[0], u[1]), what)?;
-    crate::check::check_simulation_step(what, &modes, scheme.scheme(), h)
+    crate::check::check_simulation_step(what, &modes, Scheme::from(integrator), h)
 }
 
 /// A state of the car: pose `(x, y, θ)`, shape `(φ, ψ, q)`, shape velocity `(φ̇, ψ̇, i)`.
@@ -61,7 +43,7 @@ pub struct CarState {
 /// Legendre transform and reports `(v_{k−1} + v_k)/2` at node `k`.
 pub fn simulate(
     car: &Car,
-    scheme: CarIntegrator,
+    integrator: Integrator,
     h: f64,
     start: &CarState,
     inputs: &InputSchedule,
@@ -77,13 +59,10 @@ pub fn simulate(
         s: s0,
         v: v0,
     };
-    let midpoint = scheme == CarIntegrator::Variational(Discretisation::Midpoint);
-    let vi = match scheme {
-        CarIntegrator::Variational(d) => VariationalIntegrator::new(h)
-            .with_discretisation(d)
-            .with_jacobian(JacobianPolicy::ReuseAcrossSteps),
-        CarIntegrator::Rk4 => VariationalIntegrator::new(h),
-    };
+    let midpoint = integrator == Integrator::Midpoint;
+    let vi = VariationalIntegrator::new(h)
+        .with_discretisation(integrator.variational().unwrap_or_default())
+        .with_jacobian(JacobianPolicy::ReuseAcrossSteps);
     if midpoint {
         x.v = vi
             .start(car, &s0, &v0, &u_at(0))
@@ -109,15 +88,13 @@ pub fn simulate(
         }
         let fail =
             |e: dmech::StepError| format!("step {k} (t = {:.4} s) failed: {e}", k as f64 * h);
-        x = match scheme {
-            CarIntegrator::Variational(_) => {
+        x = match integrator.runge_kutta() {
+            None => {
                 vi.step_cached(car, &x, &u_at(k), &u_at(k + 1), &x.v.clone(), &mut cache)
                     .map_err(fail)?
                     .0
             }
-            CarIntegrator::Rk4 => {
-                ContinuousModel::step(car, RungeKutta::Rk4, h, &x, &u_at(k)).map_err(fail)?
-            }
+            Some(method) => ContinuousModel::step(car, method, h, &x, &u_at(k)).map_err(fail)?,
         };
     }
     Ok(traj)

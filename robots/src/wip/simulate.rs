@@ -4,82 +4,33 @@ use super::state::{from_reduced, to_reduced, ReducedState};
 use super::Wip;
 use crate::check::{CheckError, Scheme};
 pub use crate::io::InputSchedule;
-use dmech::continuous::{ContinuousModel, RungeKutta};
+use dmech::continuous::ContinuousModel;
 use dmech::{
-    Discretisation, ForcingQuadrature, JacobianPolicy, NewtonCache, StepError,
+    Discretisation, ForcingQuadrature, Integrator, JacobianPolicy, NewtonCache, StepError,
     VariationalIntegrator, ViState,
 };
 use nalgebra::{Complex, SVector};
 use std::fmt::Write as _;
 
-/// The time-stepping schemes `wip` offers.
+/// How [`simulate`] steps: the scheme, and the variational schemes' forcing quadrature and
+/// Newton Jacobian. From a [`dmech::Integrator`] alone: right-point forcing, the exact
+/// Jacobian carried across steps (refreshed whenever a chord step stalls).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Integrator {
-    /// The variational integrator: its discretisation (the paper's first-order one, or the
-    /// symmetric midpoint one), forcing quadrature (first order only) and Newton Jacobian
-    /// policy.
-    VarInt {
-        discretisation: Discretisation,
-        quadrature: ForcingQuadrature,
-        jacobian: JacobianPolicy,
-    },
-    Rk(RungeKutta),
+pub struct Stepping {
+    /// The scheme.
+    pub integrator: Integrator,
+    /// Where the first-order scheme reads the force.
+    pub quadrature: ForcingQuadrature,
+    /// How the variational schemes' Newton iteration forms its Jacobian.
+    pub jacobian: JacobianPolicy,
 }
 
-impl std::str::FromStr for Integrator {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "varint" => Ok(Integrator::varint()),
-            "midpoint" => Ok(Integrator::midpoint()),
-            "rk1" => Ok(Integrator::Rk(RungeKutta::Rk1)),
-            "rk2" => Ok(Integrator::Rk(RungeKutta::Rk2)),
-            "rk4" => Ok(Integrator::Rk(RungeKutta::Rk4)),
-            _ => Err(format!(
-                "unknown integrator '{s}' (expected varint, midpoint, rk1, rk2 or rk4)"
-            )),
-        }
-    }
-}
-
-impl Integrator {
-    /// The default variational integrator: right-point forcing, and the exact Newton
-    /// Jacobian carried across steps (refreshed whenever a chord step stalls).
-    pub fn varint() -> Self {
-        Integrator::VarInt {
-            discretisation: Discretisation::FirstOrder,
+impl From<Integrator> for Stepping {
+    fn from(integrator: Integrator) -> Self {
+        Stepping {
+            integrator,
             quadrature: ForcingQuadrature::Right,
             jacobian: JacobianPolicy::ReuseAcrossSteps,
-        }
-    }
-    /// The symmetric (midpoint) variational integrator: second order, reversible.
-    pub fn midpoint() -> Self {
-        Integrator::VarInt {
-            discretisation: Discretisation::Midpoint,
-            quadrature: ForcingQuadrature::Right,
-            jacobian: JacobianPolicy::ReuseAcrossSteps,
-        }
-    }
-    /// The scheme as the stability checks see it.
-    pub fn scheme(&self) -> Scheme {
-        match self {
-            Integrator::Rk(m) => Scheme::rk(*m),
-            Integrator::VarInt { .. } => Scheme::implicit(self.name()),
-        }
-    }
-    pub fn name(&self) -> &'static str {
-        match self {
-            Integrator::VarInt {
-                discretisation: Discretisation::FirstOrder,
-                ..
-            } => "varint",
-            Integrator::VarInt {
-                discretisation: Discretisation::Midpoint,
-                ..
-            } => "midpoint",
-            Integrator::Rk(RungeKutta::Rk1) => "rk1",
-            Integrator::Rk(RungeKutta::Rk2) => "rk2",
-            Integrator::Rk(RungeKutta::Rk4) => "rk4",
         }
     }
 }
@@ -130,12 +81,13 @@ pub struct Trajectory {
 /// `(v_{k−1} + v_k)/2`, second-order accurate at `t_k` (the first-order scheme reports `v_k`).
 pub fn simulate(
     w: &Wip,
-    integrator: Integrator,
+    stepping: impl Into<Stepping>,
     h: f64,
     x0: &ReducedState,
     inputs: &InputSchedule,
     n_steps: usize,
 ) -> Result<Trajectory, String> {
+    let stepping = stepping.into();
     let p = w.params;
     let (g0, s0, v0) = from_reduced(&p, x0, [0.0; 4]);
     let uvec = |k: usize| {
@@ -148,32 +100,28 @@ pub fn simulate(
     let mut v_prev = v0;
     let mut advance = |k: usize, x: &ViState<_, 5>| -> Result<ViState<_, 5>, StepError> {
         let (_, uk) = uvec(k);
-        match integrator {
-            Integrator::VarInt {
-                discretisation,
-                quadrature,
-                jacobian,
-            } => {
+        match (
+            stepping.integrator.variational(),
+            stepping.integrator.runge_kutta(),
+        ) {
+            (Some(discretisation), _) => {
                 let vi = VariationalIntegrator::new(h)
                     .with_discretisation(discretisation)
-                    .with_quadrature(quadrature)
-                    .with_jacobian(jacobian);
+                    .with_quadrature(stepping.quadrature)
+                    .with_jacobian(stepping.jacobian);
                 let guess = x.v * 2.0 - v_prev;
                 v_prev = x.v;
                 let (_, unext) = uvec(k + 1);
                 Ok(vi.step_cached(w, x, &uk, &unext, &guess, &mut cache)?.0)
             }
-            Integrator::Rk(m) => ContinuousModel::step(w, m, h, x, &uk),
+            (None, method) => {
+                let method = method.expect("a scheme is variational or Runge–Kutta");
+                ContinuousModel::step(w, method, h, x, &uk)
+            }
         }
     };
 
-    let midpoint = matches!(
-        integrator,
-        Integrator::VarInt {
-            discretisation: Discretisation::Midpoint,
-            ..
-        }
-    );
+    let midpoint = stepping.integrator == Integrator::Midpoint;
     let mut x = ViState {
         g: g0,
         s: s0,
@@ -235,17 +183,14 @@ pub fn modes_at(
 /// ([`crate::check::check_step`] as for an implicit scheme: a plan's transcription meets
 /// its dynamics as constraints, and the explicit ones at steps beyond their stability
 /// bound on the motor circuit are the paper's comparison, `wip bench`).
-pub fn check_plan_step(w: &Wip, transcription: &str, h: f64) -> Result<(), CheckError> {
+pub fn check_plan_step(w: &Wip, integrator: Integrator, h: f64) -> Result<(), CheckError> {
     let what = "plan";
     let modes = modes_at(w, &ReducedState::zeros(), [0.0; 2], what)?;
-    let name = match transcription {
-        "rk1" => "rk1",
-        "rk2" => "rk2",
-        "rk4" => "rk4",
-        "midpoint" => "midpoint",
-        _ => "varint",
+    let as_implicit = Scheme {
+        kind: crate::check::StepKind::Implicit,
+        ..Scheme::from(integrator)
     };
-    crate::check::check_step(what, &modes, Scheme::implicit(name), h, "--step", "")
+    crate::check::check_step(what, &modes, as_implicit, h, "--step", "")
 }
 
 /// Refuse a simulation whose step the linearised model at the start shows to be beyond
@@ -261,5 +206,5 @@ pub fn check_stability(
 ) -> Result<(), CheckError> {
     let what = "simulate";
     let modes = modes_at(w, x0, inputs.at(0.0), what)?;
-    crate::check::check_simulation_step(what, &modes, integrator.scheme(), h)
+    crate::check::check_simulation_step(what, &modes, Scheme::from(integrator), h)
 }

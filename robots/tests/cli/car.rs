@@ -13,7 +13,7 @@ fn rows(csv: &str) -> Vec<Vec<f64>> {
 #[test]
 fn car_plans_the_built_in_problems() {
     for (problem, integrator, end) in [
-        ("parallel-park", "varint", [-0.8, -0.2, 0.0]),
+        ("parallel-park", "first-order", [-0.8, -0.2, 0.0]),
         ("lane-change", "midpoint", [3.0, 0.35, 0.0]),
     ] {
         let dir = scratch(&format!("car-{problem}"));

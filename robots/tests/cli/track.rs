@@ -39,7 +39,7 @@ fn feedforward_reproduces_a_plant_trajectory() {
     }
     let fine = robots::wip::simulate::simulate(
         &wip,
-        "rk4".parse().unwrap(),
+        dmech::Integrator::Rk4,
         SAMPLE / SUBSTEPS as f64,
         &ReducedState::zeros(),
         &sched,

@@ -388,7 +388,8 @@ fn jacobian_policies_agree() {
 /// −0.81 at 5 ms, damps the start's transient within the run.
 #[test]
 fn wip_simulate_midpoint_converges_with_order_two() {
-    use robots::wip::simulate::{simulate, InputSchedule, Integrator};
+    use dmech::Integrator;
+    use robots::wip::simulate::{simulate, InputSchedule};
     let w = Wip::default();
     let t_end: f64 = 1.0;
     let schedule = InputSchedule {
@@ -398,24 +399,17 @@ fn wip_simulate_midpoint_converges_with_order_two() {
     let x0 = ReducedState::from_column_slice(&MOVING);
     let h_ref = 2.5e-5;
     let n_ref = (t_end / h_ref).round() as usize;
-    let reference = *simulate(
-        &w,
-        Integrator::Rk(RungeKutta::Rk4),
-        h_ref,
-        &x0,
-        &schedule,
-        n_ref,
-    )
-    .unwrap()
-    .x
-    .last()
-    .unwrap();
+    let reference = *simulate(&w, Integrator::Rk4, h_ref, &x0, &schedule, n_ref)
+        .unwrap()
+        .x
+        .last()
+        .unwrap();
     let hs = [0.005, 0.0025, 0.00125, 0.000625];
     let errs: Vec<f64> = hs
         .iter()
         .map(|&h| {
             let n = (t_end / h).round() as usize;
-            let traj = simulate(&w, Integrator::midpoint(), h, &x0, &schedule, n).unwrap();
+            let traj = simulate(&w, Integrator::Midpoint, h, &x0, &schedule, n).unwrap();
             (traj.x.last().unwrap() - reference).amax()
         })
         .collect();

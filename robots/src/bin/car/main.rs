@@ -1,16 +1,16 @@
 //! `car`: plan and simulate the front-wheel-steered, rear-driven car (`docs/car.md`). The
 //! second robot's tool: everything it plans with comes from `dmech` and `dmech-ocp`.
 
-use clap::{Parser, Subcommand, ValueEnum};
-use dmech::Discretisation;
+use clap::{Parser, Subcommand};
+use dmech::Integrator;
 use dmech_ocp::solver::{IpOptions, Status};
 use robots::car::plan::{plan, CarBounds, CarPlan};
 use robots::car::problems::CarProblem;
 use robots::car::report::{plots, summary_json, CarTrajectory};
-use robots::car::simulate::{check_simulation, simulate, CarIntegrator, CarState};
+use robots::car::simulate::{check_simulation, simulate, CarState};
 use robots::car::Car;
 use robots::check::check_size;
-use robots::cli::HessianArg;
+use robots::cli::{integrator_parser, HessianArg};
 use robots::io::{read_input_columns, OutputSet};
 use robots::{progress, say};
 use std::path::PathBuf;
@@ -33,16 +33,8 @@ enum Command {
     Simulate(SimulateArgs),
 }
 
-/// The variational discretisations.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum Scheme {
-    /// First order (the paper's), right-point forcing.
-    Varint,
-    /// Second order, reversible.
-    Midpoint,
-    /// Classical Runge–Kutta on the continuous model (simulate only).
-    Rk4,
-}
+/// The schemes `car plan` offers: the variational ones.
+const PLAN_INTEGRATORS: &[Integrator] = &[Integrator::FirstOrder, Integrator::Midpoint];
 
 /// Plan a rest-to-rest manoeuvre: a built-in problem (parallel-park, lane-change) or a
 /// pose file.
@@ -54,8 +46,8 @@ struct PlanArgs {
     #[arg(long, default_value_t = 0.02, value_parser = step)]
     step: f64,
     /// Transcription
-    #[arg(long, value_enum, default_value_t = Scheme::Varint)]
-    integrator: Scheme,
+    #[arg(long, default_value = "first-order", value_parser = integrator_parser(PLAN_INTEGRATORS))]
+    integrator: Integrator,
     /// Iteration limit of the solver
     #[arg(long, default_value_t = 500)]
     max_iter: usize,
@@ -83,8 +75,8 @@ struct SimulateArgs {
     #[arg(long)]
     inputs: PathBuf,
     /// Time-stepping scheme
-    #[arg(long, value_enum, default_value_t = Scheme::Varint)]
-    integrator: Scheme,
+    #[arg(long, default_value = "first-order", value_parser = integrator_parser(&Integrator::ALL))]
+    integrator: Integrator,
     /// Time step in seconds, in (0, 0.1]
     #[arg(long, default_value_t = 0.005, value_parser = step)]
     step: f64,
@@ -137,19 +129,12 @@ fn state(s: &str) -> Result<Vec9, String> {
     }
 }
 
-fn discretisation(s: Scheme) -> Result<Discretisation, String> {
-    match s {
-        Scheme::Varint => Ok(Discretisation::FirstOrder),
-        Scheme::Midpoint => Ok(Discretisation::Midpoint),
-        Scheme::Rk4 => {
-            Err("plan: --integrator rk4 is not offered for the car (use varint or midpoint)".into())
-        }
-    }
-}
-
 fn run_plan(a: PlanArgs) -> Result<(), String> {
     let problem = CarProblem::load(&a.problem).map_err(|e| e.to_string())?;
-    let disc = discretisation(a.integrator)?;
+    let disc = a
+        .integrator
+        .variational()
+        .expect("the parser offers the variational schemes");
     let stages = problem.duration / a.step;
     if stages > 200_000.0 {
         return Err(format!(
@@ -160,12 +145,7 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
     // The mesh's checks (whole steps, distinct poses, no two on one stage) before any work.
     CarPlan::new(&problem, CarBounds::default(), a.step).map_err(|e| e.to_string())?;
     let mut files = OutputSet::create(&a.out).map_err(|e| e.to_string())?;
-    let name = a
-        .integrator
-        .to_possible_value()
-        .expect("listed")
-        .get_name()
-        .to_string();
+    let name = a.integrator.name();
     if !a.quiet {
         progress!(
             "car plan {}: {:.0} stages of {} s, integrator {name}",
@@ -252,10 +232,7 @@ fn run_simulate(a: SimulateArgs) -> Result<(), String> {
     let n = inputs
         .steps_on_grid(a.step, &what, "--step")
         .map_err(|e| text(&e))?;
-    let scheme = match a.integrator {
-        Scheme::Rk4 => CarIntegrator::Rk4,
-        s => CarIntegrator::Variational(discretisation(s)?),
-    };
+    let scheme = a.integrator;
     let x = a.x0.0;
     let start = CarState {
         pose: [x[0], x[1], x[2]],

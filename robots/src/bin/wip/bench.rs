@@ -1,7 +1,9 @@
 //! `wip bench`: the paper's computation-time comparison rerun with our solver.
 
-use crate::common::{positive_number, CurrentArg, Failure, IntegratorArg};
+use crate::common::{positive_number, CurrentArg, Failure};
+use dmech::Integrator;
 use dmech_ocp::solver::{IpOptions, Status};
+use robots::cli::integrator_parser;
 use robots::io::OutputSet;
 use robots::wip::plan::problems;
 use robots::wip::plan::{plan, CurrentModel, PlanBounds};
@@ -30,12 +32,12 @@ pub struct BenchArgs {
     /// Integrators, comma-separated
     #[arg(
         long,
-        value_enum,
         value_delimiter = ',',
         value_name = "LIST",
-        default_value = "varint,rk1,rk2,rk4"
+        default_value = "first-order,rk1,rk2,rk4",
+        value_parser = integrator_parser(&Integrator::ALL)
     )]
-    integrators: Vec<IntegratorArg>,
+    integrators: Vec<Integrator>,
     /// Current models, comma-separated
     #[arg(
         long,
@@ -83,18 +85,18 @@ struct Breakdown {
 }
 
 /// The paper's times for the eight (its Figure "computation time").
-fn paper_time(i: IntegratorArg, c: CurrentModel) -> Option<f64> {
+fn paper_time(i: Integrator, c: CurrentModel) -> Option<f64> {
     use CurrentModel::{Algebraic, Dynamic};
-    use IntegratorArg::*;
+    use Integrator::*;
     match (i, c) {
         (Rk1, Dynamic) => Some(553.0),
         (Rk2, Dynamic) => Some(544.0),
         (Rk4, Dynamic) => Some(680.0),
-        (Varint, Dynamic) => Some(522.0),
+        (FirstOrder, Dynamic) => Some(522.0),
         (Rk1, Algebraic) => Some(690.0),
         (Rk2, Algebraic) => Some(710.0),
         (Rk4, Algebraic) => Some(776.0),
-        (Varint, Algebraic) => Some(688.0),
+        (FirstOrder, Algebraic) => Some(688.0),
         (Midpoint, _) => None,
     }
 }
@@ -138,14 +140,7 @@ pub fn run(a: BenchArgs) -> Result<(), Failure> {
                     time_limit: a.time_limit.unwrap_or(f64::INFINITY),
                     ..Default::default()
                 };
-                let o = plan(
-                    &wip,
-                    &problem,
-                    PlanBounds::default(),
-                    i.transcription(),
-                    c,
-                    opts,
-                );
+                let o = plan(&wip, &problem, PlanBounds::default(), i, c, opts);
                 // A plan stopped by the clock did not reach its end: the iterate it returns
                 // may be a mesh's start (mesh sequencing falls back to the finest mesh with
                 // no time left) or a continuation phase's, so its figures are not the

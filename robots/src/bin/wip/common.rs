@@ -3,8 +3,7 @@
 //! checks of a run before it starts are `robots::check`).
 
 use clap::CommandFactory;
-use robots::wip::plan::{CurrentModel, Transcription};
-use robots::wip::simulate::Integrator;
+use robots::wip::plan::CurrentModel;
 use robots::wip::WipParams;
 use std::path::Path;
 
@@ -115,43 +114,6 @@ pub fn thread_count(s: &str) -> Result<usize, String> {
     match s.trim().parse::<usize>() {
         Ok(n) if (1..=64).contains(&n) => Ok(n),
         _ => Err(format!("'{s}' is not a thread count in 1..=64")),
-    }
-}
-
-/// The time-stepping schemes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum IntegratorArg {
-    /// The variational integrator (first order, right-point forcing).
-    Varint,
-    /// The symmetric variational integrator (midpoint: second order, reversible).
-    Midpoint,
-    /// Explicit Euler on the continuous model.
-    Rk1,
-    /// Explicit midpoint on the continuous model.
-    Rk2,
-    /// Classical Runge–Kutta on the continuous model.
-    Rk4,
-}
-
-impl IntegratorArg {
-    pub fn name(self) -> &'static str {
-        match self {
-            IntegratorArg::Varint => "varint",
-            IntegratorArg::Midpoint => "midpoint",
-            IntegratorArg::Rk1 => "rk1",
-            IntegratorArg::Rk2 => "rk2",
-            IntegratorArg::Rk4 => "rk4",
-        }
-    }
-    pub fn integrator(self) -> Integrator {
-        self.name()
-            .parse()
-            .expect("the value enum lists known names")
-    }
-    pub fn transcription(self) -> Transcription {
-        self.name()
-            .parse()
-            .expect("the value enum lists known names")
     }
 }
 

@@ -2,11 +2,12 @@
 
 use crate::common::{
     load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg, Failure,
-    IntegratorArg,
 };
+use dmech::Integrator;
 use dmech_ocp::solver::{IpOptions, KktMethod, Status};
 use dmech_ocp::transcription::free_timing::TotalTime;
 use robots::check::check_size;
+use robots::cli::integrator_parser;
 use robots::cli::HessianArg;
 use robots::io::OutputSet;
 use robots::wip::plan::free_timing::plan_free_timing;
@@ -38,8 +39,8 @@ pub struct PlanArgs {
     #[arg(value_name = "PROBLEM")]
     problem: String,
     /// Transcription of the dynamics
-    #[arg(long, value_enum, default_value_t = IntegratorArg::Varint)]
-    integrator: IntegratorArg,
+    #[arg(long, default_value = "first-order", value_parser = integrator_parser(&Integrator::ALL))]
+    integrator: Integrator,
     /// Motor-current model
     #[arg(long, value_enum, default_value_t = CurrentArg::Dynamic)]
     current: CurrentArg,
@@ -143,17 +144,17 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
         BYTES_PER_STAGE,
         "--max-stages",
     )?;
-    if a.free_timing && a.integrator != IntegratorArg::Varint {
+    if a.free_timing && a.integrator != Integrator::FirstOrder {
         return Err(usage_error(
             "plan",
             format!(
-                "--free-timing needs --integrator varint (got {})",
+                "--free-timing needs --integrator first-order (got {})",
                 a.integrator.name()
             ),
         ));
     }
     let wip = Wip::new(load_params(a.params.as_deref())?);
-    check_plan_step(&wip, a.integrator.name(), h)?;
+    check_plan_step(&wip, a.integrator, h)?;
     let mut files = OutputSet::create(&a.out)?;
     let defaults = IpOptions::default();
     let opts = a.hessian.apply(IpOptions {
@@ -203,7 +204,7 @@ pub fn run(a: PlanArgs) -> Result<(), Failure> {
             &wip,
             &problem,
             bounds,
-            a.integrator.transcription(),
+            a.integrator,
             a.current.model(),
             opts,
         );

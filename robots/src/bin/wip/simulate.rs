@@ -1,11 +1,13 @@
 //! `wip simulate`: open-loop simulation from a state with zero-order-hold voltages.
 
-use crate::common::{load_params, positive_count, sim_step, Failure, IntegratorArg};
+use crate::common::{load_params, positive_count, sim_step, Failure};
+use dmech::Integrator;
 use robots::check::check_size;
+use robots::cli::integrator_parser;
 use robots::io::{read_inputs, OutputSet};
 use robots::say;
 use robots::wip::simulate::trajectory_csv;
-use robots::wip::simulate::{check_stability, simulate, Integrator};
+use robots::wip::simulate::{check_stability, simulate};
 use robots::wip::{ReducedState, Wip};
 use std::path::PathBuf;
 
@@ -24,8 +26,8 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "FILE.csv")]
     inputs: PathBuf,
     /// Time-stepping scheme
-    #[arg(long, value_enum, default_value_t = IntegratorArg::Varint)]
-    integrator: IntegratorArg,
+    #[arg(long, default_value = "first-order", value_parser = integrator_parser(&Integrator::ALL))]
+    integrator: Integrator,
     /// Time step in seconds, in (0, 1]
     #[arg(long = "step", alias = "h", value_name = "SECONDS", default_value = "0.005", allow_negative_numbers = true, value_parser = sim_step)]
     step: f64,
@@ -68,7 +70,7 @@ pub fn run(a: SimulateArgs) -> Result<(), Failure> {
     let n = sched.steps_on_grid(h, &what, "--step")?;
 
     let wip = Wip::new(params);
-    let integrator: Integrator = a.integrator.integrator();
+    let integrator = a.integrator;
     check_stability(&wip, integrator, h, &x, &sched)?;
     let mut files = OutputSet::create(&a.out)?;
     let t0 = std::time::Instant::now();

@@ -144,7 +144,7 @@ pub fn truth_substeps(
     crate::check::stable_substeps(
         what,
         &modes,
-        crate::check::Scheme::rk(RungeKutta::Rk4),
+        crate::check::Scheme::from(dmech::Integrator::Rk4),
         settings.h,
         settings.substeps,
         4000,

@@ -135,7 +135,7 @@ impl WipPlant {
         let substep = super::prediction::MAX_SUBSTEP;
         let scheme = crate::check::Scheme {
             name: "rk4 in 8 substeps",
-            ..crate::check::Scheme::rk(dmech::RungeKutta::Rk4)
+            ..crate::check::Scheme::from(dmech::Integrator::Rk4)
         };
         // Said of the log's step: its 8 substeps, the growth over all of them.
         crate::check::check_step(what, &modes, scheme, h * substep, "a log step", "").map_err(|e| {

@@ -19,9 +19,8 @@ pub use crate::wip::plan::problem::{
 use crate::wip::plan::problems::PlanProblem;
 use crate::wip::plan::sequence::{friction_continuation, varint_solve};
 pub use crate::wip::plan::start::{polyline_start, rk_start, varint_start};
-use crate::wip::simulate::Integrator;
 use crate::wip::Wip;
-use dmech::{Discretisation, RungeKutta};
+use dmech::Integrator;
 use dmech_ocp::solver::{IpOptions, SolveResult};
 use dmech_ocp::toolkit::sequencing::{continuation, direct_or_continuation};
 use dmech_ocp::transcription::PlannedTrajectory as GenericTrajectory;
@@ -36,25 +35,6 @@ pub struct PlannedTrajectory {
     pub s: Vec<SVector<f64, 5>>,
     pub v: Vec<SVector<f64, 5>>,
     pub u: Vec<SVector<f64, 2>>,
-}
-
-/// Which transcription a plan uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Transcription {
-    /// The variational integrator: the paper's first-order scheme or the midpoint one.
-    VarInt(Discretisation),
-    Rk(RungeKutta),
-}
-
-/// The same names as the simulator's integrators (`varint`, `midpoint`, `rk1`, `rk2`, `rk4`).
-impl std::str::FromStr for Transcription {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        Ok(match s.parse::<Integrator>()? {
-            Integrator::VarInt { discretisation, .. } => Transcription::VarInt(discretisation),
-            Integrator::Rk(rk) => Transcription::Rk(rk),
-        })
-    }
 }
 
 /// The current model of a plan: the motor circuit's dynamics (`L_m i̇ = u − R_m i − k_e n_wm w`,
@@ -169,19 +149,19 @@ pub fn plan(
     wip: &Wip,
     problem: &PlanProblem,
     bounds: PlanBounds,
-    transcription: Transcription,
+    integrator: Integrator,
     current: CurrentModel,
     opts: IpOptions,
 ) -> PlanOutcome {
     match current {
         CurrentModel::Dynamic => {
-            plan_model::<Wip, 5, NX, NX_VI, 7>(wip, problem, bounds, transcription, opts)
+            plan_model::<Wip, 5, NX, NX_VI, 7>(wip, problem, bounds, integrator, opts)
         }
         CurrentModel::Algebraic => plan_model::<_, 3, NX_ALGEBRAIC, NX_VI_ALGEBRAIC, 5>(
             &WipAlgebraicCurrent::new(*wip),
             problem,
             bounds,
-            transcription,
+            integrator,
             opts,
         ),
     }
@@ -199,19 +179,20 @@ fn plan_model<
     model: &M,
     problem: &PlanProblem,
     bounds: PlanBounds,
-    transcription: Transcription,
+    integrator: Integrator,
     opts: IpOptions,
 ) -> PlanOutcome {
-    let stiff_explicit = matches!(transcription, Transcription::Rk(RungeKutta::Rk4));
+    let stiff_explicit = integrator == Integrator::Rk4;
     let models = friction_continuation(model, stiff_explicit && M::CURRENT_DYNAMICS);
-    match transcription {
-        Transcription::VarInt(disc) => {
+    match (integrator.variational(), integrator.runge_kutta()) {
+        (Some(disc), _) => {
             let r = varint_solve::<M, NS, NXV, NW>(model, models, problem, bounds, disc, opts);
             let traj =
                 varint_plan::<M, NS, NXV, NW>(model, problem, bounds, disc).trajectory(&r.iterate);
             outcome::<M, NS, NXV, NW>(model, r, traj, true)
         }
-        Transcription::Rk(rk) => {
+        (None, rk) => {
+            let rk = rk.expect("a scheme is variational or Runge–Kutta");
             let (xs, ws) = rk_start::<M, NS, NX>(model, problem);
             let plans: Vec<_> = models
                 .iter()

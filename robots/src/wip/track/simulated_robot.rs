@@ -15,7 +15,6 @@ use crate::wip::closed_form;
 use crate::wip::simulate::modes_at;
 use crate::wip::state::wheel_rates;
 use crate::wip::{ReducedState, Wip, WipParams};
-use dmech::RungeKutta;
 use nalgebra::SVector;
 
 /// RK4 substeps per sample: 0.5 ms, within RK4's stability bound for the motor circuit's
@@ -37,7 +36,7 @@ pub fn substeps(params: &WipParams, x0: &ReducedState, sample: f64) -> Result<us
     stable_substeps(
         what,
         &modes,
-        Scheme::rk(RungeKutta::Rk4),
+        Scheme::from(dmech::Integrator::Rk4),
         sample,
         SUBSTEPS,
         MAX_SUBSTEPS,
@@ -194,7 +193,7 @@ mod tests {
         x0[3] = 0.05;
         let generic = simulate(
             &Wip::new(p),
-            "rk4".parse().unwrap(),
+            dmech::Integrator::Rk4,
             sample / SUBSTEPS as f64,
             &x0,
             &sched,
