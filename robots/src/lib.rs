@@ -7,6 +7,7 @@ pub mod cli;
 pub mod diagnose;
 pub mod io;
 pub mod plot;
+pub mod simulation;
 pub mod wip;
 
 /// The tutorial `docs/add-a-robot.md`: its code blocks are compiled and run as doc tests.

@@ -3,6 +3,7 @@
 use super::model::{NS, NU};
 use super::plan::{CarBounds, CarOutcome};
 use super::problems::CarProblem;
+use crate::io::NonFiniteValue;
 use crate::plot::{Plot, Series};
 use nalgebra::SVector;
 
@@ -36,8 +37,8 @@ impl CarTrajectory {
     }
 
     /// trajectory.csv; an error naming the time and column of a non-finite value.
-    pub fn csv(&self) -> Result<String, String> {
-        let names: Vec<&str> = CSV_HEADER.split(',').collect();
+    pub fn csv(&self) -> Result<String, NonFiniteValue> {
+        let names: Vec<&'static str> = CSV_HEADER.split(',').collect();
         let mut s = String::from(CSV_HEADER);
         s.push('\n');
         for k in 0..self.t.len() {
@@ -48,10 +49,11 @@ impl CarTrajectory {
                 .chain(self.input[k].iter().copied())
                 .collect();
             if let Some(j) = row.iter().position(|v| !v.is_finite()) {
-                return Err(format!(
-                    "non-finite value in column '{}' at t = {}",
-                    names[j], self.t[k]
-                ));
+                return Err(NonFiniteValue {
+                    value: row[j],
+                    t: self.t[k],
+                    column: names[j],
+                });
             }
             let fields: Vec<String> = row.iter().map(|v| format!("{v:.17e}")).collect();
             s.push_str(&fields.join(","));

@@ -4,6 +4,7 @@ use super::model::{Car, NS};
 use super::report::CarTrajectory;
 use crate::check::{CheckError, Scheme};
 use crate::io::InputSchedule;
+use crate::simulation::SimulationError;
 use dmech::continuous::ContinuousModel;
 use dmech::{Integrator, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
 use dmech_lie::Se2;
@@ -48,7 +49,7 @@ pub fn simulate(
     start: &CarState,
     inputs: &InputSchedule,
     n: usize,
-) -> Result<CarTrajectory, String> {
+) -> Result<CarTrajectory, SimulationError> {
     let (pose0, s0, v0) = (start.pose, start.shape, start.velocity);
     let u_at = |k: usize| {
         let u = inputs.at(k as f64 * h);
@@ -66,7 +67,7 @@ pub fn simulate(
     if midpoint {
         x.v = vi
             .start(car, &s0, &v0, &u_at(0))
-            .map_err(|e| format!("the midpoint scheme's start failed: {e}"))?;
+            .map_err(SimulationError::Start)?;
     }
     let mut cache = NewtonCache::default();
     let mut traj = CarTrajectory::default();
@@ -86,8 +87,12 @@ pub fn simulate(
         if k == n {
             break;
         }
-        let fail =
-            |e: dmech::StepError| format!("step {k} (t = {:.4} s) failed: {e}", k as f64 * h);
+        let fail = |source| SimulationError::Step {
+            step: k,
+            t: k as f64 * h,
+            source,
+            advice: String::new(),
+        };
         x = match integrator.runge_kutta() {
             None => {
                 vi.step_cached(car, &x, &u_at(k), &u_at(k + 1), &x.v.clone(), &mut cache)

@@ -3,9 +3,9 @@
 /// Why a log cannot be diagnosed.
 #[derive(Debug, thiserror::Error)]
 pub enum DiagnoseError {
-    /// A reading or command that cannot be used (names the row and column).
-    #[error("{0}")]
-    Log(String),
+    /// A command that cannot be used (names the row and column).
+    #[error(transparent)]
+    Log(#[from] crate::diagnose::log::CommandOutOfRange),
     #[error("a window of {window_s} s is {samples} samples of {h} s; it needs at least {min} samples (--window ≥ {} s)", *min as f64 * h)]
     WindowTooShort {
         window_s: f64,

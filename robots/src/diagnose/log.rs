@@ -40,6 +40,24 @@ impl ChannelSpec {
 /// unit; the robots here run on a few volts).
 pub const COMMAND_RANGE: f64 = 1e3;
 
+/// A log row whose command is beyond [`COMMAND_RANGE`] (or not a number): the model needs
+/// every input, so the row cannot be dropped.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "row {row} (t = {t}), column '{column}': command {value} is outside ±{}",
+    COMMAND_RANGE
+)]
+pub struct CommandOutOfRange {
+    /// The row.
+    pub row: usize,
+    /// Its time.
+    pub t: f64,
+    /// The input column.
+    pub column: String,
+    /// The command.
+    pub value: f64,
+}
+
 /// A log: uniform time grid, commanded inputs, and the readings (NaN = not measured).
 #[derive(Clone, Debug)]
 pub struct MeasuredLog {
@@ -128,16 +146,18 @@ impl MeasuredLog {
         &mut self,
         channels: &[ChannelSpec],
         inputs: &[String],
-    ) -> Result<Vec<String>, String> {
+    ) -> Result<Vec<String>, CommandOutOfRange> {
         let mut flagged = Vec::new();
         for k in 0..self.len() {
             for (j, name) in inputs.iter().enumerate() {
                 let u = self.input(k)[j];
                 if u.is_nan() || u.abs() > COMMAND_RANGE {
-                    return Err(format!(
-                        "row {k} (t = {}), column '{name}': command {u} is outside ±{COMMAND_RANGE}",
-                        self.t[k]
-                    ));
+                    return Err(CommandOutOfRange {
+                        row: k,
+                        t: self.t[k],
+                        column: name.clone(),
+                        value: u,
+                    });
                 }
             }
             for (c, spec) in channels.iter().enumerate() {

@@ -221,3 +221,15 @@ pub fn parse_csv_with(text: &str, what: &str, opts: CsvOptions<'_>) -> Result<Cs
         lines,
     })
 }
+
+/// A trajectory with a non-finite value, which no result file holds.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("the trajectory holds a non-finite value ({value}) at t = {t} in column '{column}': nothing written")]
+pub struct NonFiniteValue {
+    /// The value.
+    pub value: f64,
+    /// Its time.
+    pub t: f64,
+    /// Its column.
+    pub column: &'static str,
+}

@@ -4,6 +4,8 @@ use super::state::{from_reduced, to_reduced, ReducedState};
 use super::Wip;
 use crate::check::{CheckError, Scheme};
 pub use crate::io::InputSchedule;
+use crate::io::NonFiniteValue;
+use crate::simulation::SimulationError;
 use dmech::continuous::ContinuousModel;
 use dmech::{
     Discretisation, ForcingQuadrature, Integrator, JacobianPolicy, NewtonCache, StepError,
@@ -37,7 +39,7 @@ impl From<Integrator> for Stepping {
 
 /// `trajectory.csv`: `t,x,y,theta,alpha,v_alpha,v_d,v_theta,iR,iL,uR,uL`. A non-finite
 /// value is an error naming its row and column: a file of NaNs is never a result.
-pub fn trajectory_csv(traj: &Trajectory) -> Result<String, String> {
+pub fn trajectory_csv(traj: &Trajectory) -> Result<String, NonFiniteValue> {
     const COLUMNS: [&str; 12] = [
         "t", "x", "y", "theta", "alpha", "v_alpha", "v_d", "v_theta", "iR", "iL", "uR", "uL",
     ];
@@ -49,11 +51,11 @@ pub fn trajectory_csv(traj: &Trajectory) -> Result<String, String> {
             .chain(u);
         for (j, v) in row.enumerate() {
             if !v.is_finite() {
-                return Err(format!(
-                    "the trajectory holds a non-finite value ({v}) at t = {} in column '{}': \
-                     nothing written",
-                    traj.t[k], COLUMNS[j]
-                ));
+                return Err(NonFiniteValue {
+                    value: v,
+                    t: traj.t[k],
+                    column: COLUMNS[j],
+                });
             }
             if j == 0 {
                 let _ = write!(s, "{v}");
@@ -86,7 +88,7 @@ pub fn simulate(
     x0: &ReducedState,
     inputs: &InputSchedule,
     n_steps: usize,
-) -> Result<Trajectory, String> {
+) -> Result<Trajectory, SimulationError> {
     let stepping = stepping.into();
     let p = w.params;
     let (g0, s0, v0) = from_reduced(&p, x0, [0.0; 4]);
@@ -131,7 +133,7 @@ pub fn simulate(
         let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::Midpoint);
         x.v = vi
             .start(w, &s0, &v0, &uvec(0).1)
-            .map_err(|e| format!("the midpoint scheme's start failed: {e}"))?;
+            .map_err(SimulationError::Start)?;
     }
     let mut traj = Trajectory::default();
     let mut v_before = v0;
@@ -150,12 +152,14 @@ pub fn simulate(
         if k == n_steps {
             break;
         }
-        x = advance(k, &x).map_err(|e| {
-            format!(
-                "step {k} (t = {:.4} s) failed: {e}; the motion left the range the step {h} s \
-                 resolves (a smaller --step, or smaller voltages)",
-                k as f64 * h
-            )
+        x = advance(k, &x).map_err(|source| SimulationError::Step {
+            step: k,
+            t: k as f64 * h,
+            source,
+            advice: format!(
+                "; the motion left the range the step {h} s resolves (a smaller --step, or \
+                 smaller voltages)"
+            ),
         })?;
     }
     Ok(traj)

@@ -168,7 +168,10 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
     let pose_error = traj.pose_error_max(&o.stages, &problem);
     let put = |e: robots::io::OutputError| e.to_string();
     files
-        .write("trajectory.csv", traj.csv()?.as_bytes())
+        .write(
+            "trajectory.csv",
+            traj.csv().map_err(|e| e.to_string())?.as_bytes(),
+        )
         .map_err(put)?;
     files
         .write(
@@ -242,9 +245,12 @@ fn run_simulate(a: SimulateArgs) -> Result<(), String> {
     let car = Car::default();
     check_simulation(&car, scheme, a.step, &start, &inputs).map_err(|e| text(&e))?;
     let mut files = OutputSet::create(&a.out).map_err(|e| text(&e))?;
-    let traj = simulate(&car, scheme, a.step, &start, &inputs, n)?;
+    let traj = simulate(&car, scheme, a.step, &start, &inputs, n).map_err(|e| text(&e))?;
     files
-        .write("trajectory.csv", traj.csv()?.as_bytes())
+        .write(
+            "trajectory.csv",
+            traj.csv().map_err(|e| text(&e))?.as_bytes(),
+        )
         .map_err(|e| text(&e))?;
     files.commit().map_err(|e| text(&e))?;
     let last = traj.pose.last().expect("at least the start");

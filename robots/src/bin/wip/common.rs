@@ -30,7 +30,11 @@ run_failures!(
     robots::io::OutputError,
     robots::io::InputError,
     robots::check::CheckError,
-    robots::wip::track::closed_loop::TrackError
+    robots::wip::track::closed_loop::TrackError,
+    robots::io::NonFiniteValue,
+    robots::simulation::SimulationError,
+    robots::wip::track::mpc::MpcDesignError,
+    robots::wip::diagnose::generate::GenerateError
 );
 
 impl From<String> for Failure {

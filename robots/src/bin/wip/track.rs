@@ -104,7 +104,7 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         .map_err(|e| Failure::Run(format!("the LQ design failed: {e}")))?;
     let mpc = match a.controller {
         ControllerArg::Lq => None,
-        ControllerArg::Mpc => Some(MpcController::design(&params, &plan).map_err(Failure::Run)?),
+        ControllerArg::Mpc => Some(MpcController::design(&params, &plan)?),
     };
     let controller = mpc.as_ref().map_or(Controller::Lq(&lq), Controller::Mpc);
     let cfg = TrackConfig {

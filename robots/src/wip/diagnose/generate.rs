@@ -165,6 +165,35 @@ enum TrueWheel {
 /// The true model: the WIP of the extension with the dynamic current, by `dmech`'s generic
 /// path. Under the stick-slip law its friction comes as an external force: slip friction
 /// for a slipping wheel, and for a stuck wheel the torque that keeps it at rest relative to
+
+/// Why a closed-loop log could not be generated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GenerateError {
+    /// The true model's mass matrix is singular at a state.
+    #[error("the true model's mass matrix is singular")]
+    SingularMassMatrix,
+    /// The stuck wheels' holding torques have no solution.
+    #[error("the stuck wheels' response is singular")]
+    SingularStuckWheels,
+    /// A step of the true model left the finite numbers.
+    #[error("the true model failed: {0:?}")]
+    TrueModel(dmech::StepError),
+    /// The nominal prediction model cannot step from rest.
+    #[error("the nominal model cannot step from rest: check the parameters")]
+    NominalCannotStep,
+    /// The controller's LQR design failed.
+    #[error("the LQR design failed ({0}): check the parameters")]
+    Lqr(&'static str),
+    /// The robot fell during the run.
+    #[error("the robot fell at t = {t:.3} s (seed {seed})")]
+    Fell {
+        /// When.
+        t: f64,
+        /// The run's seed.
+        seed: u64,
+    },
+}
+
 /// the body (the accelerations are affine in the force: two probes give the response).
 struct Truth<'a> {
     ext: &'a ModelExtension<f64>,
@@ -177,9 +206,9 @@ impl Truth<'_> {
         y: &TrueState,
         u: &SVector<f64, 2>,
         f: &SVector<f64, 5>,
-    ) -> Result<SVector<f64, 5>, String> {
+    ) -> Result<SVector<f64, 5>, GenerateError> {
         acceleration_with_force(&self.sys, &y.s, &y.v, u, f)
-            .ok_or_else(|| "the true model's mass matrix is singular".to_string())
+            .ok_or(GenerateError::SingularMassMatrix)
     }
 
     /// The external shape force at `y` and the holding torques of the stuck wheels.
@@ -188,7 +217,7 @@ impl Truth<'_> {
         y: &TrueState,
         u: &SVector<f64, 2>,
         modes: [TrueWheel; 2],
-    ) -> Result<(SVector<f64, 5>, [f64; 2]), String> {
+    ) -> Result<(SVector<f64, 5>, [f64; 2]), GenerateError> {
         let mut f = self.ext.floor_force(&self.sys, &y.s, y.g.theta);
         if !self.ext.sticks() {
             return Ok((f, [0.0; 2]));
@@ -226,9 +255,7 @@ impl Truth<'_> {
                 wdot(&g[0], 1),
                 wdot(&g[1], 1),
             );
-            let x = m
-                .try_inverse()
-                .ok_or("the stuck wheels' response is singular")?
+            let x = m.try_inverse().ok_or(GenerateError::SingularStuckWheels)?
                 * nalgebra::Vector2::new(-wdot(&a0, 0), -wdot(&a0, 1));
             hold = [x[0], x[1]];
         }
@@ -244,7 +271,7 @@ impl Truth<'_> {
         u: [f64; 2],
         dt: f64,
         modes: [TrueWheel; 2],
-    ) -> Result<TrueState, String> {
+    ) -> Result<TrueState, GenerateError> {
         let u = SVector::<f64, 2>::new(u[0], u[1]);
         let force = |y: &TrueState| {
             self.force(y, &u, modes)
@@ -252,7 +279,7 @@ impl Truth<'_> {
                 .unwrap_or_else(|_| SVector::from_element(f64::NAN))
         };
         ContinuousModel::step_with_force(&self.sys, RungeKutta::Rk4, dt, x, &u, &force)
-            .map_err(|e| format!("the true model failed: {e:?}"))
+            .map_err(GenerateError::TrueModel)
     }
 
     /// One step of the true model; under the stick-slip law a switch within the step (a
@@ -264,7 +291,7 @@ impl Truth<'_> {
         u: [f64; 2],
         dt: f64,
         modes: &mut [TrueWheel; 2],
-    ) -> Result<TrueState, String> {
+    ) -> Result<TrueState, GenerateError> {
         if !self.ext.sticks() {
             return self.rk4(x, u, dt, *modes);
         }
@@ -329,7 +356,7 @@ impl Truth<'_> {
 
 /// A discrete LQR on the NOMINAL prediction model, linearised at rest upright: state
 /// `(α, v_α, φ̇R, φ̇L)`, input `(uR, uL)`, one sample step. Returns `K` with `u = −K e`.
-pub fn nominal_lqr(p: &WipParams, h: f64) -> Result<SMatrix<f64, 2, 4>, String> {
+pub fn nominal_lqr(p: &WipParams, h: f64) -> Result<SMatrix<f64, 2, 4>, GenerateError> {
     let pred = Predictor::<D>::new(ModelExtension::nominal(p));
     let idx = [3usize, 6, 7, 8];
     let mut z = SVector::<D, 9>::zeros();
@@ -339,7 +366,7 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> Result<SMatrix<f64, 2, 4>, String> 
     let u = [D::from(0.0).derivative(4), D::from(0.0).derivative(5)];
     let (next, _) = pred
         .step(&z, u, D::from(h))
-        .ok_or("the nominal model cannot step from rest: check the parameters")?;
+        .ok_or(GenerateError::NominalCannotStep)?;
     let eps = |x: &D, j: usize| {
         x.eps
             .unwrap_generic(nalgebra::Const::<ND>, nalgebra::Const::<1>)[j]
@@ -360,7 +387,7 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> Result<SMatrix<f64, 2, 4>, String> 
         let btsb = r + b.transpose() * s * b;
         let k_new = btsb
             .try_inverse()
-            .ok_or("the LQR design failed (R + BᵀSB singular): check the parameters")?
+            .ok_or(GenerateError::Lqr("R + BᵀSB singular"))?
             * (b.transpose() * s * a);
         let s_new = q + a.transpose() * s * (a - b * k_new);
         let done = (k_new - k).norm() < 1e-12 * k_new.norm().max(1.0);
@@ -371,7 +398,7 @@ pub fn nominal_lqr(p: &WipParams, h: f64) -> Result<SMatrix<f64, 2, 4>, String> 
         }
     }
     if !k.iter().all(|v| v.is_finite()) {
-        return Err("the LQR design failed (non-finite gain): check the parameters".into());
+        return Err(GenerateError::Lqr("non-finite gain"));
     }
     Ok(k)
 }
@@ -428,7 +455,7 @@ pub fn generate(
     effects: &[(Effect, Vec<f64>)],
     seed: u64,
     settings: &RunSettings,
-) -> Result<GeneratedLog, String> {
+) -> Result<GeneratedLog, GenerateError> {
     let mut rng = Rng::new(seed);
     let reference = Reference::draw(&mut rng);
     let cat = wip_catalogue(p);
@@ -560,7 +587,7 @@ pub fn generate(
             break;
         }
         if x.s[0].abs() > 1.0 {
-            return Err(format!("the robot fell at t = {t:.3} s (seed {seed})"));
+            return Err(GenerateError::Fell { t, seed });
         }
 
         // Advance the true model over [t_k, t_{k+1}): the driver applies the command of

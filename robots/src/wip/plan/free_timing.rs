@@ -10,7 +10,9 @@ use crate::wip::plan::{outcome, CurrentModel, PlanOutcome};
 use crate::wip::Wip;
 use dmech::Discretisation;
 use dmech_ocp::solver::{IpOptions, Solver};
-use dmech_ocp::transcription::free_timing::{FreeTiming, FreeTimingTranscription, TotalTime};
+use dmech_ocp::transcription::free_timing::{
+    FreeTiming, FreeTimingError, FreeTimingTranscription, TotalTime,
+};
 
 /// Bounds on each segment's step ratio `h_j / h` in a plan with free timing: within a
 /// factor of two of the nominal step, so that the first-order integrator's error stays
@@ -50,7 +52,7 @@ pub fn plan_free_timing(
     current: CurrentModel,
     total: TotalTime,
     opts: IpOptions,
-) -> Result<FreeTimingOutcome, String> {
+) -> Result<FreeTimingOutcome, FreeTimingError> {
     match current {
         CurrentModel::Dynamic => free_model::<Wip, 5, NX, 7, 9>(wip, problem, bounds, total, opts),
         CurrentModel::Algebraic => free_model::<_, 3, NX_ALGEBRAIC, 5, 7>(
@@ -76,7 +78,7 @@ fn free_model<
     bounds: PlanBounds,
     total: TotalTime,
     opts: IpOptions,
-) -> Result<FreeTimingOutcome, String> {
+) -> Result<FreeTimingOutcome, FreeTimingError> {
     let disc = Discretisation::FirstOrder;
     let models = friction_continuation(model, false);
     let r = varint_solve::<M, NS, NX, NW0>(model, models, problem, bounds, disc, opts.clone());
@@ -91,8 +93,7 @@ fn free_model<
     let ft = FreeTimingTranscription::new(
         varint_plan::<M, NS, NX, NW0>(model, problem, bounds, disc),
         timing,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     if opts.verbose {
         crate::progress!(
             "free timing: {} segments, step ratios in [{}, {}], total time {}, from the fixed-timing plan",

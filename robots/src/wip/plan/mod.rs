@@ -54,15 +54,18 @@ impl CurrentModel {
     }
 }
 
+/// A name that is not a [`CurrentModel`]'s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown current model '{0}' (expected dynamic or algebraic)")]
+pub struct UnknownCurrentModel(pub String);
+
 impl std::str::FromStr for CurrentModel {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownCurrentModel;
+    fn from_str(s: &str) -> Result<Self, UnknownCurrentModel> {
         match s {
             "dynamic" => Ok(CurrentModel::Dynamic),
             "algebraic" => Ok(CurrentModel::Algebraic),
-            other => Err(format!(
-                "unknown current model '{other}' (expected dynamic or algebraic)"
-            )),
+            other => Err(UnknownCurrentModel(other.to_string())),
         }
     }
 }

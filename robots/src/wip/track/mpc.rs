@@ -15,6 +15,7 @@
 //! (`RATE_WEIGHT`), the tilt slack's an exact penalty (`TILT_WEIGHT`).
 
 use super::closed_loop::{Reference, U_MAX};
+use super::dare::DareError;
 use super::linear::{linear_model_params, linearise_at, zoh, NIN, NZ};
 use super::lq::{LqController, Q_Y, SAMPLE};
 use crate::wip::simulate::Trajectory;
@@ -72,11 +73,25 @@ pub struct MpcController {
     settings: DefaultSettings<f64>,
 }
 
+/// Why an MPC could not be designed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MpcDesignError {
+    /// The LQ design beneath it failed.
+    #[error("the LQ design failed: {0}")]
+    Lq(DareError),
+    /// The linearisation at a sample of the plan is singular.
+    #[error("the model is singular at t = {t:.3} s")]
+    Singular {
+        /// The sample's time.
+        t: f64,
+    },
+}
+
 impl MpcController {
     /// Linearise the model with the parameters `p` (the linear model's friction, as for
     /// the LQ design) at each 5-ms sample of `plan` and discretise it.
-    pub fn design(p: &WipParams, plan: &Trajectory) -> Result<Self, String> {
-        let lq = LqController::design(p).map_err(|e| format!("the LQ design failed: {e}"))?;
+    pub fn design(p: &WipParams, plan: &Trajectory) -> Result<Self, MpcDesignError> {
+        let lq = LqController::design(p).map_err(MpcDesignError::Lq)?;
         let wip = Wip::new(linear_model_params(p));
         let reference = Reference { plan };
         let n = (reference.end() / SAMPLE).round() as usize;
@@ -87,10 +102,9 @@ impl MpcController {
                     0.0, 0.0, x[3], x[4], x[5], x[6], x[7], x[8],
                 ]);
                 let u = SVector::<f64, NIN>::new(u_ff[0], u_ff[1]);
-                let (a, b) = linearise_at(&wip, &z, &u).ok_or(format!(
-                    "the model is singular at t = {:.3} s",
-                    k as f64 * SAMPLE
-                ))?;
+                let (a, b) = linearise_at(&wip, &z, &u).ok_or(MpcDesignError::Singular {
+                    t: k as f64 * SAMPLE,
+                })?;
                 let (phi, gamma) = zoh(&a, &b, SAMPLE);
                 Ok(PlanSample {
                     phi,
@@ -99,7 +113,7 @@ impl MpcController {
                     u_ff,
                 })
             })
-            .collect::<Result<Vec<_>, String>>()?;
+            .collect::<Result<Vec<_>, MpcDesignError>>()?;
         let settings = DefaultSettingsBuilder::default()
             .verbose(false)
             .presolve_enable(false)
@@ -114,7 +128,7 @@ impl MpcController {
 
     /// The MPC at upright rest (no plan): every sample's model is the LQ design's, no
     /// feedforward, and the tilt reference zero. For tests.
-    pub fn at_rest(p: &WipParams, samples: usize) -> Result<Self, String> {
+    pub fn at_rest(p: &WipParams, samples: usize) -> Result<Self, MpcDesignError> {
         let plan = Trajectory {
             t: vec![0.0, samples as f64 * SAMPLE],
             x: vec![Default::default(); 2],
