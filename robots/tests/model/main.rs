@@ -7,6 +7,7 @@
 //! - `car_plan`: the car's built-in problems planned through the toolkit;
 //! - `plan_derivatives`: the transcriptions' structured Jacobians against the generic path;
 //! - `reader_fuzz`: property tests of every reader of the `wip` tool;
+//! - `reference_objectives`: the benchmarks' objectives against independent solutions;
 //! - `transcription`: the OCP transcriptions against the integrators;
 //! - `wip_continuous`: the WIP's continuous model, generic path against the closed form;
 //! - `wip_variational`: the variational integrator on the WIP.
@@ -17,6 +18,7 @@ mod car_model;
 mod car_plan;
 mod plan_derivatives;
 mod reader_fuzz;
+mod reference_objectives;
 mod transcription;
 mod wip_continuous;
 mod wip_variational;

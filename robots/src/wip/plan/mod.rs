@@ -72,10 +72,18 @@ impl std::str::FromStr for CurrentModel {
 
 /// A finished solve, transcription-independent.
 pub struct PlanOutcome {
+    /// How the last solve ended.
     pub status: dmech_ocp::solver::Status,
+    /// Iterations over every mesh and phase.
     pub iterations: usize,
+    /// The objective `J` of the returned plan.
     pub objective: f64,
+    /// The largest violation of any constraint, measured on the returned plan.
     pub max_violation: f64,
+    /// The solver's duality gap at the returned plan (`SolveResult::duality_gap`): how far
+    /// above its optimum `J` may lie, to first order.
+    pub duality_gap: f64,
+    /// Where the time went.
     pub timings: dmech_ocp::solver::Timings,
     pub trajectory: PlannedTrajectory,
     /// The stage times of a plan with free timing (`None`: `k h`).
@@ -131,6 +139,7 @@ pub(super) fn outcome<M: PlanModel<NS>, const NS: usize, const NX: usize, const 
         iterations: r.iterations,
         objective: r.objective,
         max_violation: r.max_violation,
+        duality_gap: r.duality_gap,
         timings: r.timings,
         trajectory: t,
         times: None,
