@@ -20,23 +20,13 @@
 use crate::newton::{solve_momentum_matching, NewtonCache, NewtonSettings};
 use crate::partials::pulled_back_gradient;
 use crate::system::{Lift, PrincipalKinematicSystem};
-use crate::variational::{StepError, VariationalIntegrator, ViState};
+use crate::variational::{
+    interval_momentum, Discretisation, Node, StepError, VariationalIntegrator, ViState,
+};
 use dmech_lie::dual::value_and_jacobian;
 use dmech_lie::LieGroup;
-use nalgebra::{SMatrix, SVector};
-use num_dual::{DualSVec64, DualVec};
-
-type Dv<T, const N: usize> = DualVec<T, nalgebra::Const<N>>;
-
-/// `s_{k+½} = s_k + ½h v_k`: where the interval's Lagrangian, connection and force are
-/// evaluated.
-pub fn interval_midpoint<T: dmech_lie::Real, const NS: usize>(
-    h: f64,
-    s: &SVector<T, NS>,
-    v: &SVector<T, NS>,
-) -> SVector<T, NS> {
-    s + v * T::from(0.5 * h)
-}
+use nalgebra::SVector;
+use num_dual::DualSVec64;
 
 /// `ξ_k = −A(s_{k+½}) v_k`: the body velocity of interval `k` (the discrete constraint).
 pub fn interval_body_velocity<S, T, const DOF: usize, const NS: usize, const NU: usize>(
@@ -49,7 +39,7 @@ where
     S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
-    -(sys.connection(&interval_midpoint(h, s, v)) * v)
+    -(sys.connection(&Discretisation::Midpoint.evaluation_point(h, s, v)) * v)
 }
 
 /// `F_{k+½} = F(s_{k+½}, v_k, u_k)`: the force of interval `k`.
@@ -64,104 +54,7 @@ where
     S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
 {
-    sys.forcing(&interval_midpoint(h, s, v), v, u)
-}
-
-/// The discrete momentum leaving node `k` (forces excluded):
-/// `∂ℓ_k/∂v − ½h ∂ℓ_k/∂s − A(s_k)ᵀ dexp⁻¹(hξ_k)ᵀ μ_k` at `(s_{k+½}, v_k, ξ_k)`, one
-/// vector-dual evaluation of `ℓ` along `(δs, δv, δξ) = (−½hν, ν, −dexp⁻¹(hξ_k) A(s_k) ν)`.
-/// `a_k = A(s_k)`.
-pub fn midpoint_outgoing_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
-    sys: &S,
-    h: f64,
-    s_k: &SVector<T, NS>,
-    v_k: &SVector<T, NS>,
-    a_k: &SMatrix<T, DOF, NS>,
-) -> SVector<T, NS>
-where
-    S: PrincipalKinematicSystem<DOF, NS, NU>,
-    T: Lift<S::Param>,
-    Dv<T, NS>: Lift<S::Param>,
-{
-    interval_momentum_at_node::<S, T, DOF, NS, NU>(sys, h, s_k, v_k, a_k, 1.0)
-}
-
-/// The discrete momentum arriving at node `k` (forces excluded):
-/// `∂ℓ_{k−1}/∂v + ½h ∂ℓ_{k−1}/∂s − A(s_k)ᵀ dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}` at
-/// `(s_{k−½}, v_{k−1}, ξ_{k−1})`. `a_k = A(s_k)`.
-pub fn midpoint_incoming_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
-    sys: &S,
-    h: f64,
-    s_prev: &SVector<T, NS>,
-    v_prev: &SVector<T, NS>,
-    a_k: &SMatrix<T, DOF, NS>,
-) -> SVector<T, NS>
-where
-    S: PrincipalKinematicSystem<DOF, NS, NU>,
-    T: Lift<S::Param>,
-    Dv<T, NS>: Lift<S::Param>,
-{
-    interval_momentum_at_node::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, a_k, -1.0)
-}
-
-/// The momentum an interval (starting at `s_start` with velocity `v`) contributes at one of
-/// its nodes: the one after it (`side = −1`, incoming) or before it (`side = +1`,
-/// outgoing). The two differ only in the side: the shift `−side·½h` of `∂ℓ/∂s` and
-/// `dexp⁻¹(side·hξ)` (the source of the scheme's symmetry).
-fn interval_momentum_at_node<S, T, const DOF: usize, const NS: usize, const NU: usize>(
-    sys: &S,
-    h: f64,
-    s_start: &SVector<T, NS>,
-    v: &SVector<T, NS>,
-    a_node: &SMatrix<T, DOF, NS>,
-    side: f64,
-) -> SVector<T, NS>
-where
-    S: PrincipalKinematicSystem<DOF, NS, NU>,
-    T: Lift<S::Param>,
-    Dv<T, NS>: Lift<S::Param>,
-{
-    let s_mid = interval_midpoint(h, s_start, v);
-    let xi = -(sys.connection(&s_mid) * v);
-    let dinv = <S::Group<T> as LieGroup<DOF>>::dexp_inv(&(xi * T::from(side * h)));
-    let d = -(dinv * a_node);
-    pulled_back_gradient::<S, T, DOF, NS, NU>(sys, &s_mid, -0.5 * side * h, v, &xi, &d)
-}
-
-/// The midpoint momentum-matching residual at node `k`, divided by `h` (force units, as
-/// [`crate::variational::momentum_matching_residual`]):
-/// `(outgoing_k − incoming_k)/h − ½(F_{k−½} + F_{k+½})`.
-///
-/// `prev = (s_{k−1}, v_{k−1}, u_{k−1})`, `cur = (s_k, v_k, u_k)`; `s_k` is passed separately
-/// so that a transcription can keep it as its own variable. Generic over the scalar.
-#[allow(clippy::too_many_arguments)]
-pub fn midpoint_momentum_matching_residual<
-    S,
-    T,
-    const DOF: usize,
-    const NS: usize,
-    const NU: usize,
->(
-    sys: &S,
-    h: f64,
-    s_prev: &SVector<T, NS>,
-    v_prev: &SVector<T, NS>,
-    u_prev: &SVector<T, NU>,
-    s_k: &SVector<T, NS>,
-    v_k: &SVector<T, NS>,
-    u_k: &SVector<T, NU>,
-) -> SVector<T, NS>
-where
-    S: PrincipalKinematicSystem<DOF, NS, NU>,
-    T: Lift<S::Param>,
-    Dv<T, NS>: Lift<S::Param>,
-{
-    let a_k = sys.connection(s_k);
-    let inc = midpoint_incoming_momentum::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, &a_k);
-    let out = midpoint_outgoing_momentum::<S, T, DOF, NS, NU>(sys, h, s_k, v_k, &a_k);
-    let f_prev = interval_force::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, u_prev);
-    let f_k = interval_force::<S, T, DOF, NS, NU>(sys, h, s_k, v_k, u_k);
-    (out - inc) / T::from(h) - (f_prev + f_k) * T::from(0.5)
+    sys.forcing(&Discretisation::Midpoint.evaluation_point(h, s, v), v, u)
 }
 
 impl VariationalIntegrator {
@@ -187,8 +80,15 @@ impl VariationalIntegrator {
         let s_next = x.s + x.v * h;
         // What does not depend on the unknown v_{k+1}: once, in f64.
         let a_next = sys.connection(&s_next);
-        let incoming =
-            midpoint_incoming_momentum::<S, f64, DOF, NS, NU>(sys, h, &x.s, &x.v, &a_next);
+        let incoming = interval_momentum(
+            sys,
+            h,
+            Discretisation::Midpoint,
+            &x.s,
+            &x.v,
+            &a_next,
+            Node::End,
+        );
         let f_prev = interval_force::<S, f64, DOF, NS, NU>(sys, h, &x.s, &x.v, u_k);
         let known = incoming / h + f_prev * 0.5;
         let (v, it) = self.solve_outgoing(sys, &s_next, u_next, &known, guess, cache)?;
@@ -247,7 +147,7 @@ impl VariationalIntegrator {
         let outgoing_side = |v: &SVector<D<NS>, NS>| {
             let (sk, ak) = (s_k.map(D::<NS>::from), a_k.map(D::<NS>::from));
             let uk = u_k.map(D::<NS>::from);
-            let out = midpoint_outgoing_momentum::<S, D<NS>, DOF, NS, NU>(sys, h, &sk, v, &ak);
+            let out = interval_momentum(sys, h, Discretisation::Midpoint, &sk, v, &ak, Node::Start);
             let f = interval_force::<S, D<NS>, DOF, NS, NU>(sys, h, &sk, v, &uk);
             out / D::<NS>::from(h) - f * D::<NS>::from(0.5)
         };
@@ -256,7 +156,8 @@ impl VariationalIntegrator {
             (r - known, j)
         };
         let residual = |v: &SVector<f64, NS>| {
-            let out = midpoint_outgoing_momentum::<S, f64, DOF, NS, NU>(sys, h, s_k, v, &a_k);
+            let out =
+                interval_momentum(sys, h, Discretisation::Midpoint, s_k, v, &a_k, Node::Start);
             let f = interval_force::<S, f64, DOF, NS, NU>(sys, h, s_k, v, u_k);
             out / h - f * 0.5 - known
         };

@@ -20,7 +20,7 @@ use crate::partials::{
 };
 use crate::system::{Lift, PrincipalKinematicSystem};
 use dmech_lie::dual::value_and_jacobian;
-use dmech_lie::LieGroup;
+use dmech_lie::{LieGroup, Real};
 use nalgebra::{SMatrix, SVector};
 use num_dual::{DualSVec64, DualVec};
 
@@ -70,24 +70,81 @@ impl std::str::FromStr for ForcingQuadrature {
     }
 }
 
-/// The terms of the momentum-matching equation at node `k` that belong to the interval
-/// *before* it: `∂ℓ_{k−1}/∂v − A(s_k)ᵀ dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}` (the discrete momentum
-/// arriving at node `k`). `a_k = A(s_k)`. One evaluation of `ℓ` along the variation
-/// `(δs, δv, δξ) = (0, ν, −dexp⁻¹(−hξ_{k−1}) A(s_k) ν)`.
-pub fn incoming_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
+/// Which node of an interval a discrete momentum is taken at.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Node {
+    /// The node the interval leaves: its momentum *outgoing* there (`side = +1`).
+    Start,
+    /// The node the interval arrives at: its momentum *incoming* there (`side = −1`).
+    End,
+}
+
+impl Discretisation {
+    /// `θ` of the interval's evaluation point `s_k + θ h v_k`, where its Lagrangian and
+    /// connection are read: 0 for the first-order scheme, ½ for the midpoint one.
+    pub fn theta(self) -> f64 {
+        match self {
+            Discretisation::FirstOrder => 0.0,
+            Discretisation::Midpoint => 0.5,
+        }
+    }
+
+    /// The interval's evaluation point `s + θ h v` (exactly `s` for the first-order scheme).
+    pub fn evaluation_point<T: Real, const NS: usize>(
+        self,
+        h: f64,
+        s: &SVector<T, NS>,
+        v: &SVector<T, NS>,
+    ) -> SVector<T, NS> {
+        match self {
+            Discretisation::FirstOrder => *s,
+            Discretisation::Midpoint => s + v * T::from(self.theta() * h),
+        }
+    }
+}
+
+/// The discrete momentum the interval from `s_start` with velocity `v` contributes at one
+/// of its nodes, forces excluded, for either discretisation: with the evaluation point
+/// `s̄ = s_start + θhv`, `ξ = −A(s̄) v`, `ℓ̄ = ℓ(s̄, v, ξ)` and `side = ±1` (start, end),
+///
+/// ```text
+/// ∂ℓ̄/∂v + c ∂ℓ̄/∂s − A(s_node)ᵀ dexp⁻¹(side·hξ)ᵀ ∂ℓ̄/∂ξ,   c = −(1 − θ)h (start), θh (end)
+/// ```
+///
+/// one evaluation of `ℓ` along `(δs, δv, δξ) = (cν, ν, −dexp⁻¹(side·hξ) A(s_node) ν)`.
+/// `a_node = A(s_node)`. First order (`θ = 0`): the outgoing momentum `∂ℓ_k/∂v −
+/// h ∂ℓ_k/∂s − A(s_k)ᵀ dexp⁻¹(hξ_k)ᵀ μ_k` and the incoming `∂ℓ_{k−1}/∂v − A(s_k)ᵀ
+/// dexp⁻¹(−hξ_{k−1})ᵀ μ_{k−1}`; midpoint (`θ = ½`): the two differ only in `side` (the
+/// source of the scheme's symmetry, [`crate::midpoint`]).
+pub fn interval_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
-    s_prev: &SVector<T, NS>,
-    v_prev: &SVector<T, NS>,
-    a_k: &SMatrix<T, DOF, NS>,
+    discretisation: Discretisation,
+    s_start: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+    a_node: &SMatrix<T, DOF, NS>,
+    node: Node,
 ) -> SVector<T, NS>
 where
     S: PrincipalKinematicSystem<DOF, NS, NU>,
     T: Lift<S::Param>,
     Dv<T, NS>: Lift<S::Param>,
 {
-    let (xi_prev, d) = incoming_variation::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, a_k);
-    pulled_back_gradient::<S, T, DOF, NS, NU>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
+    let theta = discretisation.theta();
+    let s_eval = discretisation.evaluation_point(h, s_start, v);
+    let (side, c) = match node {
+        Node::Start => (1.0, -(1.0 - theta) * h),
+        Node::End => (-1.0, theta * h),
+    };
+    // The first-order interval leaving a node reads the connection there: `a_node` is it.
+    let xi = if discretisation == Discretisation::FirstOrder && node == Node::Start {
+        -(a_node * v)
+    } else {
+        -(sys.connection(&s_eval) * v)
+    };
+    let dinv = <S::Group<T> as LieGroup<DOF>>::dexp_inv(&(xi * T::from(side * h)));
+    let d = -(dinv * a_node);
+    pulled_back_gradient::<S, T, DOF, NS, NU>(sys, &s_eval, c, v, &xi, &d)
 }
 
 /// `(ξ_{k−1}, dexp⁻¹(−hξ_{k−1}))` of the incoming momentum, `ξ_{k−1} = −A(s_{k−1}) v_{k−1}`:
@@ -154,7 +211,7 @@ where
     (xi_k, -(dinv * a_k))
 }
 
-/// [`incoming_momentum`] for first-order vector-dual inputs (value and Jacobian in `N`
+/// The first-order incoming [`interval_momentum`] for first-order vector-dual inputs (value and Jacobian in `N`
 /// seeds), by [`pulled_back_gradient_dual`]: the same numbers as the generic path with
 /// `T = DualVec<f64, N>`, without nesting duals inside `ℓ`.
 pub fn incoming_momentum_dual<
@@ -183,7 +240,7 @@ where
     pulled_back_gradient_dual::<S, DOF, NS, NU, N>(sys, s_prev, 0.0, v_prev, &xi_prev, &d)
 }
 
-/// [`outgoing_momentum`] for first-order vector-dual inputs (see
+/// The first-order outgoing [`interval_momentum`] for first-order vector-dual inputs (see
 /// [`incoming_momentum_dual`]).
 pub fn outgoing_momentum_dual<
     S,
@@ -208,26 +265,6 @@ where
     }
     let d = -(dinv * a_k);
     pulled_back_gradient_dual::<S, DOF, NS, NU, N>(sys, s_k, -h, v_k, &xi_k, &d)
-}
-
-/// The terms of the momentum-matching equation at node `k` that belong to the interval
-/// *after* it: `∂ℓ_k/∂v − h ∂ℓ_k/∂s − A(s_k)ᵀ dexp⁻¹(hξ_k)ᵀ μ_k` (the discrete momentum
-/// leaving node `k`). One evaluation of `ℓ` along the variation
-/// `(δs, δv, δξ) = (−hν, ν, −dexp⁻¹(hξ_k) A(s_k) ν)`.
-pub fn outgoing_momentum<S, T, const DOF: usize, const NS: usize, const NU: usize>(
-    sys: &S,
-    h: f64,
-    s_k: &SVector<T, NS>,
-    v_k: &SVector<T, NS>,
-    a_k: &SMatrix<T, DOF, NS>,
-) -> SVector<T, NS>
-where
-    S: PrincipalKinematicSystem<DOF, NS, NU>,
-    T: Lift<S::Param>,
-    Dv<T, NS>: Lift<S::Param>,
-{
-    let (xi_k, d) = outgoing_variation::<S, T, DOF, NS, NU>(h, v_k, a_k);
-    pulled_back_gradient::<S, T, DOF, NS, NU>(sys, s_k, -h, v_k, &xi_k, &d)
 }
 
 /// The discrete force at node `k` for the chosen quadrature.
@@ -260,9 +297,11 @@ where
     }
 }
 
-/// The momentum-matching residual at node `k`, divided by `h` (force units: the
-/// scaling that keeps these rows comparable to the others in an optimisation):
-/// `(outgoing_k − incoming_k)/h − F̄_k`.
+/// The momentum-matching residual at node `k` of either discretisation, divided by `h`
+/// (force units: the scaling that keeps these rows comparable to the others in an
+/// optimisation): `(outgoing_k − incoming_k)/h − F̄_k` ([`interval_momentum`]), with the
+/// first-order scheme's force `F̄_k` read by `quadrature` ([`discrete_force`]) and the
+/// midpoint scheme's the mean `½(F_{k−½} + F_{k+½})` of its intervals' (`quadrature` unused).
 ///
 /// `prev = (s_{k−1}, v_{k−1}, u_{k−1})`, `cur = (s_k, v_k, u_k)`; `s_k` is passed separately
 /// (not recomputed as `s_{k−1} + h v_{k−1}`) so that a transcription can keep it as its
@@ -271,6 +310,7 @@ where
 pub fn momentum_matching_residual<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     h: f64,
+    discretisation: Discretisation,
     quadrature: ForcingQuadrature,
     s_prev: &SVector<T, NS>,
     v_prev: &SVector<T, NS>,
@@ -285,10 +325,18 @@ where
     Dv<T, NS>: Lift<S::Param>,
 {
     let a_k = sys.connection(s_k);
-    let inc = incoming_momentum::<S, T, DOF, NS, NU>(sys, h, s_prev, v_prev, &a_k);
-    let out = outgoing_momentum::<S, T, DOF, NS, NU>(sys, h, s_k, v_k, &a_k);
-    let f =
-        discrete_force::<S, T, DOF, NS, NU>(sys, quadrature, s_prev, v_prev, u_prev, s_k, v_k, u_k);
+    let inc = interval_momentum(sys, h, discretisation, s_prev, v_prev, &a_k, Node::End);
+    let out = interval_momentum(sys, h, discretisation, s_k, v_k, &a_k, Node::Start);
+    let f = match discretisation {
+        Discretisation::FirstOrder => {
+            discrete_force(sys, quadrature, s_prev, v_prev, u_prev, s_k, v_k, u_k)
+        }
+        Discretisation::Midpoint => {
+            let f_prev = crate::midpoint::interval_force(sys, h, s_prev, v_prev, u_prev);
+            let f_k = crate::midpoint::interval_force(sys, h, s_k, v_k, u_k);
+            (f_prev + f_k) * T::from(0.5)
+        }
+    };
     (out - inc) / T::from(h) - f
 }
 
@@ -450,7 +498,15 @@ impl VariationalIntegrator {
 
         // Everything that does not depend on the unknown v_{k+1} is evaluated once, in f64.
         let a_next = sys.connection(&s_next);
-        let incoming = incoming_momentum::<S, f64, DOF, NS, NU>(sys, h, &x.s, &x.v, &a_next);
+        let incoming = interval_momentum(
+            sys,
+            h,
+            Discretisation::FirstOrder,
+            &x.s,
+            &x.v,
+            &a_next,
+            Node::End,
+        );
         let f_prev = match self.quadrature {
             ForcingQuadrature::Left => sys.forcing(&x.s, &x.v, u_k),
             _ => SVector::zeros(),
@@ -495,7 +551,8 @@ impl VariationalIntegrator {
         };
         // Residual only, in f64.
         let residual = |v: &SVector<f64, NS>| {
-            let out = outgoing_momentum::<S, f64, DOF, NS, NU>(sys, h, &s_next, v, &a_next);
+            let first = Discretisation::FirstOrder;
+            let out = interval_momentum(sys, h, first, &s_next, v, &a_next, Node::Start);
             let f = match self.quadrature {
                 ForcingQuadrature::Left => f_prev,
                 q => discrete_force::<S, f64, DOF, NS, NU>(

@@ -163,7 +163,7 @@ fn upright_equilibrium_has_one_unstable_real_eigenvalue() {
 #[test]
 fn derivatives_with_respect_to_parameters() {
     use dmech::variational::momentum_matching_residual;
-    use dmech::ForcingQuadrature;
+    use dmech::{Discretisation, ForcingQuadrature};
     use num_dual::DualSVec64;
     type P = DualSVec64<1>;
     let base = WipParams::default();
@@ -179,6 +179,7 @@ fn derivatives_with_respect_to_parameters() {
     let r = momentum_matching_residual::<Wip<P>, P, 3, 5, 2>(
         &wd,
         0.005,
+        Discretisation::FirstOrder,
         ForcingQuadrature::Right,
         &l(&s0),
         &l(&v0),
@@ -192,6 +193,7 @@ fn derivatives_with_respect_to_parameters() {
         momentum_matching_residual::<Wip, f64, 3, 5, 2>(
             &w,
             0.005,
+            Discretisation::FirstOrder,
             ForcingQuadrature::Right,
             &s0,
             &v0,

@@ -436,7 +436,6 @@ fn wip_simulate_midpoint_converges_with_order_two() {
 /// envelope is printed beside it (docs/integrator.md).
 #[test]
 fn midpoint_on_the_undamped_electromechanical_mode() {
-    use dmech::midpoint::interval_midpoint;
     use dmech::{Discretisation, JacobianPolicy, NewtonCache};
     let w = conservative();
     let (h, n) = (0.005, 100_000);
@@ -460,10 +459,7 @@ fn midpoint_on_the_undamped_electromechanical_mode() {
                 .unwrap();
             x = next;
             iterations += it;
-            let s_e = match disc {
-                Discretisation::FirstOrder => x.s,
-                Discretisation::Midpoint => interval_midpoint(h, &x.s, &x.v),
-            };
+            let s_e = disc.evaluation_point(h, &x.s, &x.v);
             let tenth = &mut envelope[k * 10 / n];
             *tenth = tenth.max((energy(&w, &s_e, &x.v) - e0).abs());
         }

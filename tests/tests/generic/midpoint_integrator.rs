@@ -6,7 +6,6 @@
 //! runs a bounded number of them, so CI's time stays small.
 
 use dmech::continuous::{ContinuousModel, RungeKutta};
-use dmech::midpoint::interval_midpoint;
 use dmech::partials::dl_dv;
 use dmech::{
     energy, Discretisation, JacobianPolicy, NewtonCache, PrincipalKinematicSystem,
@@ -95,10 +94,7 @@ where
         let path = run(&sys, &vi, &x0, 200);
         for w in path.windows(2) {
             let (a, b) = (&w[0], &w[1]);
-            let s_star = match disc {
-                Discretisation::FirstOrder => a.s,
-                Discretisation::Midpoint => interval_midpoint(h, &a.s, &a.v),
-            };
+            let s_star = disc.evaluation_point(h, &a.s, &a.v);
             let xi = -(sys.connection(&s_star) * a.v);
             let observed = a.g.inverse().compose(&b.g).log() / h;
             let bound = 64.0 * f64::EPSILON * (1.0 + a.g.log().norm() + h * xi.norm()) / h;
@@ -307,10 +303,7 @@ where
             .step_cached(sys, &x, &u, &u, &x.v, &mut cache)
             .expect("step")
             .0;
-        let s = match disc {
-            Discretisation::FirstOrder => x.s,
-            Discretisation::Midpoint => interval_midpoint(h, &x.s, &x.v),
-        };
+        let s = disc.evaluation_point(h, &x.s, &x.v);
         let e = energy::<_, f64, DOF, NS, NU>(sys, &s, &x.v);
         let tenth = &mut envelope[k * 10 / n];
         *tenth = tenth.max(((e - e0) / e0).abs());
@@ -395,10 +388,7 @@ where
     for disc in BOTH {
         let vi = VariationalIntegrator::new(h).with_discretisation(disc);
         let momentum = |x: &ViState<F::G<f64>, NS>| {
-            let s = match disc {
-                Discretisation::FirstOrder => x.s,
-                Discretisation::Midpoint => interval_midpoint(h, &x.s, &x.v),
-            };
+            let s = disc.evaluation_point(h, &x.s, &x.v);
             let xi = -(sys.connection(&s) * x.v);
             dl_dv::<_, f64, DOF, NS, NS>(&sys, &s, &x.v, &xi)[0]
         };

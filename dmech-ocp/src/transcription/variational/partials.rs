@@ -6,7 +6,8 @@
 
 use crate::transcription::layout::Layout;
 use crate::transcription::variational::stages::{NodePoint, Terms, VarIntStages, D};
-use dmech::midpoint::{interval_force, midpoint_incoming_momentum, midpoint_outgoing_momentum};
+use dmech::midpoint::interval_force;
+use dmech::variational::{interval_momentum, Node};
 use dmech::{Discretisation, PrincipalKinematicSystem};
 use dmech_lie::dual::{grad_part, lift_vec, seeded, seeded_from};
 use nalgebra::{SMatrix, SVector};
@@ -321,15 +322,28 @@ impl<S> VarIntStages<'_, S> {
             let a_k = self.sys.connection(s);
             let mut r = SVector::<D<NS>, NS>::zeros();
             if outgoing {
-                let out =
-                    midpoint_outgoing_momentum::<S, D<NS>, DOF, NS, NU>(self.sys, h, s, v, &a_k);
+                let out = interval_momentum(
+                    self.sys,
+                    h,
+                    Discretisation::Midpoint,
+                    s,
+                    v,
+                    &a_k,
+                    Node::Start,
+                );
                 let f = interval_force::<S, D<NS>, DOF, NS, NU>(self.sys, h, s, v, u);
                 r += out / ht - f * half;
             }
             if incoming {
                 let s_prev = s - vp * ht;
-                let inc = midpoint_incoming_momentum::<S, D<NS>, DOF, NS, NU>(
-                    self.sys, h, &s_prev, vp, &a_k,
+                let inc = interval_momentum(
+                    self.sys,
+                    h,
+                    Discretisation::Midpoint,
+                    &s_prev,
+                    vp,
+                    &a_k,
+                    Node::End,
                 );
                 let f = interval_force::<S, D<NS>, DOF, NS, NU>(self.sys, h, &s_prev, vp, up);
                 r -= inc / ht + f * half;

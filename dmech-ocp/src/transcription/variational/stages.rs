@@ -13,7 +13,7 @@
 //! momentum-matching residual as the equality.
 
 use crate::transcription::layout::{segment, Layout};
-use dmech::midpoint::{interval_body_velocity, midpoint_momentum_matching_residual};
+use dmech::midpoint::interval_body_velocity;
 use dmech::variational::{
     discrete_force, incoming_momentum_dual, momentum_matching_residual, outgoing_momentum_dual,
 };
@@ -300,14 +300,10 @@ impl<'a, S> VarIntStages<'a, S> {
             u,
         } = NodePoint::<T, NS, NU>::of(self.layout, x, w);
         let s_prev = s - v_prev * T::from(self.h);
-        if self.discretisation == Discretisation::Midpoint {
-            return midpoint_momentum_matching_residual::<S, T, DOF, NS, NU>(
-                self.sys, self.h, &s_prev, &v_prev, &u_prev, &s, &v, &u,
-            );
-        }
-        momentum_matching_residual::<S, T, DOF, NS, NU>(
+        momentum_matching_residual(
             self.sys,
             self.h,
+            self.discretisation,
             self.quadrature,
             &s_prev,
             &v_prev,
