@@ -10,7 +10,7 @@ and the README's figure table (between its markers, the same numbers as the page
 quotes the latest side-by-side results file of scripts/peers/ (not rerun here: it needs
 CasADi and some 25 minutes; scripts/peers/README.md).
 
-    python3 scripts/benchmarks.py                       # target/release/, 3 repetitions
+    python3 scripts/benchmarks.py                       # target/release-lto/, 3 repetitions
     python3 scripts/benchmarks.py --bin /path/to/target/release --reps 5
 
 Python 3 standard library only. The default run takes 2–4 minutes on 2 cores.
@@ -289,8 +289,8 @@ def page(args, cases, machine, peers_path):
     w("binaries on the headline cases and writes this page; run it again rather than edit it:")
     w("")
     w("```sh")
-    w("cargo build --release --bin wip --bin car")
-    w("python3 scripts/benchmarks.py            # --bin DIR (default target/release/), --reps N")
+    w("cargo build --profile release-lto --bin wip --bin car")
+    w("python3 scripts/benchmarks.py            # --bin DIR (default target/release-lto/), --reps N")
     w("```")
     w("")
     times = "once" if args.reps == 1 else f"{args.reps} times"
@@ -578,8 +578,9 @@ def update_readme(path, table):
 def main():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release"),
-                    help="directory of the wip and car binaries (default: target/release/)")
+    ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release-lto"),
+                    help="directory of the wip and car binaries (default: target/release-lto/, "
+                         "the benchmark profile)")
     ap.add_argument("--reps", type=int, default=3, help="repetitions of each case (3)")
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "benchmarks.md"),
                     help="the page to write (docs/benchmarks.md); '-' for stdout")
@@ -601,7 +602,7 @@ def main():
     wip, car = os.path.join(bindir, "wip"), os.path.join(bindir, "car")
     for b in (wip, car):
         if not os.access(b, os.X_OK):
-            sys.exit(f"benchmarks: no executable {b} (cargo build --release --bin wip --bin car, or --bin DIR)")
+            sys.exit(f"benchmarks: no executable {b} (cargo build --profile release-lto --bin wip --bin car, or --bin DIR)")
 
     work = args.work or tempfile.mkdtemp(prefix="dmech-bench-")
     os.makedirs(work, exist_ok=True)
