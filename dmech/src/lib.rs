@@ -64,6 +64,7 @@ pub mod continuous;
 pub mod energy;
 pub mod integrator;
 pub mod midpoint;
+pub mod momentum;
 pub mod newton;
 pub mod partials;
 pub mod system;
@@ -72,6 +73,7 @@ pub mod variational;
 pub use continuous::{ContinuousModel, RungeKutta};
 pub use energy::energy;
 pub use integrator::{Integrator, UnknownIntegrator};
+pub use momentum::{nonholonomic_momentum, NonholonomicSystem, WithMomentum};
 pub use system::{Lift, Param, PrincipalKinematicSystem};
 pub use variational::{
     Discretisation, ForcingQuadrature, JacobianPolicy, NewtonCache, StepError,

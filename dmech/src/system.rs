@@ -160,7 +160,7 @@ pub trait PrincipalKinematicSystem<const DOF: usize, const NS: usize, const NU: 
     /// under `s_j → s_j + const` is exact), so that the momentum-matching residual does not
     /// either. A transcription may leave their positions out of its state
     /// (`dmech_ocp::transcription::layout::Layout::ignoring`). Default: none.
-    fn ignorable_shape(&self) -> &'static [usize] {
+    fn ignorable_shape(&self) -> &[usize] {
         &[]
     }
 

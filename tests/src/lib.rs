@@ -1,6 +1,8 @@
 //! Systems other than the WIP, with known answers, for testing the generic machinery.
 
+pub mod momentum_systems;
 pub mod random_system;
+pub mod runs;
 
 use dmech::{Lift, PrincipalKinematicSystem};
 use dmech_lie::{Real, Se2};

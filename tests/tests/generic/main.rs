@@ -5,6 +5,8 @@
 //! - `generic_integrator`: the integrators on small systems with known answers;
 //! - `midpoint_integrator`: both discretisations of the reduced LDAP principle on random
 //!   systems (order, reversibility, energy, momentum);
+//! - `momentum_systems`: systems with free group directions (the sleigh, the disk two
+//!   ways, random systems of the class);
 //! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
 //! - `steered_car_bounds`: the solver on a steered car with an active torque bound, and a
 //!   sweep of it;
@@ -13,6 +15,7 @@
 
 mod generic_integrator;
 mod midpoint_integrator;
+mod momentum_systems;
 mod rk_transcription;
 mod steered_car_bounds;
 mod varint_curvature;

@@ -7,15 +7,26 @@
 
 use dmech::continuous::{ContinuousModel, RungeKutta};
 use dmech::partials::dl_dv;
-use dmech::{
-    energy, Discretisation, JacobianPolicy, NewtonCache, PrincipalKinematicSystem,
-    VariationalIntegrator, ViState,
-};
+use dmech::{Discretisation, PrincipalKinematicSystem, VariationalIntegrator, ViState};
 use dmech_lie::LieGroup;
 use dmech_tests::random_system::{
     GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family, So3Family,
 };
+use dmech_tests::runs::{config_distance, energy_envelope, envelope_growth, return_error};
 use nalgebra::SVector;
+
+/// `n` unforced steps of a random system (`NU = NS`).
+fn run<S, const DOF: usize, const NS: usize>(
+    sys: &S,
+    vi: &VariationalIntegrator,
+    x0: &ViState<S::Group<f64>, NS>,
+    n: usize,
+) -> Vec<ViState<S::Group<f64>, NS>>
+where
+    S: PrincipalKinematicSystem<DOF, NS, NS, Param = f64>,
+{
+    dmech_tests::runs::run::<S, DOF, NS, NS>(sys, vi, x0, n)
+}
 
 const BOTH: [Discretisation; 2] = [Discretisation::FirstOrder, Discretisation::Midpoint];
 
@@ -39,39 +50,6 @@ where
         s: SVector::from_fn(|_, _| rng.uniform()),
         v: SVector::from_fn(|_, _| 1.6 * rng.uniform()),
     }
-}
-
-/// `N` steps of `vi` from the continuous state `x0` (the start's discrete Legendre
-/// transform included), no input. Returns every node.
-fn run<S, const DOF: usize, const NS: usize>(
-    sys: &S,
-    vi: &VariationalIntegrator,
-    x0: &ViState<S::Group<f64>, NS>,
-    n: usize,
-) -> Vec<ViState<S::Group<f64>, NS>>
-where
-    S: PrincipalKinematicSystem<DOF, NS, NS, Param = f64>,
-{
-    let u = SVector::<f64, NS>::zeros();
-    let mut x = ViState {
-        g: x0.g,
-        s: x0.s,
-        v: vi.start(sys, &x0.s, &x0.v, &u).expect("start"),
-    };
-    let mut path = vec![x];
-    for _ in 0..n {
-        x = vi.step(sys, &x, &u, &u).expect("step").0;
-        path.push(x);
-    }
-    path
-}
-
-/// The distance between two configurations: `|log(a⁻¹b)| + |s_a − s_b|`.
-fn config_distance<G: LieGroup<DOF, Scalar = f64>, const DOF: usize, const NS: usize>(
-    a: &ViState<G, NS>,
-    b: &ViState<G, NS>,
-) -> f64 {
-    a.g.inverse().compose(&b.g).log().norm() + (a.s - b.s).norm()
 }
 
 // ---------------------------------------------------------------------------------------
@@ -190,30 +168,6 @@ fn first_order_and_midpoint_converge_at_orders_one_and_two() {
 // Reversibility
 // ---------------------------------------------------------------------------------------
 
-/// `n` steps forward, the velocity of the last interval flipped, `n` steps back: the
-/// distance from the start. (The reversed run starts at node `n` with `−v_{n−1}`.)
-fn return_error<S, const DOF: usize, const NS: usize>(
-    sys: &S,
-    vi: &VariationalIntegrator,
-    x0: &ViState<S::Group<f64>, NS>,
-    n: usize,
-) -> f64
-where
-    S: PrincipalKinematicSystem<DOF, NS, NS, Param = f64>,
-{
-    let u = SVector::<f64, NS>::zeros();
-    let forward = run(sys, vi, x0, n);
-    let mut x = ViState {
-        g: forward[n].g,
-        s: forward[n].s,
-        v: -forward[n - 1].v,
-    };
-    for _ in 0..n {
-        x = vi.step(sys, &x, &u, &u).expect("backward step").0;
-    }
-    config_distance(&forward[0], &x)
-}
-
 /// The midpoint scheme is reversible: back at the start to round-off. The bound is derived
 /// per system: Newton stops each step within `τ = 1e-13·(1 + |v|)`, a perturbation of `v`
 /// of that size moves the returned configuration by `K τ` where `K` (the run's sensitivity
@@ -272,52 +226,6 @@ fn the_midpoint_scheme_is_reversible() {
 // ---------------------------------------------------------------------------------------
 // Energy over 10⁵ steps
 // ---------------------------------------------------------------------------------------
-
-/// The largest relative energy error in each tenth of `n` steps. The midpoint scheme's
-/// energy is read at the interval midpoint `(s_k + ½h v_k, v_k)`, where `v_k` is a
-/// second-order velocity; the first-order scheme's at `(s_k, v_k)`.
-pub fn energy_envelope<S, const DOF: usize, const NS: usize, const NU: usize>(
-    sys: &S,
-    disc: Discretisation,
-    h: f64,
-    n: usize,
-    x0: &ViState<S::Group<f64>, NS>,
-) -> [f64; 10]
-where
-    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
-{
-    let u = SVector::<f64, NU>::zeros();
-    let e0 = energy::<_, f64, DOF, NS, NU>(sys, &x0.s, &x0.v);
-    let vi = VariationalIntegrator::new(h)
-        .with_discretisation(disc)
-        .with_jacobian(JacobianPolicy::ReuseAcrossSteps);
-    let mut x = ViState {
-        g: x0.g,
-        s: x0.s,
-        v: vi.start(sys, &x0.s, &x0.v, &u).expect("start"),
-    };
-    let mut envelope = [0.0f64; 10];
-    let mut cache = NewtonCache::default();
-    for k in 0..n {
-        x = vi
-            .step_cached(sys, &x, &u, &u, &x.v, &mut cache)
-            .expect("step")
-            .0;
-        let s = disc.evaluation_point(h, &x.s, &x.v);
-        let e = energy::<_, f64, DOF, NS, NU>(sys, &s, &x.v);
-        let tenth = &mut envelope[k * 10 / n];
-        *tenth = tenth.max(((e - e0) / e0).abs());
-    }
-    envelope
-}
-
-/// Growth of the energy error over a run: last tenth's envelope over the first's. A bounded
-/// error gives ≈ 1; a drift at rate ρ on top of a bounded error `a` gives
-/// `(a + ρT)/(a + ρT/10)`, which exceeds 2 exactly when the drift over the run exceeds
-/// 1.25 a; a random walk from zero gives √10 ≈ 3.2, a linear drift from zero 10.
-pub fn envelope_growth(envelope: &[f64; 10]) -> f64 {
-    envelope[9] / envelope[0]
-}
 
 /// With one shape variable the reduced dynamics `(s, v)` is a planar reversible system with
 /// a first integral: every orbit is closed and crosses `v = 0`, so it is symmetric, and a

@@ -15,6 +15,10 @@ use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 use std::marker::PhantomData;
 
+/// The sizes a transcription is built for, carried as a type.
+type Sizes<const DOF: usize, const NS: usize, const NU: usize, const NX: usize> =
+    PhantomData<([(); DOF], [(); NS], [(); NU], [(); NX])>;
+
 pub(crate) mod stages;
 pub use stages::RkStages;
 
@@ -36,7 +40,7 @@ pub struct RkTranscription<
     pub stages: RkStages<'a, S>,
     /// The robot's problem.
     pub problem: P,
-    _sizes: PhantomData<([(); DOF], [(); NS], [(); NU], [(); NX])>,
+    _sizes: Sizes<DOF, NS, NU, NX>,
 }
 
 impl<
