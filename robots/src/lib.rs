@@ -7,7 +7,9 @@ pub mod cli;
 pub mod diagnose;
 pub mod io;
 pub mod plot;
+pub mod pose_path;
 pub mod simulation;
+pub mod snakeboard;
 pub mod wip;
 
 /// The tutorial `docs/add-a-robot.md`: its code blocks are compiled and run as doc tests.

@@ -430,3 +430,42 @@ pub trait StageProblem<
         (ex, ew)
     }
 }
+
+/// The largest violation of any constraint of `p` at the primal point `(x, w)`: dynamics
+/// `f_k(x_k, w_k) − x_{k+1}`, stage equalities, path bounds and state equalities; `∞` if
+/// any is NaN. What a plan reports as its `max_violation`, measured on the trajectory it
+/// returns rather than taken from the solver's filter.
+pub fn max_violation<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
+    p: &P,
+    x: &[SVector<f64, NX>],
+    w: &[SVector<f64, NW>],
+) -> f64
+where
+    P: StageProblem<NX, NW, NE, NF, NC>,
+{
+    let mut worst = 0.0f64;
+    for k in 0..w.len() {
+        worst = worst.max((p.dynamics(k, &x[k], &w[k]) - x[k + 1]).amax());
+        worst = worst.max(p.equality(k, &x[k], &w[k]).amax());
+        let c = p.constraints(k, &x[k], &w[k]);
+        let (lo, hi) = p.bounds(k);
+        for i in 0..NC {
+            worst = worst.max(lo[i] - c[i]).max(c[i] - hi[i]);
+        }
+    }
+    for e in p.state_equalities() {
+        worst = worst.max((x[e.stage][e.index] - e.value).abs());
+    }
+    if worst.is_nan() {
+        f64::INFINITY
+    } else {
+        worst
+    }
+}

@@ -171,6 +171,37 @@ pub struct ShapeMotion<const NS: usize> {
     pub velocities: Vec<SVector<f64, NS>>,
 }
 
+impl<const NS: usize> ShapeMotion<NS> {
+    /// The motion with a rest-to-rest oscillation added to each shape coordinate:
+    /// `a_i sin²(π t/T) sin(2π c t/T + iπ/2)` over the horizon `T = N h` (`c = cycles`),
+    /// velocities the differences of the shapes. Zero at both ends with its velocity, so
+    /// a start at rest stays at rest and so does the end.
+    ///
+    /// What it is for: a system whose free directions gain momentum only from two shape
+    /// velocities together (the snakeboard's rotor and axles) has, along a motion in which
+    /// one of them rests, a momentum equation whose linearisation does not see the other,
+    /// and Newton's method cannot leave such a start. Shifted by a quarter period from one
+    /// coordinate to the next, the oscillations drive no net motion of their own; they
+    /// only make the linearisation see every coordinate.
+    pub fn excited(&self, h: f64, amplitudes: &SVector<f64, NS>, cycles: f64) -> Self {
+        use std::f64::consts::{FRAC_PI_2, PI, TAU};
+        let n = self.velocities.len();
+        let offset = |k: usize| {
+            let tau = k as f64 / n as f64;
+            let window = (PI * tau).sin().powi(2);
+            SVector::<f64, NS>::from_fn(|i, _| {
+                amplitudes[i] * window * (TAU * cycles * tau + FRAC_PI_2 * i as f64).sin()
+            })
+        };
+        ShapeMotion {
+            shapes: (0..=n).map(|k| self.shapes[k] + offset(k)).collect(),
+            velocities: (0..n)
+                .map(|k| self.velocities[k] + (offset(k + 1) - offset(k)) / h)
+                .collect(),
+        }
+    }
+}
+
 /// Solves [`KinematicPath`] for `poses`: the shape motion that realises them.
 pub fn shape_motion<S, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
@@ -218,10 +249,9 @@ where
 
 /// The variational transcription's start in `layout` (`x_k = (coords(g_k), s_k, v_{k−1},
 /// u_{k−1})` with the layout's carried shape positions, `w_k = (v_k, u_k)`, inputs zero)
-/// from the pose path `poses`: the shape motion of [`shape_motion`], and poses rolled
-/// forward from `poses[0]` with it by the scheme's group update
-/// (`ξ_k = −A(s_k + c h v_k) v_k`, `c = 0` first order, `½` midpoint). The transcriptions
-/// call it as [`VarIntTranscription::start_from_path`](crate::transcription::VarIntTranscription::start_from_path).
+/// from the pose path `poses`: the shape motion of [`shape_motion`], rolled forward from
+/// `poses[0]` by [`varint_start_from_motion`]. The transcriptions call it as
+/// [`VarIntTranscription::start_from_path`](crate::transcription::VarIntTranscription::start_from_path).
 #[allow(clippy::type_complexity)]
 pub(crate) fn varint_start_in_layout<
     S,
@@ -242,15 +272,47 @@ pub(crate) fn varint_start_in_layout<
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
 {
-    let ShapeMotion {
-        shapes: s,
-        velocities: v,
-    } = shape_motion(sys, h, poses, s0, regularisation)?;
+    let motion = shape_motion(sys, h, poses, s0, regularisation)?;
+    Ok(varint_start_from_motion::<S, DOF, NS, NU, NX, NW>(
+        sys,
+        h,
+        &poses[0],
+        &motion,
+        discretisation,
+        layout,
+    ))
+}
+
+/// The variational transcription's start in `layout` from a shape motion: poses rolled
+/// forward from `g0` by the scheme's group update (`ξ_k = −A(s_k + c h v_k) v_k`, `c = 0`
+/// first order, `½` midpoint), so that the start satisfies the transcription's pose and
+/// shape dynamics exactly; inputs zero. The transcriptions call it as
+/// [`VarIntTranscription::start_from_motion`](crate::transcription::VarIntTranscription::start_from_motion).
+#[allow(clippy::type_complexity)]
+pub(crate) fn varint_start_from_motion<
+    S,
+    const DOF: usize,
+    const NS: usize,
+    const NU: usize,
+    const NX: usize,
+    const NW: usize,
+>(
+    sys: &S,
+    h: f64,
+    g0: &S::Group<f64>,
+    motion: &ShapeMotion<NS>,
+    discretisation: dmech::Discretisation,
+    layout: Layout,
+) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>)
+where
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
+{
+    let (s, v) = (&motion.shapes, &motion.velocities);
     let shift = match discretisation {
         dmech::Discretisation::FirstOrder => 0.0,
         dmech::Discretisation::Midpoint => 0.5 * h,
     };
-    let mut g = poses[0];
+    let mut g = *g0;
     let mut xs = Vec::with_capacity(s.len());
     for k in 0..s.len() {
         let mut x = SVector::<f64, NX>::zeros();
@@ -271,5 +333,5 @@ where
         .iter()
         .map(|vk| SVector::<f64, NW>::from_fn(|i, _| if i < NS { vk[i] } else { 0.0 }))
         .collect();
-    Ok((xs, ws))
+    (xs, ws)
 }

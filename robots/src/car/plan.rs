@@ -6,11 +6,12 @@
 //! rest between the problem's poses, waypoints at times proportional to the path length.
 
 use super::model::{Car, NS, NU};
-use super::problems::{CarProblem, Pose};
+use super::problems::CarProblem;
+use crate::pose_path::{path_fractions, start_path, time_of_path_fraction};
 use dmech::Discretisation;
-use dmech_lie::{LieGroup, Real, Se2};
-use dmech_ocp::nlp::StageProblem;
-use dmech_ocp::solver::{IpOptions, SolveResult, Status};
+use dmech_lie::{LieGroup, Real};
+use dmech_ocp::nlp::max_violation;
+use dmech_ocp::solver::{IpOptions, Status};
 use dmech_ocp::toolkit::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
 use dmech_ocp::transcription::layout::Layout;
 use dmech_ocp::transcription::{
@@ -253,100 +254,6 @@ impl PlanningProblem<3, NS, NU, NC> for CarPlan<'_> {
     }
 }
 
-/// Cumulative chord length of the poses' positions, as fractions of the total.
-fn path_fractions(poses: &[Pose]) -> Vec<f64> {
-    let mut acc = vec![0.0];
-    for w in poses.windows(2) {
-        let d = ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt();
-        acc.push(acc.last().unwrap() + d);
-    }
-    let total = acc.last().copied().unwrap_or(0.0).max(f64::MIN_POSITIVE);
-    acc.iter().map(|a| a / total).collect()
-}
-
-/// Rest to rest along the path: the path fraction `3τ² − 2τ³` at time fraction `τ`.
-fn path_fraction_at(tau: f64) -> f64 {
-    tau * tau * (3.0 - 2.0 * tau)
-}
-
-/// The time fraction at which the path fraction `f` is reached (bisection on the monotone
-/// `3τ² − 2τ³`).
-fn time_of_path_fraction(f: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0f64, 1.0f64);
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if path_fraction_at(mid) < f {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
-}
-
-/// The geometric start path: quintic Hermite segments between the poses with tangents along
-/// the headings (reversed when driving backwards), scaled by the chord, and zero second
-/// derivatives at the poses (zero curvature: the car stands there with its steering
-/// straight); the heading along the path is the tangent's direction, so the path is one
-/// the car can drive (its curvature permitting). Timed rest to rest by `3τ² − 2τ³`.
-/// Returns `n + 1` poses.
-pub fn start_path(problem: &CarProblem, n: usize) -> Vec<Se2<f64>> {
-    let poses = problem.poses();
-    let fractions = path_fractions(&poses);
-    let dir = if problem.reverse { -1.0 } else { 1.0 };
-    let mut heading_prev = problem.start[2];
-    (0..=n)
-        .map(|k| {
-            let f = path_fraction_at(k as f64 / n as f64);
-            let seg = fractions
-                .windows(2)
-                .position(|w| f <= w[1])
-                .unwrap_or(poses.len() - 2);
-            let (a, b) = (poses[seg], poses[seg + 1]);
-            let span = (fractions[seg + 1] - fractions[seg]).max(f64::MIN_POSITIVE);
-            let t = ((f - fractions[seg]) / span).clamp(0.0, 1.0);
-            let chord = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-            let (ta, tb) = (
-                [dir * a[2].cos() * chord, dir * a[2].sin() * chord],
-                [dir * b[2].cos() * chord, dir * b[2].sin() * chord],
-            );
-            let (t2, t3, t4, t5) = (t * t, t * t * t, t.powi(4), t.powi(5));
-            let (h00, h10, h01, h11) = (
-                1.0 - 10.0 * t3 + 15.0 * t4 - 6.0 * t5,
-                t - 6.0 * t3 + 8.0 * t4 - 3.0 * t5,
-                10.0 * t3 - 15.0 * t4 + 6.0 * t5,
-                -4.0 * t3 + 7.0 * t4 - 3.0 * t5,
-            );
-            let (d00, d10, d01, d11) = (
-                -30.0 * t2 + 60.0 * t3 - 30.0 * t4,
-                1.0 - 18.0 * t2 + 32.0 * t3 - 15.0 * t4,
-                30.0 * t2 - 60.0 * t3 + 30.0 * t4,
-                -12.0 * t2 + 28.0 * t3 - 15.0 * t4,
-            );
-            let p = |i: usize| h00 * a[i] + h10 * ta[i] + h01 * b[i] + h11 * tb[i];
-            let dp = |i: usize| d00 * a[i] + d10 * ta[i] + d01 * b[i] + d11 * tb[i];
-            // The heading is the direction of motion (turned by π when reversing), kept
-            // continuous; where the tangent vanishes (never inside a segment with unit
-            // tangents) the previous heading stays.
-            let (dx, dy) = (dir * dp(0), dir * dp(1));
-            let heading = if dx.hypot(dy) > 1e-12 {
-                let raw = dy.atan2(dx);
-                heading_prev + wrap(raw - heading_prev)
-            } else {
-                heading_prev
-            };
-            heading_prev = heading;
-            Se2::new(p(0), p(1), heading)
-        })
-        .collect()
-}
-
-/// An angle in `(−π, π]`.
-fn wrap(a: f64) -> f64 {
-    let two_pi = std::f64::consts::TAU;
-    a - two_pi * ((a + std::f64::consts::PI) / two_pi).floor()
-}
-
 /// A solved (or not) car plan.
 pub struct CarOutcome {
     pub status: Status,
@@ -364,7 +271,7 @@ pub struct CarOutcome {
 
 /// The car's plan on meshes of different steps, for
 /// [`dmech_ocp::toolkit::sequencing::mesh_sequence`]: a mesh is a step, the start the kinematic one
-/// along [`start_path`].
+/// along [`start_path`] of the problem's poses.
 struct CarSequence<'p> {
     car: &'p Car,
     problem: &'p CarProblem,
@@ -398,7 +305,7 @@ impl<'p> SequencedPlan<NX, NW, NS, NU, NC> for CarSequence<'p> {
         VarIntTranscription::new(self.car, &mesh.plan, mesh.plan.h, self.disc)
     }
     fn start(&self, mesh: &CarMesh) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
-        let path = start_path(self.problem, mesh.plan.n);
+        let path = start_path(&self.problem.poses(), self.problem.reverse, mesh.plan.n);
         // ρ: the wheel rate shrinks by ρ/(ρ + r²) where the path sets it (r² = 2.5e-3):
         // 1e-6 is a 0.04 % shrink, and holds the charge at rest. The steering rate's 1e-4
         // costs (2 rad/s)² × 1e-4 per step against (r ψ̇ δφ/L)² ≈ 6e-3 for a steering error
@@ -422,7 +329,7 @@ impl<'p> SequencedPlan<NX, NW, NS, NU, NC> for CarSequence<'p> {
     }
 }
 
-/// Plans `problem` at step `h` from the kinematic start along [`start_path`], by mesh
+/// Plans `problem` at step `h` from the kinematic start along [`start_path`] of its poses, by mesh
 /// sequencing from the coarsest mesh at or below 40 ms.
 pub fn plan(
     car: &Car,
@@ -457,7 +364,7 @@ pub fn plan(
     let r = mesh_sequence::<_, NX, NW, NS, NU, NC>(&seq, finest, settings, opts, &progress);
     let problem_on_mesh = CarPlan::new(problem, bounds, h)?;
     let tr = VarIntTranscription::new(car, &problem_on_mesh, h, discretisation);
-    let max_violation = measured_violation(&tr, &r);
+    let max_violation = max_violation(&tr, &r.iterate.x, &r.iterate.w);
     Ok(CarOutcome {
         status: r.status,
         iterations: r.iterations,
@@ -468,32 +375,4 @@ pub fn plan(
         stages,
         trajectory: tr.trajectory(&r.iterate),
     })
-}
-
-/// Every constraint of `p` evaluated on the returned iterate: dynamics, stage equality,
-/// bounds, state equalities; the largest violation.
-fn measured_violation<P: StageProblem<NX, NW, NS, NU, NC>>(
-    p: &P,
-    r: &SolveResult<NX, NW, NC>,
-) -> f64 {
-    let (x, w) = (&r.iterate.x, &r.iterate.w);
-    let mut worst = 0.0f64;
-    for k in 0..w.len() {
-        let f = p.dynamics(k, &x[k], &w[k]);
-        worst = worst.max((f - x[k + 1]).amax());
-        worst = worst.max(p.equality(k, &x[k], &w[k]).amax());
-        let c = p.constraints(k, &x[k], &w[k]);
-        let (lo, hi) = p.bounds(k);
-        for i in 0..NC {
-            worst = worst.max(lo[i] - c[i]).max(c[i] - hi[i]);
-        }
-    }
-    for e in p.state_equalities() {
-        worst = worst.max((x[e.stage][e.index] - e.value).abs());
-    }
-    if worst.is_nan() {
-        f64::INFINITY
-    } else {
-        worst
-    }
 }

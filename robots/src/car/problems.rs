@@ -5,7 +5,7 @@ use crate::io::{JsonError, JsonObject};
 use serde::Deserialize;
 
 /// A pose `(x, y, θ)` of the rear-axle midpoint (m, m, rad).
-pub type Pose = [f64; 3];
+pub use crate::pose_path::Pose;
 
 /// Rest-to-rest from `start` through `waypoints` to `end` in `duration` seconds.
 #[derive(Clone, Debug, PartialEq, Deserialize)]

@@ -4,9 +4,8 @@ use super::model::{Car, NS};
 use super::report::CarTrajectory;
 use crate::check::{CheckError, Scheme};
 use crate::io::InputSchedule;
-use crate::simulation::SimulationError;
-use dmech::continuous::ContinuousModel;
-use dmech::{Integrator, JacobianPolicy, NewtonCache, VariationalIntegrator, ViState};
+use crate::simulation::{simulate_open_loop, SimulationError};
+use dmech::{Integrator, ViState};
 use dmech_lie::Se2;
 use nalgebra::SVector;
 
@@ -50,57 +49,23 @@ pub fn simulate(
     inputs: &InputSchedule,
     n: usize,
 ) -> Result<CarTrajectory, SimulationError> {
-    let (pose0, s0, v0) = (start.pose, start.shape, start.velocity);
     let u_at = |k: usize| {
         let u = inputs.at(k as f64 * h);
         SVector::<f64, 2>::new(u[0], u[1])
     };
-    let mut x = ViState {
-        g: Se2::new(pose0[0], pose0[1], pose0[2]),
-        s: s0,
-        v: v0,
+    let x0 = ViState {
+        g: Se2::new(start.pose[0], start.pose[1], start.pose[2]),
+        s: start.shape,
+        v: start.velocity,
     };
-    let midpoint = integrator == Integrator::Midpoint;
-    let vi = VariationalIntegrator::new(h)
-        .with_discretisation(integrator.variational().unwrap_or_default())
-        .with_jacobian(JacobianPolicy::ReuseAcrossSteps);
-    if midpoint {
-        x.v = vi
-            .start(car, &s0, &v0, &u_at(0))
-            .map_err(SimulationError::Start)?;
-    }
-    let mut cache = NewtonCache::default();
     let mut traj = CarTrajectory::default();
-    let mut v_before = v0;
-    for k in 0..=n {
-        let v_node = match (midpoint, k) {
-            (true, 0) => v0,
-            (true, _) => (v_before + x.v) * 0.5,
-            _ => x.v,
-        };
-        v_before = x.v;
-        traj.t.push(k as f64 * h);
+    for node in simulate_open_loop(car, integrator, h, &x0, u_at, n)? {
+        let x = node.state;
+        traj.t.push(node.t);
         traj.pose.push([x.g.x, x.g.y, x.g.theta]);
         traj.shape.push(x.s);
-        traj.velocity.push(v_node);
-        traj.input.push(u_at(k));
-        if k == n {
-            break;
-        }
-        let fail = |source| SimulationError::Step {
-            step: k,
-            t: k as f64 * h,
-            source,
-            advice: String::new(),
-        };
-        x = match integrator.runge_kutta() {
-            None => {
-                vi.step_cached(car, &x, &u_at(k), &u_at(k + 1), &x.v.clone(), &mut cache)
-                    .map_err(fail)?
-                    .0
-            }
-            Some(method) => ContinuousModel::step(car, method, h, &x, &u_at(k)).map_err(fail)?,
-        };
+        traj.velocity.push(x.v);
+        traj.input.push(node.input);
     }
     Ok(traj)
 }

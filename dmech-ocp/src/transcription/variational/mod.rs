@@ -6,7 +6,9 @@ use crate::nlp::derivatives::generic_constraint_curvature;
 use crate::nlp::HessianBlocks;
 use crate::nlp::{StageProblem, StateEquality};
 use crate::solver::Iterate;
-use crate::toolkit::kinematic_start::{varint_start_in_layout, KinematicStartError};
+use crate::toolkit::kinematic_start::{
+    varint_start_from_motion, varint_start_in_layout, KinematicStartError, ShapeMotion,
+};
 use crate::transcription::layout::{check_pose_coordinates, segment, Layout, LayoutError};
 use crate::transcription::sizes::{Dims, StageSizes};
 use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
@@ -113,6 +115,26 @@ where
             poses,
             s0,
             regularisation,
+            self.stages.discretisation,
+            self.stages.layout,
+        )
+    }
+
+    /// A start in this transcription's layout from a shape motion (from
+    /// [`crate::toolkit::kinematic_start::shape_motion`], perhaps
+    /// [`ShapeMotion::excited`]), the poses rolled forward from `g0` by the scheme's group
+    /// update, inputs zero.
+    #[allow(clippy::type_complexity)]
+    pub fn start_from_motion(
+        &self,
+        g0: &S::Group<f64>,
+        motion: &ShapeMotion<NS>,
+    ) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
+        varint_start_from_motion::<S, DOF, NS, NU, NX, NW>(
+            self.stages.sys,
+            self.stages.h,
+            g0,
+            motion,
             self.stages.discretisation,
             self.stages.layout,
         )

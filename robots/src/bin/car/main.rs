@@ -176,7 +176,7 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
     files
         .write(
             "summary.json",
-            summary_json(&problem, &name, &o, pose_error).as_bytes(),
+            summary_json(&problem, name, &o, pose_error).as_bytes(),
         )
         .map_err(put)?;
     for (file, svg) in plots(&problem, &traj, &bounds) {

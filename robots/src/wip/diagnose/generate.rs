@@ -162,10 +162,6 @@ enum TrueWheel {
     Slipping(f64),
 }
 
-/// The true model: the WIP of the extension with the dynamic current, by `dmech`'s generic
-/// path. Under the stick-slip law its friction comes as an external force: slip friction
-/// for a slipping wheel, and for a stuck wheel the torque that keeps it at rest relative to
-
 /// Why a closed-loop log could not be generated.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GenerateError {
@@ -194,6 +190,9 @@ pub enum GenerateError {
     },
 }
 
+/// The true model: the WIP of the extension with the dynamic current, by `dmech`'s generic
+/// path. Under the stick-slip law its friction comes as an external force: slip friction
+/// for a slipping wheel, and for a stuck wheel the torque that keeps it at rest relative to
 /// the body (the accelerations are affine in the force: two probes give the response).
 struct Truth<'a> {
     ext: &'a ModelExtension<f64>,
