@@ -90,11 +90,12 @@ impl Snakeboard {
         v_phi / (q.l * phi.cos().powi(2)) * yaw_momentum
     }
 
-    /// The nonholonomic momentum `J = m p + (J + J_r + 2 J_w) p tan²φ / l² + J_r ψ̇ tan φ / l`.
-    pub fn momentum(&self, phi: f64, v_psi: f64, p: f64) -> f64 {
+    /// The nonholonomic momentum `J = m p + (J + J_r + 2 J_w) p tan²φ / l² + J_r ψ̇ tan φ / l`
+    /// (in any scalar: with dual numbers, its rate along a motion).
+    pub fn momentum<T: Real>(&self, phi: T, v_psi: T, p: T) -> T {
         let q = &self.params;
-        let t = phi.tan() / q.l;
-        q.m * p + (q.j + q.j_r + 2.0 * q.j_w) * p * t * t + q.j_r * v_psi * t
+        let t = phi.tan() * (1.0 / q.l);
+        p * q.m + p * t * t * (q.j + q.j_r + 2.0 * q.j_w) + v_psi * t * q.j_r
     }
 }
 

@@ -1,4 +1,4 @@
-//! The `wip` and `car` tools through their binaries, in one binary: every test file of
+//! The `wip`, `car` and `snakeboard` tools through their binaries, in one binary: every test file of
 //! `tests/` is compiled and linked as its own binary, so together these compile the shared
 //! helpers (`common`) and the generic library code they call directly (the closed loop of
 //! `track`) once, and link once.
@@ -9,6 +9,7 @@
 //! - `plan`: `wip plan`;
 //! - `reliability`: every subcommand under careless or hostile use (issue 24);
 //! - `simulate`: `wip simulate`;
+//! - `snakeboard`: `snakeboard plan` and `snakeboard simulate`;
 //! - `track`: `wip track` and the closed loop.
 //!
 //! One module's tests: `cargo test -p robots --test cli -- plan::`.
@@ -22,4 +23,5 @@ mod hostile;
 mod plan;
 mod reliability;
 mod simulate;
+mod snakeboard;
 mod track;

@@ -12,6 +12,10 @@ pub fn car() -> Command {
     Command::new(env!("CARGO_BIN_EXE_car"))
 }
 
+pub fn snakeboard() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_snakeboard"))
+}
+
 /// A JSON file the tools wrote, parsed.
 pub fn read_json(path: impl AsRef<Path>) -> serde_json::Value {
     let path = path.as_ref();

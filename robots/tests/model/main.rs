@@ -8,6 +8,8 @@
 //! - `plan_derivatives`: the transcriptions' structured Jacobians against the generic path;
 //! - `reader_fuzz`: property tests of every reader of the `wip` tool;
 //! - `reference_objectives`: the benchmarks' objectives against independent solutions;
+//! - `snakeboard_model`: the snakeboard against the published momentum equation, coasting
+//!   and orders;
 //! - `transcription`: the OCP transcriptions against the integrators;
 //! - `wip_continuous`: the WIP's continuous model, generic path against the closed form;
 //! - `wip_variational`: the variational integrator on the WIP.
@@ -19,6 +21,7 @@ mod car_plan;
 mod plan_derivatives;
 mod reader_fuzz;
 mod reference_objectives;
+mod snakeboard_model;
 mod transcription;
 mod wip_continuous;
 mod wip_variational;
