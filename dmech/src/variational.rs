@@ -357,12 +357,16 @@ pub struct ViState<G, const NS: usize> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Discretisation {
     /// The paper's: rectangle-rule Lagrangian `h ℓ(s_k, v_k, ξ_k)`, connection at `s_k`,
-    /// one-sided forcing ([`ForcingQuadrature`]). First order. Default.
-    #[default]
+    /// one-sided forcing ([`ForcingQuadrature`]). First order. The paper's benchmarks and
+    /// robots with a stiff dissipative mode far faster than the step (the WIP's motor
+    /// currents) use it (docs/integrator.md, "Which scheme").
     FirstOrder,
     /// Lagrangian, connection and forcing at the interval midpoints `s_k + ½h v_k`
     /// ([`crate::midpoint`]): second order and time-reversible. The forcing quadrature
-    /// setting is not used (the midpoint rule is part of the scheme).
+    /// setting is not used (the midpoint rule is part of the scheme). The default: it keeps
+    /// a rolling robot's energy where the first-order scheme drains it (docs/integrator.md,
+    /// "Which scheme").
+    #[default]
     Midpoint,
 }
 

@@ -3,7 +3,7 @@
 //! tilt of 0.05 rad with time-varying voltages: the robot falls and swings about its axle,
 //! so every step does real Newton work.
 use criterion::{criterion_group, criterion_main, Criterion};
-use dmech::{Integrator, JacobianPolicy, VariationalIntegrator, ViState};
+use dmech::{Discretisation, Integrator, JacobianPolicy, VariationalIntegrator, ViState};
 use nalgebra::SVector;
 use robots::wip::simulate::{simulate, InputSchedule, Stepping};
 use robots::wip::state::from_reduced;
@@ -24,7 +24,7 @@ fn scenario() -> (Wip, ReducedState, InputSchedule) {
 fn bench(c: &mut Criterion) {
     let (w, x0, inputs) = scenario();
     let (g, s, v) = from_reduced(&w.params, &x0, [0.0; 4]);
-    let vi = VariationalIntegrator::new(0.005);
+    let vi = VariationalIntegrator::new(0.005).with_discretisation(Discretisation::FirstOrder);
     let x = ViState {
         g,
         s,

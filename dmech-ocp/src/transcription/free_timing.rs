@@ -429,10 +429,13 @@ where
         self.plan.problem.bounds(k)
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
-        crate::transcription::state_equalities(
-            self.plan.stages.layout,
-            &self.plan.problem.conditions(),
-        )
+        let conditions = crate::transcription::conditions_for_scheme::<NU>(
+            self.plan.problem.conditions(),
+            self.plan.problem.horizon(),
+            NS,
+            self.plan.stages.discretisation,
+        );
+        crate::transcription::state_equalities(self.plan.stages.layout, &conditions)
     }
     fn globals(&self) -> Option<Globals> {
         let m = self.segments();

@@ -218,6 +218,54 @@ pub fn state_equalities(layout: Layout, conditions: &[Condition]) -> Vec<StateEq
         .collect()
 }
 
+/// The conditions a variational transcription imposes for `conditions` under
+/// `discretisation`: the same, and for the midpoint scheme, where the conditions fix every
+/// velocity to zero at the last stage `n` ("arrive at rest"), also every previous input
+/// `u_{n−1}` to zero, unless a condition fixes it already.
+///
+/// Why: the midpoint scheme's momentum matching at node `n` weighs the forces of the
+/// intervals on both sides equally, `½ (F(s̄_{n−1}, v_{n−1}, u_{n−1}) + F(s̄_n, v_n, u_n))`.
+/// With `v_{n−1} = 0` alone, half of the last interval's impulse, `½ h F(s_n, 0, u_{n−1})`,
+/// is still in the node's momentum, and under zero input afterwards the robot moves on
+/// (a rolling disk 3.9 mm in 2 s at 20 ms). Rest with zero input after the plan needs
+/// `v_n = 0` to solve the matching at `n` with `u_n = 0`, that is
+/// `F(s_n, 0, u_{n−1}) + F(s_n, 0, 0) = −2 ∂ℓ/∂s(s_n, 0, 0)`: at a rest point without input
+/// (`∂ℓ/∂s = 0`, `F(s, 0, 0) = 0`) and a forcing whose input map is injective at zero
+/// velocity (torques, motor voltages), exactly `u_{n−1} = 0`. The first-order scheme's
+/// right-point force `F(s_n, v_n, u_n)` carries nothing of `u_{n−1}` past the node, and a
+/// Runge–Kutta state's `v(t_N)` is the velocity itself: neither needs more.
+pub fn conditions_for_scheme<const NU: usize>(
+    conditions: Vec<Condition>,
+    n: usize,
+    ns: usize,
+    discretisation: dmech::Discretisation,
+) -> Vec<Condition> {
+    if discretisation != dmech::Discretisation::Midpoint {
+        return conditions;
+    }
+    let fixed_at_end = |q: Quantity| conditions.iter().any(|c| c.stage == n && c.quantity == q);
+    let at_rest = (0..ns).all(|i| {
+        conditions
+            .iter()
+            .any(|c| c.stage == n && c.quantity == Quantity::Velocity(i) && c.value == 0.0)
+    });
+    if !at_rest {
+        return conditions;
+    }
+    let missing: Vec<Condition> = (0..NU)
+        .map(Quantity::PreviousInput)
+        .filter(|&q| !fixed_at_end(q))
+        .map(|quantity| Condition {
+            stage: n,
+            quantity,
+            value: 0.0,
+        })
+        .collect();
+    let mut all = conditions;
+    all.extend(missing);
+    all
+}
+
 /// `x_0` from the start state.
 pub(crate) fn initial_state<const NP: usize, const NS: usize, const NU: usize, const NX: usize>(
     layout: Layout,

@@ -255,8 +255,7 @@ impl<'p> SequencedPlan<NX, NW, NA, NU, NC> for SnakeboardSequence<'p> {
                 // A rotor swing of 1 rad and an axle swing of 0.3 of its angle bound, a
                 // cycle every 2 s (at 0.5 Hz the rotor's peak rate is π rad/s, a third of
                 // its bound).
-                let amplitudes =
-                    SVector::<f64, NA>::new(1.0, 0.3 * self.bounds.axle_angle, 0.0);
+                let amplitudes = SVector::<f64, NA>::new(1.0, 0.3 * self.bounds.axle_angle, 0.0);
                 motion.excited(mesh.h, &amplitudes, self.problem.duration / 2.0)
             }
         };

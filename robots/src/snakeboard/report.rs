@@ -24,17 +24,16 @@ pub const CSV_HEADER: &str = "t,x,y,theta,psi,phi,v_psi,v_phi,p,J,tau_psi,tau_ph
 
 impl SnakeboardTrajectory {
     /// A plan's trajectory. The plan's state leaves the rotor angle out (no equation reads
-    /// it); it is summed back from the rotor rate, `ψ_{k+1} = ψ_k + h ψ̇_k`, from 0.
+    /// it); the planned trajectory sums it back from the rotor rate,
+    /// `ψ_{k+1} = ψ_k + h ψ̇_k`, from 0.
     pub fn from_plan(o: &SnakeboardOutcome) -> Self {
         let mut t = SnakeboardTrajectory::default();
-        let mut psi = 0.0;
         for (k, stage) in o.trajectory.stages.iter().enumerate() {
             t.t.push(k as f64 * o.h);
             t.pose.push([stage.pose[0], stage.pose[1], stage.pose[2]]);
-            t.shape.push([psi, stage.shape[1]]);
+            t.shape.push([stage.shape[0], stage.shape[1]]);
             t.velocity.push(stage.velocity);
             t.input.push(stage.input);
-            psi += o.h * stage.velocity[0];
         }
         t
     }

@@ -1,7 +1,9 @@
 //! The variational integrator on the WIP: the structure it preserves, and how it converges.
 
 use dmech::continuous::{ContinuousModel, ContinuousState, RungeKutta};
-use dmech::{ForcingQuadrature, PrincipalKinematicSystem, VariationalIntegrator, ViState};
+use dmech::{
+    Discretisation, ForcingQuadrature, PrincipalKinematicSystem, VariationalIntegrator, ViState,
+};
 use dmech_lie::{LieGroup, Se2};
 use nalgebra::SVector;
 use robots::wip::invariants::energy;
@@ -41,7 +43,7 @@ const MOVING: [f64; 9] = [0.0, 0.0, 0.3, 0.3, 0.5, 0.4, 1.0, 0.1, -0.05];
 fn nonholonomic_constraints_hold_to_machine_precision() {
     let w = Wip::default();
     let h = 0.005;
-    let vi = VariationalIntegrator::new(h);
+    let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder);
     let (g, s, v) = start(&w.params, MOVING);
     let mut x = ViState { g, s, v };
     let mut worst: f64 = 0.0;
@@ -93,7 +95,7 @@ fn energy_bounded_for_vi_drifts_for_rk4() {
             (self.n * self.ste - self.st * self.se) / (self.n * self.stt - self.st * self.st)
         }
     }
-    let vi = VariationalIntegrator::new(h);
+    let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder);
     let mut x = ViState { g, s, v };
     let mut vi_max = vec![0.0f64; chunks];
     let mut vi_trend = Trend {
@@ -161,7 +163,7 @@ fn electromechanical_momentum_conserved_exactly() {
     let w = conservative();
     let p = w.params;
     let h = 0.005;
-    let vi = VariationalIntegrator::new(h);
+    let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder);
     let (g, s, v) = start(&p, MOVING);
     let mut x = ViState { g, s, v };
     let zero = U2::zeros();
@@ -200,7 +202,7 @@ fn power_balance_per_step() {
     let mut mismatch = Vec::new();
     let hs = [0.004, 0.002, 0.001];
     for &h in &hs {
-        let vi = VariationalIntegrator::new(h);
+        let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder);
         let (g, s, v) = start(&w.params, MOVING);
         let mut x = ViState { g, s, v };
         let n = (t_end / h).round() as usize;
@@ -248,7 +250,7 @@ fn vi_converges_with_order_one() {
     let hs = [0.01, 0.005, 0.0025, 0.00125, 0.000625];
     let mut errs = Vec::new();
     for &h in &hs {
-        let vi = VariationalIntegrator::new(h);
+        let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder);
         let mut x = ViState {
             g: g0,
             s: s0,
@@ -290,7 +292,9 @@ fn left_point_forcing_diverges_default_does_not() {
     let u = U2::new(0.5, 0.5);
     // The currents iR of each step, until a step fails.
     let run = |q: ForcingQuadrature| -> (Vec<f64>, Option<String>) {
-        let vi = VariationalIntegrator::new(h).with_quadrature(q);
+        let vi = VariationalIntegrator::new(h)
+            .with_discretisation(Discretisation::FirstOrder)
+            .with_quadrature(q);
         let mut x = ViState { g, s, v };
         let mut currents = vec![x.v[3]];
         for _ in 0..100 {
@@ -360,8 +364,10 @@ fn jacobian_policies_agree() {
     let w = Wip::default();
     let h = 0.005;
     let (g, s, v) = start(&w.params, MOVING);
-    let exact = VariationalIntegrator::new(h);
-    let reuse = VariationalIntegrator::new(h).with_jacobian(JacobianPolicy::ReuseAcrossSteps);
+    let exact = VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder);
+    let reuse = VariationalIntegrator::new(h)
+        .with_discretisation(Discretisation::FirstOrder)
+        .with_jacobian(JacobianPolicy::ReuseAcrossSteps);
     let (mut a, mut b) = (ViState { g, s, v }, ViState { g, s, v });
     let mut cache = NewtonCache::default();
     let (mut it_a, mut it_b) = (0, 0);

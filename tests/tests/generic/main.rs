@@ -5,8 +5,10 @@
 //! - `generic_integrator`: the integrators on small systems with known answers;
 //! - `midpoint_integrator`: both discretisations of the reduced LDAP principle on random
 //!   systems (order, reversibility, energy, momentum);
+//! - `midpoint_rest`: a midpoint plan that ends at rest stays there; its objective's order;
 //! - `momentum_systems`: systems with free group directions (the sleigh, the disk two
 //!   ways, random systems of the class);
+//! - `rolling_disk`: both schemes' steps against their closed forms on the rolling disk;
 //! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
 //! - `steered_car_bounds`: the solver on a steered car with an active torque bound, and a
 //!   sweep of it;
@@ -15,8 +17,10 @@
 
 mod generic_integrator;
 mod midpoint_integrator;
+mod midpoint_rest;
 mod momentum_systems;
 mod rk_transcription;
+mod rolling_disk;
 mod steered_car_bounds;
 mod varint_curvature;
 mod varint_reduced_state;

@@ -199,7 +199,7 @@ where
         "{} NS={NS} seed {seed}: midpoint returns {err:.2e} from its start (bound {bound:.2e})",
         F::NAME
     );
-    let first_order = VariationalIntegrator::new(h);
+    let first_order = VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder);
     let err_first = return_error(&sys, &first_order, &x0, n);
     println!(
         "{} NS={NS} seed {seed}: back at the start to {err:.1e} (bound {bound:.1e}); first \

@@ -381,7 +381,12 @@ fn check_reversibility<F, const DOF: usize, const NS: usize, const NM: usize, co
     let sensitivity = (moved / delta).max(1.0);
     let bound = 4.0 * 2.0 * n as f64 * sensitivity * vi.newton_tol * (1.0 + v_max);
     let err = return_error::<_, DOF, NA, NS>(&sys, &vi, &x0, n);
-    let err_first = return_error::<_, DOF, NA, NS>(&sys, &VariationalIntegrator::new(h), &x0, n);
+    let err_first = return_error::<_, DOF, NA, NS>(
+        &sys,
+        &VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder),
+        &x0,
+        n,
+    );
     println!(
         "{} NS={NS} NM={NM} seed {seed}: back to {err:.1e} (bound {bound:.1e}); first order {err_first:.1e}",
         F::NAME

@@ -31,12 +31,12 @@ fn car() -> SteeredCar {
 /// From rest at the origin to rest at (1, 1, 0) in `n` steps; cost Σ |u_k|² (plus
 /// `quartic · u₂⁴` and `steer_price · φ` per stage), declaring its cost curvature constant
 /// if `declares_constant`.
-struct ParkDiagonal {
-    n: usize,
-    drive_torque: f64,
-    quartic: f64,
-    steer_price: f64,
-    declares_constant: bool,
+pub(crate) struct ParkDiagonal {
+    pub(crate) n: usize,
+    pub(crate) drive_torque: f64,
+    pub(crate) quartic: f64,
+    pub(crate) steer_price: f64,
+    pub(crate) declares_constant: bool,
 }
 const STEER_TORQUE: f64 = 0.05;
 const STEER_ANGLE: f64 = 0.6;
@@ -83,7 +83,7 @@ impl PlanningProblem<3, 2, 2, 3> for ParkDiagonal {
 
 /// The start: a cubic Hermite path from the origin to `END` with unit tangents
 /// along x at both ends, timed by 3τ² − 2τ³, the heading along the tangent.
-fn hermite_path(n: usize) -> Vec<Se2<f64>> {
+pub(crate) fn hermite_path(n: usize) -> Vec<Se2<f64>> {
     (0..=n)
         .map(|k| {
             let tau = k as f64 / n as f64;

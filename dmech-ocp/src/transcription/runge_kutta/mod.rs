@@ -94,6 +94,43 @@ where
         }
     }
 
+    /// A start in this transcription's layout from a plan of any transcription at the same
+    /// step (a variational plan, say): `x_k = (pose_k, s_k, v_k, u_{k−1})`, `w_k = u_k`,
+    /// with `v_k` the plan's velocity at stage `k` (a variational plan's is the interval's,
+    /// within O(h) of the continuous velocity, O(h²) of the midpoint's node velocity).
+    /// Panics if the plan's horizon is not this problem's.
+    #[allow(clippy::type_complexity)]
+    pub fn start_from_trajectory<const NC: usize>(
+        &self,
+        plan: &PlannedTrajectory<NP, NS, NU>,
+    ) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NU>>)
+    where
+        P: PlanningProblem<NP, NS, NU, NC>,
+    {
+        let n = self.problem.horizon();
+        assert_eq!(
+            plan.stages.len(),
+            n + 1,
+            "the plan's horizon is not the problem's"
+        );
+        let l = self.stages.layout;
+        let xs = plan
+            .stages
+            .iter()
+            .map(|st| {
+                let mut x = SVector::<f64, NX>::zeros();
+                x.fixed_rows_mut::<NP>(0).copy_from(&st.pose);
+                x.fixed_rows_mut::<NS>(l.s_at()).copy_from(&st.shape);
+                x.fixed_rows_mut::<NS>(l.v_at()).copy_from(&st.velocity);
+                x.fixed_rows_mut::<NU>(l.u_at())
+                    .copy_from(&st.previous_input);
+                x
+            })
+            .collect();
+        let ws = plan.stages[..n].iter().map(|st| st.input).collect();
+        (xs, ws)
+    }
+
     /// The solver's iterate as a [`PlannedTrajectory`].
     pub fn trajectory<const NC: usize>(
         &self,

@@ -293,7 +293,13 @@ where
         self.problem.bounds(k)
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
-        state_equalities(self.stages.layout, &self.problem.conditions())
+        let conditions = conditions_for_scheme::<NU>(
+            self.problem.conditions(),
+            self.problem.horizon(),
+            NS,
+            self.stages.discretisation,
+        );
+        state_equalities(self.stages.layout, &conditions)
     }
     fn affine_in_state(&self) -> bool {
         // The state holds pose, shape, v_{k−1} and u_{k−1}; the view exposes no v_{k−1}.
