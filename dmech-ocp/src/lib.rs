@@ -16,7 +16,9 @@
 //!   optional global variables) and the primal–dual interior point that solves it
 //!   ([`solver::Solver`]), its Newton systems by a Riccati recursion over the stages (or a
 //!   sparse `LDLᵀ`). The solver knows no mechanics.
-//! - [`toolkit`]: starts from a geometric path, refinement to a finer mesh, mesh sequencing.
+//! - [`toolkit`]: starts from a geometric path, refinement to a finer mesh, mesh sequencing,
+//!   a plan in one call, a replay through the integrator.
+//! - [`tracking`]: a plan tracked in closed loop: its linearisation, LQ gains, a plant run.
 //!
 //! Every stage function is generic over the scalar, so exact Jacobians and Hessians come
 //! from dual numbers, stage by stage. Sizes are said once, by the robot and its problem
@@ -28,4 +30,5 @@
 pub mod nlp;
 pub mod solver;
 pub mod toolkit;
+pub mod tracking;
 pub mod transcription;

@@ -54,6 +54,9 @@ use dmech_lie::LieGroup;
 use nalgebra::SVector;
 use std::marker::PhantomData;
 
+/// A pose path `τ ↦ g(τ)`, `τ ∈ [0, 1]` over the horizon.
+pub type PosePath<'a, G> = &'a (dyn Fn(f64) -> G + Sync);
+
 /// What the solver starts from on the coarsest mesh.
 pub enum PlanStart<'a, G, const NS: usize> {
     /// Every state the problem's start state, every decision zero.
@@ -63,7 +66,7 @@ pub enum PlanStart<'a, G, const NS: usize> {
     /// least-squares weight of each shape velocity.
     Path {
         /// The pose at the fraction `τ` of the horizon.
-        path: &'a (dyn Fn(f64) -> G + Sync),
+        path: PosePath<'a, G>,
         /// `ρ_i`, one per shape velocity.
         regularisation: SVector<f64, NS>,
     },
@@ -72,7 +75,7 @@ pub enum PlanStart<'a, G, const NS: usize> {
     /// from two shape velocities together.
     Excited {
         /// The path and weights of a kinematic start to excite, or `None`: from rest.
-        path: Option<(&'a (dyn Fn(f64) -> G + Sync), SVector<f64, NS>)>,
+        path: Option<(PosePath<'a, G>, SVector<f64, NS>)>,
         /// The oscillation's amplitude on each shape coordinate.
         amplitudes: SVector<f64, NS>,
         /// Its cycles over the horizon.
@@ -148,12 +151,15 @@ struct Mesh<P> {
     h: f64,
 }
 
+/// The types a [`Sequence`] is built for, carried as a type.
+type Marker<P, const DOF: usize, const NP: usize> = PhantomData<(fn() -> P, [(); DOF], [(); NP])>;
+
 struct Sequence<'s, S, F, P, G, const DOF: usize, const NP: usize, const NS: usize> {
     sys: &'s S,
     problem_at: F,
     discretisation: Discretisation,
     start: &'s PlanStart<'s, G, NS>,
-    _sizes: PhantomData<(fn() -> P, [(); DOF], [(); NP])>,
+    _sizes: Marker<P, DOF, NP>,
 }
 
 impl<
@@ -202,7 +208,7 @@ where
             shapes: vec![start.shape; n + 1],
             velocities: vec![SVector::zeros(); n],
         };
-        let along = |path: &(dyn Fn(f64) -> S::Group<f64> + Sync), weights: &SVector<f64, NS>| {
+        let along = |path: PosePath<'_, S::Group<f64>>, weights: &SVector<f64, NS>| {
             let poses: Vec<_> = (0..=n).map(|k| path(k as f64 / n as f64)).collect();
             shape_motion(self.sys, mesh.h, &poses, &start.shape, weights).ok()
         };

@@ -66,7 +66,7 @@ where
     for k in 0..n + rest_steps {
         x = vi.step(sys, &x, &input(k), &input(k + 1))?.0;
         nodes.push(x);
-        if k + 1 <= n {
+        if k < n {
             plan_deviation =
                 plan_deviation.max(distance(&x, &group(k + 1), &plan.stages[k + 1].shape));
         } else {

@@ -113,3 +113,49 @@ fn parallel_park_solves_with_the_steering_bound_active() {
         j_prev = o.objective;
     }
 }
+
+/// "Arrive at rest" is rest under the midpoint scheme too: both built-in plans, replayed
+/// through the integrator they were planned with and continued for 2 s with zero inputs
+/// (no steering torque, no drive voltage), stay where they ended to 1e-9 m; the replay
+/// follows the plan to the solver's tolerance through the motion's sensitivity.
+#[test]
+fn midpoint_plans_stay_at_rest_after_their_end() {
+    use dmech_ocp::toolkit::replay::replay;
+    for problem in [CarProblem::parallel_park(), CarProblem::lane_change()] {
+        let h = 0.02;
+        let o = plan(
+            &Car::default(),
+            &problem,
+            CarBounds::default(),
+            h,
+            Discretisation::Midpoint,
+            IpOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(o.status, Status::Solved, "{}", problem.name);
+        let r = replay(
+            &Car::default(),
+            h,
+            Discretisation::Midpoint,
+            &o.trajectory,
+            100,
+        )
+        .unwrap();
+        println!(
+            "{}: replay {:.1e} from the plan, {:.1e} of drift in 2 s after it",
+            problem.name, r.plan_deviation, r.drift_after
+        );
+        assert!(
+            r.drift_after <= 1e-9,
+            "{}: moved on by {:.2e}",
+            problem.name,
+            r.drift_after
+        );
+        assert!(
+            r.plan_deviation <= 1e-6,
+            "{}: replay off by {:.2e}",
+            problem.name,
+            r.plan_deviation
+        );
+    }
+}

@@ -12,6 +12,7 @@
 //! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
 //! - `steered_car_bounds`: the solver on a steered car with an active torque bound, and a
 //!   sweep of it;
+//! - `tracking`: a plan tracked in closed loop by LQ on a mismatched plant;
 //! - `varint_curvature`: the VI transcription's exact constraint curvature by blocks;
 //! - `varint_reduced_state`: its Jacobians on a state without some shape positions.
 
@@ -22,5 +23,6 @@ mod momentum_systems;
 mod rk_transcription;
 mod rolling_disk;
 mod steered_car_bounds;
+mod tracking;
 mod varint_curvature;
 mod varint_reduced_state;
