@@ -140,6 +140,58 @@ where
         )
     }
 
+    /// A plan read back into this transcription's layout: `x_k = (pose_k, the carried part
+    /// of s_k, v_{k−1}, u_{k−1})` (`v_{−1}` the start's velocity), `w_k = (v_k, u_k)`. The
+    /// inverse of [`VarIntTranscription::trajectory`] for a plan of the same problem (to
+    /// track it, [`crate::tracking`]). Panics if the plan's horizon is not this problem's.
+    #[allow(clippy::type_complexity)]
+    pub fn states_of<const NC: usize>(
+        &self,
+        plan: &PlannedTrajectory<NP, NS, NU>,
+    ) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>)
+    where
+        P: PlanningProblem<NP, NS, NU, NC>,
+    {
+        let n = self.problem.horizon();
+        assert_eq!(
+            plan.stages.len(),
+            n + 1,
+            "the plan's horizon is not the problem's"
+        );
+        let l = self.stages.layout;
+        let start = self.problem.start();
+        let xs = (0..=n)
+            .map(|k| {
+                let st = &plan.stages[k];
+                let mut x = SVector::<f64, NX>::zeros();
+                x.fixed_rows_mut::<NP>(0).copy_from(&st.pose);
+                l.set_shape(&mut x, &st.shape);
+                let v_before = if k == 0 {
+                    start.velocity
+                } else {
+                    plan.stages[k - 1].velocity
+                };
+                x.fixed_rows_mut::<NS>(l.v_at()).copy_from(&v_before);
+                x.fixed_rows_mut::<NU>(l.u_at())
+                    .copy_from(&st.previous_input);
+                x
+            })
+            .collect();
+        let ws = plan.stages[..n]
+            .iter()
+            .map(|st| {
+                SVector::<f64, NW>::from_fn(|i, _| {
+                    if i < NS {
+                        st.velocity[i]
+                    } else {
+                        st.input[i - NS]
+                    }
+                })
+            })
+            .collect();
+        (xs, ws)
+    }
+
     /// The typed view of `(x_k, w_k)`.
     /// (`w` may trail entries of its own beyond `(v_k, u_k)`, as free timing's do.)
     pub fn stage<T: Real, const NWX: usize>(
