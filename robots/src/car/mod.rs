@@ -6,5 +6,6 @@ pub mod plan;
 pub mod problems;
 pub mod report;
 pub mod simulate;
+pub mod track;
 
 pub use model::{Car, CarParams};

@@ -171,3 +171,86 @@ pub fn plots(problem: &CarProblem, t: &CarTrajectory, b: &CarBounds) -> Vec<(Str
         ("drive.svg".into(), drive),
     ]
 }
+
+/// tracking_path.svg (the plan's and the plant's paths) and tracking_error.svg (the
+/// position error over time) of `car track`.
+pub fn tracking_plots(t: &super::track::CarTracking) -> Vec<(String, String)> {
+    let (px, py): (Vec<f64>, Vec<f64>) = t.planned.iter().map(|p| (p[0], p[1])).unzip();
+    let (ax, ay): (Vec<f64>, Vec<f64>) = t.actual.iter().map(|p| (p[0], p[1])).unzip();
+    let path = Plot {
+        title: "rear-axle path: planned and tracked",
+        xlabel: "x [m]",
+        ylabel: "y [m]",
+        series: vec![
+            Series {
+                label: "planned",
+                x: &px,
+                y: &py,
+                color: "#1f77b4",
+            },
+            Series {
+                label: "tracked",
+                x: &ax,
+                y: &ay,
+                color: "#d62728",
+            },
+        ],
+        bounds: vec![],
+        markers: vec![],
+        equal_axes: true,
+    }
+    .to_svg();
+    let e_mm: Vec<f64> = t.position_errors().iter().map(|e| 1e3 * e).collect();
+    let error = Plot {
+        title: "position error",
+        xlabel: "t [s]",
+        ylabel: "error [mm]",
+        series: vec![Series {
+            label: "error",
+            x: &t.t,
+            y: &e_mm,
+            color: "#d62728",
+        }],
+        bounds: vec![],
+        markers: vec![],
+        equal_axes: false,
+    }
+    .to_svg();
+    vec![
+        ("tracking_path.svg".into(), path),
+        ("tracking_error.svg".into(), error),
+    ]
+}
+
+/// tracking.csv of `car track`: `t,x_plan,y_plan,theta_plan,x,y,theta,position_error,
+/// tau_s,u_d` (the last row repeats the last input); an error naming the time and column
+/// of a non-finite value.
+pub fn tracking_csv(t: &super::track::CarTracking) -> Result<String, NonFiniteValue> {
+    const HEADER: &str = "t,x_plan,y_plan,theta_plan,x,y,theta,position_error,tau_s,u_d";
+    let names: Vec<&'static str> = HEADER.split(',').collect();
+    let mut csv = String::from(HEADER);
+    csv.push('\n');
+    for (k, error) in t.position_errors().into_iter().enumerate() {
+        let (p, q) = (t.planned[k], t.actual[k]);
+        let u = t
+            .input
+            .get(k)
+            .or(t.input.last())
+            .copied()
+            .unwrap_or([0.0, 0.0]);
+        let row = [
+            t.t[k], p[0], p[1], p[2], q[0], q[1], q[2], error, u[0], u[1],
+        ];
+        if let Some(j) = row.iter().position(|v| !v.is_finite()) {
+            return Err(NonFiniteValue {
+                value: row[j],
+                t: t.t[k],
+                column: names[j],
+            });
+        }
+        let fields: Vec<String> = row.iter().map(|v| format!("{v:.17e}")).collect();
+        csv.push_str(&fields.join(","));
+        csv.push('\n');
+    }
+    Ok(csv)
+}

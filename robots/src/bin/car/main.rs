@@ -31,6 +31,7 @@ struct Cli {
 enum Command {
     Plan(PlanArgs),
     Simulate(SimulateArgs),
+    Track(TrackArgs),
 }
 
 /// The schemes `car plan` offers: the variational ones.
@@ -93,6 +94,66 @@ struct SimulateArgs {
     /// Largest |tau_s| accepted in the inputs file, in N m (the plans' bound is 0.05 N m)
     #[arg(long, value_name = "NM", default_value_t = 1.0, value_parser = positive)]
     max_torque: f64,
+}
+
+/// Plan a built-in problem or a pose file, then track the plan in closed loop by LQ on a
+/// plant car whose masses, inertias and motor constants differ from the plan's
+/// (docs/car.md, "Tracking"). Full-state feedback; inputs saturate at ±6 V and ±0.1 N m.
+#[derive(clap::Args)]
+struct TrackArgs {
+    /// `parallel-park`, `lane-change`, or a JSON pose file
+    problem: String,
+    /// Time step in seconds, in (0, 0.1]
+    #[arg(long, default_value_t = 0.02, value_parser = step)]
+    step: f64,
+    /// Transcription of the plan and the plant's integrator
+    #[arg(long, default_value = "first-order", value_parser = integrator_parser(PLAN_INTEGRATORS))]
+    integrator: Integrator,
+    /// The controller: LQ feedback along the plan, or the plan's inputs alone
+    #[arg(long, value_enum, default_value_t = ControllerArg::Lq)]
+    controller: ControllerArg,
+    /// The plant is the plan's car, started on the plan (error zero to round-off)
+    #[arg(long)]
+    ideal: bool,
+    /// Relative error of every mass, inertia and motor constant of the plant, uniform in
+    /// ±REL, in [0, 1)
+    #[arg(long, value_name = "REL", default_value_t = 0.1, value_parser = unit_interval)]
+    param_error: f64,
+    /// The plant's start, this far to the left of the plan's, m
+    #[arg(long, value_name = "M", default_value_t = 0.02, value_parser = finite)]
+    offset: f64,
+    /// Seed of the plant's parameters
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Run this many plants (seeds SEED, SEED+1, …) and report the errors' median and 95th
+    /// percentile
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    monte_carlo: Option<u64>,
+    /// Output directory
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum ControllerArg {
+    /// Time-varying LQ along the plan (dmech_ocp::tracking)
+    Lq,
+    /// The plan's inputs, open loop
+    OpenLoop,
+}
+
+fn unit_interval(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if (0.0..1.0).contains(&v) => Ok(v),
+        _ => Err(format!("must be in [0, 1), got {s}")),
+    }
+}
+
+fn finite(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= 1.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a finite number of metres within ±1")),
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -265,6 +326,94 @@ fn run_simulate(a: SimulateArgs) -> Result<(), String> {
     Ok(())
 }
 
+fn run_track(a: TrackArgs) -> Result<(), String> {
+    use robots::car::track::{mismatched, track};
+    let problem = CarProblem::load(&a.problem).map_err(|e| e.to_string())?;
+    let disc = a
+        .integrator
+        .variational()
+        .expect("the parser offers the variational schemes");
+    let bounds = CarBounds::default();
+    CarPlan::new(&problem, bounds, a.step).map_err(|e| e.to_string())?;
+    let mut files = OutputSet::create(&a.out).map_err(|e| e.to_string())?;
+    let car = Car::default();
+    let opts = IpOptions {
+        verbose: false,
+        ..IpOptions::default()
+    };
+    let o = plan(&car, &problem, bounds, a.step, disc, opts).map_err(|e| e.to_string())?;
+    if o.status != Status::Solved {
+        return Err(format!("the plan was not solved: {}", o.status.code()));
+    }
+    let lq = a.controller == ControllerArg::Lq;
+    let (error, offset) = if a.ideal {
+        (0.0, 0.0)
+    } else {
+        (a.param_error, a.offset)
+    };
+    let runs = a.monte_carlo.unwrap_or(1);
+    let mut results = Vec::new();
+    let mut first = None;
+    for i in 0..runs {
+        let seed = a.seed.wrapping_add(i);
+        let params = mismatched(&car.params, error, seed);
+        let t = track(&car, &problem, &o, disc, &params, offset, lq)
+            .map_err(|e| format!("seed {seed}: {e}"))?;
+        results.push((seed, t.max_error(), t.end_error()));
+        first.get_or_insert(t);
+    }
+    let t = first.expect("at least one run");
+    let percentile = |values: &mut Vec<f64>, q: f64| {
+        values.sort_by(f64::total_cmp);
+        values[((values.len() - 1) as f64 * q).round() as usize]
+    };
+    let mut max_errors: Vec<f64> = results.iter().map(|r| r.1).collect();
+    let mut end_errors: Vec<f64> = results.iter().map(|r| r.2).collect();
+    let summary = serde_json::json!({
+        "problem": problem.name,
+        "integrator": a.integrator.name(),
+        "controller": if lq { "lq" } else { "open-loop" },
+        "ideal": a.ideal,
+        "param_error": error,
+        "offset_m": offset,
+        "runs": runs,
+        "max_position_error_m": {
+            "median": percentile(&mut max_errors, 0.5),
+            "p95": percentile(&mut max_errors, 0.95),
+            "worst": percentile(&mut max_errors, 1.0),
+        },
+        "end_position_error_m": {
+            "median": percentile(&mut end_errors, 0.5),
+            "p95": percentile(&mut end_errors, 0.95),
+            "worst": percentile(&mut end_errors, 1.0),
+        },
+        "seeds": results.iter().map(|(s, m, e)| serde_json::json!({"seed": s, "max_position_error_m": m, "end_position_error_m": e})).collect::<Vec<_>>(),
+    });
+    let csv = robots::car::report::tracking_csv(&t).map_err(|e| e.to_string())?;
+    let put = |e: robots::io::OutputError| e.to_string();
+    files.write("tracking.csv", csv.as_bytes()).map_err(put)?;
+    let json = serde_json::to_string_pretty(&summary).expect("a JSON value serialises") + "\n";
+    files.write("tracking.json", json.as_bytes()).map_err(put)?;
+    for (name, svg) in robots::car::report::tracking_plots(&t) {
+        files.write(&name, svg.as_bytes()).map_err(put)?;
+    }
+    files.commit().map_err(put)?;
+    say!(
+        "{}: {} run(s), {}: max position error median {:.2} mm, p95 {:.2} mm; end error median {:.2} mm",
+        problem.name,
+        runs,
+        if lq { "LQ" } else { "open loop" },
+        1e3 * summary["max_position_error_m"]["median"].as_f64().unwrap_or(f64::NAN),
+        1e3 * summary["max_position_error_m"]["p95"].as_f64().unwrap_or(f64::NAN),
+        1e3 * summary["end_position_error_m"]["median"].as_f64().unwrap_or(f64::NAN)
+    );
+    say!(
+        "wrote {}/{{tracking.csv, tracking.json, tracking_*.svg}}",
+        a.out.display()
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     // First, before any thread starts: SIGINT and SIGTERM remove the staging directories.
     robots::io::clean_up_on_signals();
@@ -283,6 +432,7 @@ fn run_command() -> ExitCode {
     let result = match cli.command {
         Command::Plan(a) => run_plan(a),
         Command::Simulate(a) => run_simulate(a),
+        Command::Track(a) => run_track(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
