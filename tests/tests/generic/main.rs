@@ -12,7 +12,7 @@
 //! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
 //! - `steered_car_bounds`: the solver on a steered car with an active torque bound, and a
 //!   sweep of it;
-//! - `tracking`: a plan tracked in closed loop by LQ on a mismatched plant;
+//! - `tracking`: plans and random systems' references tracked by LQ on mismatched plants;
 //! - `varint_curvature`: the VI transcription's exact constraint curvature by blocks;
 //! - `varint_reduced_state`: its Jacobians on a state without some shape positions.
 

@@ -144,3 +144,94 @@ fn the_linearisation_is_the_steps_derivative() {
         }
     }
 }
+
+/// A reference of a random system (SE(2), two shape variables, a shape-dependent inertia
+/// and connection, damping) under smooth inputs, tracked by LQ: on the nominal system it is
+/// reproduced to Newton's tolerance, and on a plant drawn from the same seed with 10 % more
+/// shape dependence and 50 % more damping the largest pose error is below the open loop's,
+/// for every seed. Only below: these systems move their pose through the connection alone,
+/// and along a reference that turns the shape slowly the linearisation barely controls it
+/// (measured: 3.8 → 2.8 mm for seed 0; the steered car above, 77 → 0.6 mm).
+#[test]
+fn lq_tracks_random_systems_under_model_error() {
+    use dmech_ocp::transcription::{Condition, PlanningProblem, Stage, StartState};
+    use dmech_tests::random_system::{RandomSystem, RandomSystemSpec, Se2Family};
+    /// A horizon and a start, nothing to optimise: the transcription's stage functions.
+    struct Reference(usize);
+    impl PlanningProblem<3, 2, 2, 1> for Reference {
+        fn horizon(&self) -> usize {
+            self.0
+        }
+        fn start(&self) -> StartState<3, 2, 2> {
+            StartState::at_rest(SVector::zeros(), SVector::zeros())
+        }
+        fn cost<T: dmech_lie::Real>(&self, _k: usize, st: &Stage<T, 3, 2, 2>) -> T {
+            st.input.dot(&st.input)
+        }
+        fn constraints<T: dmech_lie::Real>(
+            &self,
+            _k: usize,
+            st: &Stage<T, 3, 2, 2>,
+        ) -> SVector<T, 1> {
+            SVector::<T, 1>::new(st.input[0])
+        }
+        fn bounds(&self, _k: usize) -> (SVector<f64, 1>, SVector<f64, 1>) {
+            (
+                SVector::repeat(f64::NEG_INFINITY),
+                SVector::repeat(f64::INFINITY),
+            )
+        }
+        fn conditions(&self) -> Vec<Condition> {
+            Vec::new()
+        }
+    }
+    let (n, h) = (200, 0.02);
+    let spec = |shape_dependence, damping| RandomSystemSpec {
+        damping,
+        cyclic_first: false,
+        shape_dependence,
+    };
+    for seed in 0..4 {
+        let nominal = RandomSystem::<Se2Family, 3, 2>::draw(seed, spec(0.5, 0.2));
+        let plant_sys = RandomSystem::<Se2Family, 3, 2>::draw(seed, spec(0.55, 0.3));
+        let tr = VarIntTranscription::new(&nominal, Reference(n), h, Discretisation::Midpoint);
+        let plant = VarIntTranscription::new(&plant_sys, Reference(n), h, Discretisation::Midpoint);
+        // The reference: the nominal system under smooth inputs from rest.
+        let (mut px, mut pw) = (vec![SVector::<f64, 9>::zeros()], Vec::new());
+        for k in 0..n {
+            let t = k as f64 * h;
+            let u = SVector::<f64, 2>::new(0.5 * t.sin(), 0.3 * (1.3 * t).cos());
+            let guess = pw.last().map_or(SVector::zeros(), |w: &SVector<f64, 4>| {
+                w.fixed_rows::<2>(0).into_owned()
+            });
+            let (next, w) = plant_step::<_, 9, 4, 2, 2, 1>(&tr, k, &px[k], &u, &guess).unwrap();
+            px.push(next);
+            pw.push(w);
+        }
+        let lin = linearise_along(&tr, &px, &pw).unwrap();
+        let mut q = SMatrix::<f64, 9, 9>::from_diagonal_element(1.0);
+        for i in 0..3 {
+            q[(i, i)] = 1e4;
+        }
+        let gains = lq_gains(&lin, &q, &(q * 10.0), &SMatrix::<f64, 2, 2>::identity()).unwrap();
+        let pose_error = |xs: &[SVector<f64, 9>]| {
+            (0..=n)
+                .map(|k| (xs[k].fixed_rows::<3>(0) - px[k].fixed_rows::<3>(0)).norm())
+                .fold(0.0, f64::max)
+        };
+        // The nominal system from the reference's start: no error for the feedback to act
+        // on, so the reference to the plant step's Newton tolerance (1e-12 per step).
+        let exact = pose_error(&track(&tr, &px[0], &px, &pw, Some(&gains)).unwrap());
+        assert!(
+            exact <= 1e-9,
+            "seed {seed}: the nominal closed loop left the reference by {exact:.2e}"
+        );
+        let open = pose_error(&track(&plant, &px[0], &px, &pw, None).unwrap());
+        let closed = pose_error(&track(&plant, &px[0], &px, &pw, Some(&gains)).unwrap());
+        println!("seed {seed}: largest pose error open loop {open:.3e}, LQ {closed:.3e}");
+        assert!(
+            closed < open,
+            "seed {seed}: LQ {closed:.2e} against open loop {open:.2e}"
+        );
+    }
+}
