@@ -72,3 +72,24 @@ pub fn on_solver_stack<R: Send, F: FnOnce() -> R + Send>(f: F) -> R {
     });
     ran.unwrap_or_else(|| (task.take().expect("the command runs once"))())
 }
+
+/// A positive, finite number (a voltage or torque limit of `car` and `snakeboard`).
+pub fn positive(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a positive, finite number")),
+    }
+}
+
+/// A time step in (0, 0.1] s (`car` and `snakeboard`).
+pub fn step(s: &str) -> Result<f64, String> {
+    let h: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number"))?;
+    if h.is_finite() && h > 0.0 && h <= 0.1 {
+        Ok(h)
+    } else {
+        Err(format!("the step must be in (0, 0.1] s, got {s}"))
+    }
+}

@@ -271,12 +271,29 @@ pub(crate) fn initial_state<const NP: usize, const NS: usize, const NU: usize, c
     layout: Layout,
     start: &StartState<NP, NS, NU>,
 ) -> SVector<f64, NX> {
+    state_vector(
+        layout,
+        &start.pose,
+        &start.shape,
+        &start.velocity,
+        &start.previous_input,
+    )
+}
+
+/// A stage state `x = (coords(g), the carried part of s, the state's velocity, u_{k−1})` in
+/// `layout`, the same for both transcriptions.
+pub(crate) fn state_vector<const NP: usize, const NS: usize, const NU: usize, const NX: usize>(
+    layout: Layout,
+    pose: &SVector<f64, NP>,
+    shape: &SVector<f64, NS>,
+    velocity: &SVector<f64, NS>,
+    previous_input: &SVector<f64, NU>,
+) -> SVector<f64, NX> {
     let mut x = SVector::<f64, NX>::zeros();
-    x.fixed_rows_mut::<NP>(0).copy_from(&start.pose);
-    layout.set_shape(&mut x, &start.shape);
-    x.fixed_rows_mut::<NS>(layout.v_at())
-        .copy_from(&start.velocity);
+    x.fixed_rows_mut::<NP>(0).copy_from(pose);
+    layout.set_shape(&mut x, shape);
+    x.fixed_rows_mut::<NS>(layout.v_at()).copy_from(velocity);
     x.fixed_rows_mut::<NU>(layout.u_at())
-        .copy_from(&start.previous_input);
+        .copy_from(previous_input);
     x
 }

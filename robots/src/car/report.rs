@@ -3,7 +3,7 @@
 use super::model::{NS, NU};
 use super::plan::{CarBounds, CarOutcome};
 use super::problems::CarProblem;
-use crate::io::NonFiniteValue;
+use crate::io::{result_csv, NonFiniteValue};
 use crate::plot::{Plot, Series};
 use nalgebra::SVector;
 
@@ -38,28 +38,17 @@ impl CarTrajectory {
 
     /// trajectory.csv; an error naming the time and column of a non-finite value.
     pub fn csv(&self) -> Result<String, NonFiniteValue> {
-        let names: Vec<&'static str> = CSV_HEADER.split(',').collect();
-        let mut s = String::from(CSV_HEADER);
-        s.push('\n');
-        for k in 0..self.t.len() {
-            let row: Vec<f64> = std::iter::once(self.t[k])
-                .chain(self.pose[k].iter().copied())
-                .chain(self.shape[k].iter().copied())
-                .chain(self.velocity[k].iter().copied())
-                .chain(self.input[k].iter().copied())
-                .collect();
-            if let Some(j) = row.iter().position(|v| !v.is_finite()) {
-                return Err(NonFiniteValue {
-                    value: row[j],
-                    t: self.t[k],
-                    column: names[j],
-                });
-            }
-            let fields: Vec<String> = row.iter().map(|v| format!("{v:.17e}")).collect();
-            s.push_str(&fields.join(","));
-            s.push('\n');
-        }
-        Ok(s)
+        result_csv(
+            CSV_HEADER,
+            (0..self.t.len()).map(|k| {
+                std::iter::once(self.t[k])
+                    .chain(self.pose[k].iter().copied())
+                    .chain(self.shape[k].iter().copied())
+                    .chain(self.velocity[k].iter().copied())
+                    .chain(self.input[k].iter().copied())
+                    .collect()
+            }),
+        )
     }
 
     /// The largest distance between a problem pose and the trajectory's pose at its stage.
@@ -226,31 +215,20 @@ pub fn tracking_plots(t: &super::track::CarTracking) -> Vec<(String, String)> {
 /// tau_s,u_d` (the last row repeats the last input); an error naming the time and column
 /// of a non-finite value.
 pub fn tracking_csv(t: &super::track::CarTracking) -> Result<String, NonFiniteValue> {
-    const HEADER: &str = "t,x_plan,y_plan,theta_plan,x,y,theta,position_error,tau_s,u_d";
-    let names: Vec<&'static str> = HEADER.split(',').collect();
-    let mut csv = String::from(HEADER);
-    csv.push('\n');
-    for (k, error) in t.position_errors().into_iter().enumerate() {
-        let (p, q) = (t.planned[k], t.actual[k]);
-        let u = t
-            .input
-            .get(k)
-            .or(t.input.last())
-            .copied()
-            .unwrap_or([0.0, 0.0]);
-        let row = [
-            t.t[k], p[0], p[1], p[2], q[0], q[1], q[2], error, u[0], u[1],
-        ];
-        if let Some(j) = row.iter().position(|v| !v.is_finite()) {
-            return Err(NonFiniteValue {
-                value: row[j],
-                t: t.t[k],
-                column: names[j],
-            });
-        }
-        let fields: Vec<String> = row.iter().map(|v| format!("{v:.17e}")).collect();
-        csv.push_str(&fields.join(","));
-        csv.push('\n');
-    }
-    Ok(csv)
+    let errors = t.position_errors();
+    result_csv(
+        "t,x_plan,y_plan,theta_plan,x,y,theta,position_error,tau_s,u_d",
+        errors.iter().enumerate().map(|(k, &error)| {
+            let (p, q) = (t.planned[k], t.actual[k]);
+            let u = t
+                .input
+                .get(k)
+                .or(t.input.last())
+                .copied()
+                .unwrap_or([0.0, 0.0]);
+            vec![
+                t.t[k], p[0], p[1], p[2], q[0], q[1], q[2], error, u[0], u[1],
+            ]
+        }),
+    )
 }

@@ -233,3 +233,28 @@ pub struct NonFiniteValue {
     /// Its column.
     pub column: &'static str,
 }
+
+/// A result table as CSV text: `header` (comma-separated column names), then one line per
+/// row, every value as `{:.17e}` (read back to the same `f64`); the first column is the
+/// time. An error naming the time and the column of the first non-finite value.
+pub fn result_csv(
+    header: &'static str,
+    rows: impl IntoIterator<Item = Vec<f64>>,
+) -> Result<String, NonFiniteValue> {
+    let names: Vec<&'static str> = header.split(',').collect();
+    let mut s = String::from(header);
+    s.push('\n');
+    for row in rows {
+        if let Some(j) = row.iter().position(|v| !v.is_finite()) {
+            return Err(NonFiniteValue {
+                value: row[j],
+                t: row[0],
+                column: names[j],
+            });
+        }
+        let fields: Vec<String> = row.iter().map(|v| format!("{v:.17e}")).collect();
+        s.push_str(&fields.join(","));
+        s.push('\n');
+    }
+    Ok(s)
+}

@@ -10,7 +10,7 @@ use super::model::{ExtendedSnakeboard, Snakeboard, NA, NU};
 use super::problems::SnakeboardProblem;
 use crate::pose_path::start_path;
 use dmech::{Discretisation, PrincipalKinematicSystem};
-use dmech_lie::{LieGroup, Real};
+use dmech_lie::Real;
 use dmech_ocp::nlp::max_violation;
 use dmech_ocp::solver::{IpOptions, Status};
 use dmech_ocp::toolkit::kinematic_start::{shape_motion, ShapeMotion};
@@ -314,10 +314,4 @@ pub fn plan(
         h,
         trajectory: tr.trajectory(&r.iterate),
     })
-}
-
-/// The pose `coords(g)` of a group element, for reports.
-pub fn pose_of(g: &dmech_lie::Se2<f64>) -> [f64; 3] {
-    let c = g.coordinates();
-    [c[0], c[1], c[2]]
 }

@@ -4,7 +4,7 @@
 use super::model::{Snakeboard, NA, NU};
 use super::plan::{SnakeboardBounds, SnakeboardOutcome};
 use super::problems::SnakeboardProblem;
-use crate::io::NonFiniteValue;
+use crate::io::{result_csv, NonFiniteValue};
 use crate::plot::{Plot, Series};
 use nalgebra::SVector;
 
@@ -40,31 +40,19 @@ impl SnakeboardTrajectory {
 
     /// trajectory.csv; an error naming the time and column of a non-finite value.
     pub fn csv(&self, board: &Snakeboard) -> Result<String, NonFiniteValue> {
-        let names: Vec<&'static str> = CSV_HEADER.split(',').collect();
-        let mut s = String::from(CSV_HEADER);
-        s.push('\n');
-        for k in 0..self.t.len() {
-            let (v, phi) = (&self.velocity[k], self.shape[k][1]);
-            let momentum = board.momentum(phi, v[0], v[2]);
-            let row: Vec<f64> = std::iter::once(self.t[k])
-                .chain(self.pose[k].iter().copied())
-                .chain(self.shape[k].iter().copied())
-                .chain(v.iter().copied())
-                .chain(std::iter::once(momentum))
-                .chain(self.input[k].iter().copied())
-                .collect();
-            if let Some(j) = row.iter().position(|x| !x.is_finite()) {
-                return Err(NonFiniteValue {
-                    value: row[j],
-                    t: self.t[k],
-                    column: names[j],
-                });
-            }
-            let fields: Vec<String> = row.iter().map(|x| format!("{x:.17e}")).collect();
-            s.push_str(&fields.join(","));
-            s.push('\n');
-        }
-        Ok(s)
+        result_csv(
+            CSV_HEADER,
+            (0..self.t.len()).map(|k| {
+                let (v, phi) = (&self.velocity[k], self.shape[k][1]);
+                std::iter::once(self.t[k])
+                    .chain(self.pose[k].iter().copied())
+                    .chain(self.shape[k].iter().copied())
+                    .chain(v.iter().copied())
+                    .chain(std::iter::once(board.momentum(phi, v[0], v[2])))
+                    .chain(self.input[k].iter().copied())
+                    .collect()
+            }),
+        )
     }
 
     /// The distance of the last pose from `end`: position and heading, the larger.

@@ -1,14 +1,7 @@
 //! `car plan` and `car simulate`: the built-in problems solve from the generic start, and
 //! every constraint holds on the written trajectory.csv (re-measured from the file).
 
-use crate::common::{car, read_json, scratch};
-
-fn rows(csv: &str) -> Vec<Vec<f64>> {
-    csv.lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
-        .collect()
-}
+use crate::common::{car, read_json, rows, scratch};
 
 #[test]
 fn car_plans_the_built_in_problems() {

@@ -2,14 +2,7 @@
 //! default start with every constraint held on the written trajectory.csv (re-measured
 //! from the file), and the simulator's coasting circle and refusals.
 
-use crate::common::{read_json, scratch, snakeboard};
-
-fn rows(csv: &str) -> Vec<Vec<f64>> {
-    csv.lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
-        .collect()
-}
+use crate::common::{read_json, rows, scratch, snakeboard};
 
 #[test]
 fn snakeboard_plans_the_built_in_problems() {

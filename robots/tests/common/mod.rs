@@ -45,3 +45,11 @@ pub fn fails_with_one_line(args: &[&str], dir: &Path, expect: &str) {
     assert!(err.contains(expect), "'{err}' should mention '{expect}'");
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// The rows of a result CSV the tools wrote (the header skipped), every field a number.
+pub fn rows(csv: &str) -> Vec<Vec<f64>> {
+    csv.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect()
+}

@@ -5,14 +5,13 @@
 //! shape variable. Systems are drawn from seeds (`dmech_tests::random_system`); each test
 //! runs a bounded number of them, so CI's time stays small.
 
-use dmech::continuous::{ContinuousModel, RungeKutta};
 use dmech::partials::dl_dv;
 use dmech::{Discretisation, PrincipalKinematicSystem, VariationalIntegrator, ViState};
 use dmech_lie::LieGroup;
 use dmech_tests::random_system::{
     GroupFamily, Lcg, RandomSystem, RandomSystemSpec, Se2Family, Se3Family, So3Family,
 };
-use dmech_tests::runs::{config_distance, energy_envelope, envelope_growth, return_error};
+use dmech_tests::runs::{energy_envelope, envelope_growth};
 use nalgebra::SVector;
 
 /// `n` unforced steps of a random system (`NU = NS`).
@@ -100,10 +99,9 @@ fn the_discrete_constraint_holds_to_round_off() {
 // Observed order
 // ---------------------------------------------------------------------------------------
 
-/// Observed orders over the halving sequence `h = T/16 … T/128`, T = 1 s, against RK4 at
-/// T/2048 (its error, ~(h_ref ω)⁴, is below 1e-10 here, under a thousandth of the smallest
-/// VI error). The observed order at `(h, h/2)` is `p + O(hω)`: with ω ≲ 4 rad/s for these
-/// systems the deviation at the last pair (h = 1/64 s) is under 0.1.
+/// Observed orders ([`dmech_tests::runs::observed_orders`]). The observed order at
+/// `(h, h/2)` is `p + O(hω)`: with ω ≲ 4 rad/s for these systems the deviation at the last
+/// pair (h = 1/64 s) is under 0.1.
 fn observed_orders<F, const DOF: usize, const NS: usize>(
     seed: u64,
     disc: Discretisation,
@@ -113,23 +111,7 @@ where
 {
     let sys = RandomSystem::<F, DOF, NS>::draw(seed, conservative());
     let x0 = random_start::<F, DOF, NS>(seed);
-    let t_end = 1.0;
-    let n_ref = 2048;
-    let u = SVector::<f64, NS>::zeros();
-    let mut reference = x0;
-    for _ in 0..n_ref {
-        reference =
-            ContinuousModel::step(&sys, RungeKutta::Rk4, t_end / n_ref as f64, &reference, &u)
-                .expect("RK4 reference");
-    }
-    let errors: Vec<f64> = [16usize, 32, 64, 128]
-        .iter()
-        .map(|&n| {
-            let vi = VariationalIntegrator::new(t_end / n as f64).with_discretisation(disc);
-            config_distance(&reference, run(&sys, &vi, &x0, n).last().unwrap())
-        })
-        .collect();
-    errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect()
+    dmech_tests::runs::observed_orders::<_, DOF, NS, NS>(&sys, &x0, disc)
 }
 
 fn check_orders<F, const DOF: usize, const NS: usize>(seed: u64)
@@ -168,39 +150,23 @@ fn first_order_and_midpoint_converge_at_orders_one_and_two() {
 // Reversibility
 // ---------------------------------------------------------------------------------------
 
-/// The midpoint scheme is reversible: back at the start to round-off. The bound is derived
-/// per system: Newton stops each step within `τ = 1e-13·(1 + |v|)`, a perturbation of `v`
-/// of that size moves the returned configuration by `K τ` where `K` (the run's sensitivity
-/// to its start velocity) is measured by finite differences; 2n such perturbations add up
-/// to at most `2n K τ`, taken ×4 for the other round-off. The first-order scheme misses the
-/// start by O(h): far outside that bound.
+/// The midpoint scheme is reversible: back at the start to round-off, within the bound
+/// derived per system by [`dmech_tests::runs::reversibility`] (Newton's tolerance through
+/// the run's measured sensitivity). The first-order scheme misses the start by O(h): far
+/// outside that bound.
 fn check_reversibility<F, const DOF: usize, const NS: usize>(seed: u64)
 where
     F: GroupFamily<DOF>,
 {
     let sys = RandomSystem::<F, DOF, NS>::draw(seed, conservative());
     let x0 = random_start::<F, DOF, NS>(seed);
-    let (h, n) = (0.02, 150);
-    let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::Midpoint);
-
-    let forward = run(&sys, &vi, &x0, n);
-    let v_max = forward.iter().map(|x| x.v.amax()).fold(0.0, f64::max);
-    let delta = 1e-7;
-    let mut perturbed = x0;
-    perturbed.v[0] += delta;
-    let moved = config_distance(&forward[n], run(&sys, &vi, &perturbed, n).last().unwrap());
-    let sensitivity = (moved / delta).max(1.0);
-    let tau = vi.newton_tol * (1.0 + v_max);
-    let bound = 4.0 * 2.0 * n as f64 * sensitivity * tau;
-
-    let err = return_error(&sys, &vi, &x0, n);
+    let (err, bound, err_first) =
+        dmech_tests::runs::reversibility::<_, DOF, NS, NS>(&sys, &x0, 0.02, 150);
     assert!(
         err <= bound,
         "{} NS={NS} seed {seed}: midpoint returns {err:.2e} from its start (bound {bound:.2e})",
         F::NAME
     );
-    let first_order = VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder);
-    let err_first = return_error(&sys, &first_order, &x0, n);
     println!(
         "{} NS={NS} seed {seed}: back at the start to {err:.1e} (bound {bound:.1e}); first \
          order {err_first:.1e}",

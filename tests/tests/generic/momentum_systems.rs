@@ -3,7 +3,7 @@
 //! disk written two ways, and random systems of the class (constraint, discrete momentum
 //! equation, orders, reversibility, energy).
 
-use dmech::continuous::{acceleration, ContinuousModel, RungeKutta};
+use dmech::continuous::acceleration;
 use dmech::partials::dl_dxi;
 use dmech::{
     energy, Discretisation, NonholonomicSystem, PrincipalKinematicSystem, VariationalIntegrator,
@@ -16,7 +16,7 @@ use dmech_tests::momentum_systems::{
 use dmech_tests::random_system::{
     GroupFamily, Lcg, RandomSystemSpec, Se2Family, Se3Family, So3Family,
 };
-use dmech_tests::runs::{config_distance, energy_envelope, envelope_growth, return_error, run};
+use dmech_tests::runs::{energy_envelope, envelope_growth, observed_orders, reversibility, run};
 use nalgebra::{SVector, Vector2};
 use num_dual::Dual64;
 
@@ -297,7 +297,7 @@ fn random_systems_keep_the_constraint_and_the_discrete_momentum_equation() {
     }
 }
 
-/// Observed orders over `h = T/16 … T/128` against RK4 at T/2048 (the principal-kinematic
+/// Observed orders ([`dmech_tests::runs::observed_orders`], the principal-kinematic
 /// test's sequence and its argument for a deviation under 0.1 at the last pair).
 fn check_orders<F, const DOF: usize, const NS: usize, const NM: usize, const NA: usize>(seed: u64)
 where
@@ -307,29 +307,8 @@ where
 {
     let sys = draw::<F, DOF, NS, NM>(seed);
     let x0 = random_start::<F, DOF, NS, NM, NA>(seed);
-    let (t_end, n_ref) = (1.0, 2048);
-    let u = SVector::<f64, NS>::zeros();
-    let mut reference = x0;
-    for _ in 0..n_ref {
-        reference =
-            ContinuousModel::step(&sys, RungeKutta::Rk4, t_end / n_ref as f64, &reference, &u)
-                .expect("RK4 reference");
-    }
-    for (disc, p) in [
-        (Discretisation::FirstOrder, 1.0),
-        (Discretisation::Midpoint, 2.0),
-    ] {
-        let errors: Vec<f64> = [16usize, 32, 64, 128]
-            .iter()
-            .map(|&n| {
-                let vi = VariationalIntegrator::new(t_end / n as f64).with_discretisation(disc);
-                config_distance(
-                    &reference,
-                    run::<_, DOF, NA, NS>(&sys, &vi, &x0, n).last().unwrap(),
-                )
-            })
-            .collect();
-        let orders: Vec<f64> = errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
+    for (disc, p) in BOTH.into_iter().zip([1.0, 2.0]) {
+        let orders = observed_orders::<_, DOF, NA, NS>(&sys, &x0, disc);
         println!(
             "{} NS={NS} NM={NM} seed {seed} {disc:?}: observed orders {orders:.3?}",
             F::NAME
@@ -353,9 +332,8 @@ fn random_systems_converge_at_orders_one_and_two() {
     }
 }
 
-/// The midpoint scheme is reversible on the extended system; the bound is the
-/// principal-kinematic test's (Newton's tolerance through the run's measured sensitivity),
-/// and the first-order scheme must miss by far more than it.
+/// The midpoint scheme is reversible on the extended system, within the bound of
+/// [`dmech_tests::runs::reversibility`], and the first-order scheme misses by far more.
 fn check_reversibility<F, const DOF: usize, const NS: usize, const NM: usize, const NA: usize>(
     seed: u64,
 ) where
@@ -365,28 +343,7 @@ fn check_reversibility<F, const DOF: usize, const NS: usize, const NM: usize, co
 {
     let sys = draw::<F, DOF, NS, NM>(seed);
     let x0 = random_start::<F, DOF, NS, NM, NA>(seed);
-    let (h, n) = (0.02, 150);
-    let vi = VariationalIntegrator::new(h).with_discretisation(Discretisation::Midpoint);
-    let forward = run::<_, DOF, NA, NS>(&sys, &vi, &x0, n);
-    let v_max = forward.iter().map(|x| x.v.amax()).fold(0.0, f64::max);
-    let delta = 1e-7;
-    let mut perturbed = x0;
-    perturbed.v[0] += delta;
-    let moved = config_distance(
-        &forward[n],
-        run::<_, DOF, NA, NS>(&sys, &vi, &perturbed, n)
-            .last()
-            .unwrap(),
-    );
-    let sensitivity = (moved / delta).max(1.0);
-    let bound = 4.0 * 2.0 * n as f64 * sensitivity * vi.newton_tol * (1.0 + v_max);
-    let err = return_error::<_, DOF, NA, NS>(&sys, &vi, &x0, n);
-    let err_first = return_error::<_, DOF, NA, NS>(
-        &sys,
-        &VariationalIntegrator::new(h).with_discretisation(Discretisation::FirstOrder),
-        &x0,
-        n,
-    );
+    let (err, bound, err_first) = reversibility::<_, DOF, NA, NS>(&sys, &x0, 0.02, 150);
     println!(
         "{} NS={NS} NM={NM} seed {seed}: back to {err:.1e} (bound {bound:.1e}); first order {err_first:.1e}",
         F::NAME

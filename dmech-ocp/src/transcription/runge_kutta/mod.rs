@@ -117,15 +117,7 @@ where
         let xs = plan
             .stages
             .iter()
-            .map(|st| {
-                let mut x = SVector::<f64, NX>::zeros();
-                x.fixed_rows_mut::<NP>(0).copy_from(&st.pose);
-                x.fixed_rows_mut::<NS>(l.s_at()).copy_from(&st.shape);
-                x.fixed_rows_mut::<NS>(l.v_at()).copy_from(&st.velocity);
-                x.fixed_rows_mut::<NU>(l.u_at())
-                    .copy_from(&st.previous_input);
-                x
-            })
+            .map(|st| state_vector(l, &st.pose, &st.shape, &st.velocity, &st.previous_input))
             .collect();
         let ws = plan.stages[..n].iter().map(|st| st.input).collect();
         (xs, ws)

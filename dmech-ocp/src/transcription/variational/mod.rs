@@ -163,18 +163,12 @@ where
         let xs = (0..=n)
             .map(|k| {
                 let st = &plan.stages[k];
-                let mut x = SVector::<f64, NX>::zeros();
-                x.fixed_rows_mut::<NP>(0).copy_from(&st.pose);
-                l.set_shape(&mut x, &st.shape);
                 let v_before = if k == 0 {
                     start.velocity
                 } else {
                     plan.stages[k - 1].velocity
                 };
-                x.fixed_rows_mut::<NS>(l.v_at()).copy_from(&v_before);
-                x.fixed_rows_mut::<NU>(l.u_at())
-                    .copy_from(&st.previous_input);
-                x
+                state_vector(l, &st.pose, &st.shape, &v_before, &st.previous_input)
             })
             .collect();
         let ws = plan.stages[..n]

@@ -10,7 +10,7 @@ use robots::car::report::{plots, summary_json, CarTrajectory};
 use robots::car::simulate::{check_simulation, simulate, CarState};
 use robots::car::Car;
 use robots::check::check_size;
-use robots::cli::{integrator_parser, HessianArg};
+use robots::cli::{integrator_parser, positive, step, HessianArg};
 use robots::io::{read_input_columns, OutputSet};
 use robots::{progress, say};
 use std::path::PathBuf;
@@ -158,25 +158,6 @@ fn finite(s: &str) -> Result<f64, String> {
 
 #[derive(Clone, Copy, Debug)]
 struct Vec9([f64; 9]);
-
-fn positive(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("'{s}' is not a positive, finite number")),
-    }
-}
-
-fn step(s: &str) -> Result<f64, String> {
-    let h: f64 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("'{s}' is not a number"))?;
-    if h.is_finite() && h > 0.0 && h <= 0.1 {
-        Ok(h)
-    } else {
-        Err(format!("the step must be in (0, 0.1] s, got {s}"))
-    }
-}
 
 fn state(s: &str) -> Result<Vec9, String> {
     let v: Result<Vec<f64>, _> = s.split(',').map(|f| f.trim().parse::<f64>()).collect();

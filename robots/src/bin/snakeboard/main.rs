@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use dmech::Integrator;
 use dmech_ocp::solver::{IpOptions, Status};
 use robots::check::check_size;
-use robots::cli::{integrator_parser, HessianArg};
+use robots::cli::{integrator_parser, positive, step, HessianArg};
 use robots::io::{read_input_columns, OutputSet};
 use robots::snakeboard::plan::{plan, SnakeboardBounds, SnakeboardPlan, SnakeboardStart};
 use robots::snakeboard::problems::SnakeboardProblem;
@@ -115,13 +115,6 @@ struct SimulateArgs {
     max_torque: f64,
 }
 
-fn positive(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("'{s}' is not a positive, finite number")),
-    }
-}
-
 fn state(s: &str) -> Result<[f64; 8], String> {
     let v: Result<Vec<f64>, _> = s.split(',').map(|f| f.trim().parse::<f64>()).collect();
     match v {
@@ -131,18 +124,6 @@ fn state(s: &str) -> Result<[f64; 8], String> {
         _ => Err(format!(
             "'{s}' is not eight finite numbers x,y,theta,psi,phi,v_psi,v_phi,p"
         )),
-    }
-}
-
-fn step(s: &str) -> Result<f64, String> {
-    let h: f64 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("'{s}' is not a number"))?;
-    if h.is_finite() && h > 0.0 && h <= 0.1 {
-        Ok(h)
-    } else {
-        Err(format!("the step must be in (0, 0.1] s, got {s}"))
     }
 }
 
