@@ -54,18 +54,19 @@ use dmech_lie::LieGroup;
 use nalgebra::SVector;
 use std::marker::PhantomData;
 
-/// A pose path `τ ↦ g(τ)`, `τ ∈ [0, 1]` over the horizon.
-pub type PosePath<'a, G> = &'a (dyn Fn(f64) -> G + Sync);
+/// A pose path sampled for a mesh: `n ↦ (g_0, …, g_n)`, the poses at the `n + 1` stages of
+/// an `n`-step horizon.
+pub type PosePath<'a, G> = &'a (dyn Fn(usize) -> Vec<G> + Sync);
 
 /// What the solver starts from on the coarsest mesh.
 pub enum PlanStart<'a, G, const NS: usize> {
     /// Every state the problem's start state, every decision zero.
     Rest,
     /// The kinematic start ([`crate::toolkit::kinematic_start`]) along the pose path
-    /// `path(τ)`, `τ ∈ [0, 1]` over the horizon, sampled at the mesh's stages, with the
-    /// least-squares weight of each shape velocity.
+    /// `path(n)` sampled at the mesh's `n + 1` stages, with the least-squares weight of
+    /// each shape velocity.
     Path {
-        /// The pose at the fraction `τ` of the horizon.
+        /// The path at each mesh's stages.
         path: PosePath<'a, G>,
         /// `ρ_i`, one per shape velocity.
         regularisation: SVector<f64, NS>,
@@ -143,6 +144,9 @@ pub enum PlanError {
         /// The step asked for.
         h: f64,
     },
+    /// The layout does not fit the system or the sizes `NX`, `NW`.
+    #[error(transparent)]
+    Layout(#[from] crate::transcription::layout::LayoutError),
 }
 
 /// One mesh: the problem at a step.
@@ -159,6 +163,7 @@ struct Sequence<'s, S, F, P, G, const DOF: usize, const NP: usize, const NS: usi
     problem_at: F,
     discretisation: Discretisation,
     start: &'s PlanStart<'s, G, NS>,
+    layout: Layout,
     _sizes: Marker<P, DOF, NP>,
 }
 
@@ -178,7 +183,6 @@ where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
     F: Fn(f64) -> Option<P>,
     P: PlanningProblem<NP, NS, NU, NC>,
-    Dims<NP, NS, NU>: StageSizes<NX, NW>,
 {
     type Mesh = Mesh<P>;
     type Problem<'a>
@@ -196,7 +200,14 @@ where
         (self.problem_at)(h).map(|problem| Mesh { problem, h })
     }
     fn problem<'a>(&'a self, mesh: &'a Mesh<P>, _phase: usize) -> Self::Problem<'a> {
-        VarIntTranscription::new(self.sys, &mesh.problem, mesh.h, self.discretisation)
+        VarIntTranscription::with_layout(
+            self.sys,
+            &mesh.problem,
+            mesh.h,
+            self.discretisation,
+            self.layout,
+        )
+        .expect("plan_in_layout checked the layout against NX and NW")
     }
     fn start(&self, mesh: &Mesh<P>) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
         let n = mesh.problem.horizon();
@@ -209,8 +220,7 @@ where
             velocities: vec![SVector::zeros(); n],
         };
         let along = |path: PosePath<'_, S::Group<f64>>, weights: &SVector<f64, NS>| {
-            let poses: Vec<_> = (0..=n).map(|k| path(k as f64 / n as f64)).collect();
-            shape_motion(self.sys, mesh.h, &poses, &start.shape, weights).ok()
+            shape_motion(self.sys, mesh.h, &path(n), &start.shape, weights).ok()
         };
         let motion = match self.start {
             PlanStart::Rest => rest,
@@ -230,7 +240,7 @@ where
         tr.start_from_motion(&g0, &motion)
     }
     fn layout(&self) -> Layout {
-        Layout::new(NP, NS, NU)
+        self.layout
     }
 }
 
@@ -262,16 +272,62 @@ where
     P: PlanningProblem<NP, NS, NU, NC>,
     Dims<NP, NS, NU>: StageSizes<NX, NW>,
 {
+    plan_in_layout::<S, F, P, DOF, NP, NS, NU, NC, NX, NW>(
+        sys,
+        problem_at,
+        settings,
+        start,
+        Layout::new(NP, NS, NU),
+        &|_| {},
+    )
+}
+
+/// [`plan`] in `layout` (from [`Layout::new`], with [`Layout::ignoring`] for shape
+/// positions no equation reads: `NX` and `NW` then named by the caller), telling
+/// `progress` of each mesh.
+pub fn plan_in_layout<
+    S,
+    F,
+    P,
+    const DOF: usize,
+    const NP: usize,
+    const NS: usize,
+    const NU: usize,
+    const NC: usize,
+    const NX: usize,
+    const NW: usize,
+>(
+    sys: &S,
+    problem_at: F,
+    settings: &PlanSettings,
+    start: &PlanStart<'_, S::Group<f64>, NS>,
+    layout: Layout,
+    progress: &dyn Fn(&str),
+) -> Result<Plan<NP, NS, NU>, PlanError>
+where
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64> + Sync,
+    F: Fn(f64) -> Option<P>,
+    P: PlanningProblem<NP, NS, NU, NC>,
+{
     let h = settings.h;
     let finest = Mesh {
         problem: problem_at(h).ok_or(PlanError::NoMesh { h })?,
         h,
     };
+    VarIntTranscription::<S, &P, DOF, NP, NS, NU, NX, NW>::with_layout(
+        sys,
+        &finest.problem,
+        h,
+        settings.discretisation,
+        layout,
+    )
+    .map_err(PlanError::Layout)?;
     let seq = Sequence {
         sys,
         problem_at,
         discretisation: settings.discretisation,
         start,
+        layout,
         _sizes: PhantomData,
     };
     let sequence = SequenceSettings {
@@ -287,7 +343,7 @@ where
         finest,
         sequence,
         settings.solver.clone(),
-        &|_| {},
+        progress,
     );
     let tr = SequencedPlan::<NX, NW, NS, NU, NC>::problem(&seq, &on_mesh, 0);
     Ok(Plan {

@@ -11,13 +11,11 @@ use super::problems::SnakeboardProblem;
 use crate::pose_path::start_path;
 use dmech::{Discretisation, PrincipalKinematicSystem};
 use dmech_lie::Real;
-use dmech_ocp::nlp::max_violation;
 use dmech_ocp::solver::{IpOptions, Status};
-use dmech_ocp::toolkit::kinematic_start::{shape_motion, ShapeMotion};
-use dmech_ocp::toolkit::sequencing::{mesh_sequence, SequenceSettings, SequencedPlan};
+use dmech_ocp::toolkit::plan::{plan_in_layout, PlanSettings, PlanStart};
 use dmech_ocp::transcription::layout::Layout;
 use dmech_ocp::transcription::{
-    Condition, PlannedTrajectory, PlanningProblem, Quantity, Stage, StartState, VarIntTranscription,
+    Condition, PlannedTrajectory, PlanningProblem, Quantity, Stage, StartState,
 };
 use nalgebra::SVector;
 
@@ -185,94 +183,9 @@ pub fn layout(board: &ExtendedSnakeboard) -> Layout {
     Layout::new(3, NA, NU).ignoring(board.ignorable_shape())
 }
 
-type Transcription<'a, 'p> =
-    VarIntTranscription<'a, ExtendedSnakeboard, &'a SnakeboardPlan<'p>, 3, 3, NA, NU, NX, NW>;
-
-fn transcription<'a, 'p>(
-    board: &'a ExtendedSnakeboard,
-    plan: &'a SnakeboardPlan<'p>,
-    disc: Discretisation,
-) -> Transcription<'a, 'p> {
-    VarIntTranscription::with_layout(board, plan, plan.h, disc, layout(board))
-        .expect("NX and NW are the reduced layout's")
-}
-
-struct SnakeboardSequence<'p> {
-    board: &'p ExtendedSnakeboard,
-    problem: &'p SnakeboardProblem,
-    bounds: SnakeboardBounds,
-    disc: Discretisation,
-    start: SnakeboardStart,
-}
-
-impl<'p> SequencedPlan<NX, NW, NA, NU, NC> for SnakeboardSequence<'p> {
-    type Mesh = SnakeboardPlan<'p>;
-    type Problem<'a>
-        = Transcription<'a, 'p>
-    where
-        Self: 'a;
-    fn steps(&self, mesh: &SnakeboardPlan) -> usize {
-        mesh.n
-    }
-    fn step(&self, mesh: &SnakeboardPlan) -> f64 {
-        mesh.h
-    }
-    fn coarser(&self, mesh: &SnakeboardPlan) -> Option<SnakeboardPlan<'p>> {
-        SnakeboardPlan::new(self.problem, self.bounds, mesh.h * 2.0).ok()
-    }
-    fn problem<'a>(&'a self, mesh: &'a SnakeboardPlan<'p>, _phase: usize) -> Self::Problem<'a> {
-        transcription(self.board, mesh, self.disc)
-    }
-    fn start(&self, mesh: &SnakeboardPlan) -> (Vec<SVector<f64, NX>>, Vec<SVector<f64, NW>>) {
-        let zero = || {
-            let mut x = SVector::<f64, NX>::zeros();
-            for i in 0..3 {
-                x[i] = self.problem.start[i];
-            }
-            (vec![x; mesh.n + 1], vec![SVector::zeros(); mesh.n])
-        };
-        let at_rest = || ShapeMotion {
-            shapes: vec![SVector::zeros(); mesh.n + 1],
-            velocities: vec![SVector::zeros(); mesh.n],
-        };
-        let motion = match self.start {
-            SnakeboardStart::Zero => return zero(),
-            SnakeboardStart::Excited => at_rest(),
-            SnakeboardStart::Kinematic | SnakeboardStart::KinematicExcited => {
-                let path = start_path(&[self.problem.start, self.problem.end], false, mesh.n);
-                // ρ for (ψ̇, φ̇, p): the path fixes φ and p through E(φ); the rotor, which
-                // E does not read, rests.
-                let weights = SVector::<f64, NA>::new(1e-4, 1e-6, 1e-6);
-                match shape_motion(self.board, mesh.h, &path, &SVector::zeros(), &weights) {
-                    Ok(motion) => motion,
-                    Err(_) => return zero(),
-                }
-            }
-        };
-        let motion = match self.start {
-            SnakeboardStart::Kinematic => motion,
-            _ => {
-                // A rotor swing of 1 rad and an axle swing of 0.3 of its angle bound, a
-                // cycle every 2 s (at 0.5 Hz the rotor's peak rate is π rad/s, a third of
-                // its bound).
-                let amplitudes = SVector::<f64, NA>::new(1.0, 0.3 * self.bounds.axle_angle, 0.0);
-                motion.excited(mesh.h, &amplitudes, self.problem.duration / 2.0)
-            }
-        };
-        let g0 = dmech_lie::Se2::new(
-            self.problem.start[0],
-            self.problem.start[1],
-            self.problem.start[2],
-        );
-        self.problem(mesh, 0).start_from_motion(&g0, &motion)
-    }
-    fn layout(&self) -> Layout {
-        layout(self.board)
-    }
-}
-
-/// Plans `problem` at step `h` from `start`, by mesh sequencing from the coarsest mesh at
-/// or below 80 ms.
+/// Plans `problem` at step `h` from `start` by the toolkit's one call
+/// (`dmech_ocp::toolkit::plan::plan_in_layout`, in [`layout`]), by mesh sequencing from
+/// the coarsest mesh at or below 80 ms.
 pub fn plan(
     board: &Snakeboard,
     problem: &SnakeboardProblem,
@@ -282,18 +195,33 @@ pub fn plan(
     start: SnakeboardStart,
     opts: IpOptions,
 ) -> Result<SnakeboardOutcome, SnakeboardPlanError> {
-    let finest = SnakeboardPlan::new(problem, bounds, h)?;
+    SnakeboardPlan::new(problem, bounds, h)?;
     let extended = board.extended();
-    let seq = SnakeboardSequence {
-        board: &extended,
-        problem,
-        bounds,
-        disc: discretisation,
-        start,
-    };
-    let settings = SequenceSettings {
-        coarsest_step: 0.08,
-        restart_barrier: 1e-4,
+    let poses = [problem.start, problem.end];
+    let path = |n: usize| start_path(&poses, false, n);
+    // ρ for (ψ̇, φ̇, p): the path fixes φ and p through E(φ); the rotor, which E does not
+    // read, rests.
+    let weights = SVector::<f64, NA>::new(1e-4, 1e-6, 1e-6);
+    // A rotor swing of 1 rad and an axle swing of 0.3 of its angle bound, a cycle every
+    // 2 s (at 0.5 Hz the rotor's peak rate is π rad/s, a third of its bound).
+    let amplitudes = SVector::<f64, NA>::new(1.0, 0.3 * bounds.axle_angle, 0.0);
+    let cycles = problem.duration / 2.0;
+    let plan_start = match start {
+        SnakeboardStart::Zero => PlanStart::Rest,
+        SnakeboardStart::Kinematic => PlanStart::Path {
+            path: &path,
+            regularisation: weights,
+        },
+        SnakeboardStart::Excited => PlanStart::Excited {
+            path: None,
+            amplitudes,
+            cycles,
+        },
+        SnakeboardStart::KinematicExcited => PlanStart::Excited {
+            path: Some((&path, weights)),
+            amplitudes,
+            cycles,
+        },
     };
     let verbose = opts.verbose;
     let progress = |m: &str| {
@@ -301,17 +229,27 @@ pub fn plan(
             crate::progress!("{m}");
         }
     };
-    let r = mesh_sequence::<_, NX, NW, NA, NU, NC>(&seq, finest, settings, opts, &progress);
-    let on_mesh = SnakeboardPlan::new(problem, bounds, h)?;
-    let tr = transcription(&extended, &on_mesh, discretisation);
-    let max_violation = max_violation(&tr, &r.iterate.x, &r.iterate.w);
+    let settings = PlanSettings {
+        coarsest_step: 0.08,
+        solver: opts,
+        ..PlanSettings::new(h, discretisation)
+    };
+    let p = plan_in_layout::<_, _, _, 3, 3, NA, NU, NC, NX, NW>(
+        &extended,
+        |h| SnakeboardPlan::new(problem, bounds, h).ok(),
+        &settings,
+        &plan_start,
+        layout(&extended),
+        &progress,
+    )
+    .expect("the reduced layout fits NX and NW, and the finest mesh exists");
     Ok(SnakeboardOutcome {
-        status: r.status,
-        iterations: r.iterations,
-        objective: r.objective,
-        max_violation,
-        solve_time_s: r.timings.total,
+        status: p.status,
+        iterations: p.iterations,
+        objective: p.objective,
+        max_violation: p.max_violation,
+        solve_time_s: p.solve_time_s,
         h,
-        trajectory: tr.trajectory(&r.iterate),
+        trajectory: p.trajectory,
     })
 }
