@@ -20,6 +20,7 @@ pub mod dual;
 pub mod lcg;
 pub mod linalg;
 pub mod rn;
+pub mod rng;
 pub mod scalar;
 pub mod se2;
 pub mod se3;

@@ -178,7 +178,7 @@ pub fn channel_tests(
 mod tests {
     use super::*;
     use crate::diagnose::noise::difference_noise;
-    use crate::diagnose::rng::Rng;
+    use dmech_lie::rng::Rng;
 
     #[test]
     fn normal_quantile_matches_known_values() {

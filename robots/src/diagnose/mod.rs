@@ -32,7 +32,6 @@ pub mod noise;
 pub mod normal_equations;
 pub mod report;
 pub mod restart;
-pub mod rng;
 pub mod selection;
 pub mod session;
 pub mod verdict;

@@ -6,8 +6,8 @@
 //! give `none` on a log without effect, and `unexplained`, with the angle named, on a log
 //! whose effect its catalogue leaves out.
 
+use dmech_lie::rng::Rng;
 use robots::diagnose::model::{Catalogue, ParamSpec};
-use robots::diagnose::rng::Rng;
 use robots::diagnose::{
     diagnose, ChannelSpec, DiagnoseOptions, FitScalar, Indicator, MeasuredLog, Plant,
 };

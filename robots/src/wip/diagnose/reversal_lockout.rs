@@ -185,7 +185,7 @@ mod tests {
     /// windows resynchronise and some run from row 0), lockouts and window starts.
     #[test]
     fn the_resynchronised_start_agrees_with_the_whole_log() {
-        let mut rng = crate::diagnose::rng::Rng::new(23);
+        let mut rng = dmech_lie::rng::Rng::new(23);
         let mut resynced_cases = 0;
         let h = 0.01;
         for case in 0..300 {

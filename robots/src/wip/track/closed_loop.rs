@@ -8,9 +8,9 @@ use super::mpc::MpcController;
 use super::observer::{Estimate, Observer, OnBoard, PoseMeasurement, SensorModel};
 use super::simulated_robot::{check_physical, substeps, Divergence, Plant};
 use crate::check::CheckError;
-use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
 use crate::wip::{ReducedState, WipParams};
+use dmech_lie::rng::Rng;
 use nalgebra::SVector;
 
 /// Motor voltage limit (V).

@@ -7,9 +7,9 @@ use super::closed_loop::{track_with_substeps, Controller, TrackConfig, TrackErro
 use super::lq::SAMPLE;
 use super::observer::SensorModel;
 use super::simulated_robot::substeps;
-use crate::wip::diagnose::generate::Rng;
 use crate::wip::simulate::Trajectory;
 use crate::wip::WipParams;
+use dmech_lie::rng::Rng;
 
 /// The parameters perturbed: every mass, inertia and motor parameter.
 pub const PERTURBED: [&str; 13] = [

@@ -2,8 +2,8 @@
 //! an external pose at 50 Hz arriving late or never, fused by re-predicting the pose from
 //! the measurement's time with the odometry stored since (docs/tracking.md).
 
-use crate::wip::diagnose::generate::Rng;
 use crate::wip::WipParams;
+use dmech_lie::rng::Rng;
 use std::collections::VecDeque;
 
 /// The sensor model. `ideal()` is exact and immediate.

@@ -1,5 +1,6 @@
-//! A small deterministic random number generator for synthetic logs and statistical
-//! tests: reproducible from a seed, without a dependency.
+//! A small deterministic random number generator with normal deviates, for simulated
+//! sensors, synthetic logs and statistical tests: reproducible from a seed, without a
+//! dependency.
 
 /// A small deterministic generator (xoshiro256**), seeded by SplitMix64, with normal
 /// deviates by Box–Muller: reproducible logs without a dependency.
@@ -10,6 +11,7 @@ pub struct Rng {
 }
 
 impl Rng {
+    /// The generator seeded by `seed` (SplitMix64 spreads it over the four state words).
     pub fn new(seed: u64) -> Self {
         let mut z = seed;
         let mut next = || {
@@ -24,6 +26,7 @@ impl Rng {
             spare: None,
         }
     }
+    /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
         let r = self.s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
         let t = self.s[1] << 17;
