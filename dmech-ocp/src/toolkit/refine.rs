@@ -24,7 +24,8 @@
 //!   and the state equalities' `y` times `dual_scale`, each fine equality taking the
 //!   multiplier of the coarse equality on the same state component at the nearest time
 //!   (matched by what they constrain, not by their position in the list), the terminal
-//!   equalities' each its own (`dual_scale` is the caller's: how the cost-to-go scales
+//!   equalities' each its own, times `h/H` too (rows in force units: the momentum matching
+//!   divided by the step) (`dual_scale` is the caller's: how the cost-to-go scales
 //!   from the coarse to the fine problem, `N_f/N_c` for a cost summed over stages without
 //!   a factor `h`); bound multipliers and slacks interpolated as they
 //!   are (a pointwise bound's multiplier balances one stage's cost gradient, whose size does
@@ -82,17 +83,20 @@ pub fn match_equality_multipliers(
 
 /// The fine problem's `y`: the state equalities' multipliers matched
 /// ([`match_equality_multipliers`]), then the terminal equalities' (the entries of the coarse
-/// `y` after its state equalities'; the same rows on every mesh), times `dual_scale`.
+/// `y` after its state equalities'; the same rows on every mesh), times `dual_scale` and
+/// `h_fine/h_coarse`: a variational transcription's terminal rows are the last node's
+/// momentum matching divided by `h` (force units), so a multiplier, the objective's
+/// sensitivity to the row, is the sensitivity to the node's momentum times `h`.
 fn equality_multipliers(
     lists: &EqualityLists,
     coarse_y: &[f64],
-    n_coarse: usize,
-    n_fine: usize,
+    (n_coarse, n_fine): (usize, usize),
     dual_scale: f64,
+    step_ratio: f64,
 ) -> Vec<f64> {
     let mut y = match_equality_multipliers(lists, coarse_y, n_coarse, n_fine, dual_scale);
     let terminal = coarse_y.iter().skip(lists.coarse.len());
-    y.extend(terminal.map(|v| v * dual_scale));
+    y.extend(terminal.map(|v| v * dual_scale * step_ratio));
     y
 }
 
@@ -240,7 +244,13 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
         t_hi: bound(&coarse.t_hi),
         z_lo: bound(&coarse.z_lo),
         z_hi: bound(&coarse.z_hi),
-        y: equality_multipliers(equalities, &coarse.y, nc, n_fine, dual_scale),
+        y: equality_multipliers(
+            equalities,
+            &coarse.y,
+            (nc, n_fine),
+            dual_scale,
+            h_fine / h_coarse,
+        ),
         globals: Default::default(),
     }
 }
