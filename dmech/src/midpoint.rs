@@ -17,7 +17,7 @@
 //! which live at the nodes; swapping the two intervals and flipping the velocities maps
 //! the equation onto itself (the source of reversibility).
 
-use crate::newton::{solve_momentum_matching, NewtonCache, NewtonSettings};
+use crate::newton::{solve_momentum_matching, NewtonCache};
 use crate::partials::pulled_back_gradient;
 use crate::system::{Lift, PrincipalKinematicSystem};
 use crate::variational::{
@@ -125,6 +125,52 @@ impl VariationalIntegrator {
         Ok(self.solve_outgoing(sys, s0, u0, &known, v0, &mut cache)?.0)
     }
 
+    /// The continuous velocity at node `k` from the interval before it
+    /// ([`VariationalIntegrator::node_velocity`]): `P(s_k, v) = incoming_k + ½h F_{k−½}`
+    /// for `v` by Newton's method from `v_{k−1}`, `P` the continuous momentum.
+    pub(crate) fn midpoint_node_velocity<S, const DOF: usize, const NS: usize, const NU: usize>(
+        &self,
+        sys: &S,
+        s_prev: &SVector<f64, NS>,
+        v_prev: &SVector<f64, NS>,
+        u_prev: &SVector<f64, NU>,
+        s_k: &SVector<f64, NS>,
+    ) -> Result<SVector<f64, NS>, StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
+    {
+        type D<const N: usize> = DualSVec64<N>;
+        let h = self.h;
+        let a_k = sys.connection(s_k);
+        let incoming = interval_momentum(
+            sys,
+            h,
+            Discretisation::Midpoint,
+            s_prev,
+            v_prev,
+            &a_k,
+            Node::End,
+        );
+        let f_prev = interval_force::<S, f64, DOF, NS, NU>(sys, h, s_prev, v_prev, u_prev);
+        let known = incoming + f_prev * (0.5 * h);
+        let momentum = |v: &SVector<D<NS>, NS>| {
+            let (sk, ak) = (s_k.map(D::<NS>::from), a_k.map(D::<NS>::from));
+            let xi = -(ak * v);
+            pulled_back_gradient::<S, D<NS>, DOF, NS, NU>(sys, &sk, 0.0, v, &xi, &-ak)
+        };
+        let full = |v: &SVector<f64, NS>| {
+            let (p, j) = value_and_jacobian(momentum, v);
+            (p - known, j)
+        };
+        let residual = |v: &SVector<f64, NS>| {
+            let xi = -(a_k * v);
+            pulled_back_gradient::<S, f64, DOF, NS, NU>(sys, s_k, 0.0, v, &xi, &-a_k) - known
+        };
+        let mut cache = NewtonCache::default();
+        solve_momentum_matching(self.newton_settings(), v_prev, &mut cache, full, residual)
+            .map(|(v, _)| v)
+    }
+
     /// Solves `outgoing_k(v)/h − ½ F(s_{k+½}, v, u_k) = known` for `v` by Newton's method.
     /// The Jacobian is taken by vector duals through the whole outgoing side (ℓ's gradient
     /// in nested duals): unlike the first-order scheme, `v` also moves the point `s_{k+½}`
@@ -161,11 +207,6 @@ impl VariationalIntegrator {
             let f = interval_force::<S, f64, DOF, NS, NU>(sys, h, s_k, v, u_k);
             out / h - f * 0.5 - known
         };
-        let settings = NewtonSettings {
-            policy: self.jacobian,
-            tol: self.newton_tol,
-            max_iterations: self.max_newton_iterations,
-        };
-        solve_momentum_matching(settings, guess, cache, full, residual)
+        solve_momentum_matching(self.newton_settings(), guess, cache, full, residual)
     }
 }

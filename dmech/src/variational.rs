@@ -403,6 +403,14 @@ impl VariationalIntegrator {
             max_newton_iterations: 30,
         }
     }
+    /// Newton's settings of this integrator's momentum matching.
+    pub(crate) fn newton_settings(&self) -> NewtonSettings {
+        NewtonSettings {
+            policy: self.jacobian,
+            tol: self.newton_tol,
+            max_iterations: self.max_newton_iterations,
+        }
+    }
     /// The same integrator with another discretisation.
     pub fn with_discretisation(mut self, d: Discretisation) -> Self {
         self.discretisation = d;
@@ -436,6 +444,32 @@ impl VariationalIntegrator {
         match self.discretisation {
             Discretisation::FirstOrder => Ok(*v0),
             Discretisation::Midpoint => self.midpoint_start(sys, s0, v0, u0),
+        }
+    }
+
+    /// The continuous shape velocity `v(t_k)` at node `k` of a discrete path, from the
+    /// interval before it (`s_{k−1}`, `v_{k−1}`, `u_{k−1}`) and the node's shape `s_k`: the
+    /// inverse of [`VariationalIntegrator::start`]. For [`Discretisation::Midpoint`] the
+    /// discrete Legendre transform at the node, the `v` whose continuous momentum
+    /// `∂ℓ/∂v − A(s_k)ᵀ ∂ℓ/∂ξ` (at `ξ = −A(s_k) v`) is the momentum the interval brings,
+    /// its incoming momentum plus `½h F_{k−½}` (second order, where `v_{k−1} ≈ v(t_{k−½})`);
+    /// for the first-order scheme `v_{k−1}` itself.
+    pub fn node_velocity<S, const DOF: usize, const NS: usize, const NU: usize>(
+        &self,
+        sys: &S,
+        s_prev: &SVector<f64, NS>,
+        v_prev: &SVector<f64, NS>,
+        u_prev: &SVector<f64, NU>,
+        s_k: &SVector<f64, NS>,
+    ) -> Result<SVector<f64, NS>, StepError>
+    where
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
+    {
+        match self.discretisation {
+            Discretisation::FirstOrder => Ok(*v_prev),
+            Discretisation::Midpoint => {
+                self.midpoint_node_velocity(sys, s_prev, v_prev, u_prev, s_k)
+            }
         }
     }
 
@@ -566,26 +600,17 @@ impl VariationalIntegrator {
             (out - incoming) / h - f
         };
 
-        solve_momentum_matching(
-            NewtonSettings {
-                policy: self.jacobian,
-                tol: self.newton_tol,
-                max_iterations: self.max_newton_iterations,
+        solve_momentum_matching(self.newton_settings(), guess, cache, full, residual).map(
+            |(v, it)| {
+                (
+                    ViState {
+                        g: g_next,
+                        s: s_next,
+                        v,
+                    },
+                    it,
+                )
             },
-            guess,
-            cache,
-            full,
-            residual,
         )
-        .map(|(v, it)| {
-            (
-                ViState {
-                    g: g_next,
-                    s: s_next,
-                    v,
-                },
-                it,
-            )
-        })
     }
 }

@@ -643,18 +643,38 @@ where
     }
 }
 
-/// The terminal cost `ℓ_N(x_N)`: value, gradient and Hessian, by one `Dual2` pass.
-#[derive(Clone, Copy, Debug)]
+/// The last stage's own functions at `x_N`: the terminal cost `ℓ_N` (value, gradient) and
+/// the terminal equalities `r(x_N)` (values, gradients), with the curvature of
+/// `ℓ_N + yᵀr` for the terminal equalities' multipliers `y`, by one `Dual2` pass.
+#[derive(Clone, Debug)]
 pub struct TerminalDerivatives<const NX: usize> {
     /// `ℓ_N(x_N)`.
     pub cost: f64,
     /// Its gradient.
     pub gx: SVector<f64, NX>,
-    /// Its Hessian.
+    /// The Hessian of `ℓ_N + yᵀr`.
     pub hxx: SMatrix<f64, NX, NX>,
+    /// `r(x_N)` ([`StageProblem::terminal_equalities`]).
+    pub equalities: Vec<f64>,
+    /// `∇r_j(x_N)`, one per terminal equality.
+    pub equality_gradients: Vec<SVector<f64, NX>>,
 }
 
-/// The terminal cost's [`TerminalDerivatives`] at `x`.
+impl<const NX: usize> TerminalDerivatives<NX> {
+    /// No terminal cost and no terminal equalities.
+    pub fn zeros() -> Self {
+        TerminalDerivatives {
+            cost: 0.0,
+            gx: SVector::zeros(),
+            hxx: SMatrix::zeros(),
+            equalities: Vec::new(),
+            equality_gradients: Vec::new(),
+        }
+    }
+}
+
+/// The [`TerminalDerivatives`] of `p` at `x` with the terminal equalities' multipliers `y`
+/// (one per terminal equality; missing ones are taken as zero).
 pub fn terminal_derivatives<
     P,
     const NX: usize,
@@ -665,15 +685,27 @@ pub fn terminal_derivatives<
 >(
     p: &P,
     x: &SVector<f64, NX>,
+    y: &[f64],
 ) -> TerminalDerivatives<NX>
 where
     P: StageProblem<NX, NW, NE, NF, NC>,
 {
-    let v = p.terminal_cost(&seed2(x));
+    let xd = seed2(x);
+    let v = p.terminal_cost(&xd);
+    let gradient = |d: &Dual2SVec64<NX>| d.v1.0.map_or_else(SVector::zeros, |g| g.transpose());
+    let mut hxx = hess2(&v);
+    let rows = p.terminal_equalities(&xd);
+    for (r, &yj) in rows.iter().zip(y) {
+        if yj != 0.0 {
+            hxx += hess2(r) * yj;
+        }
+    }
     TerminalDerivatives {
         cost: v.re,
-        gx: v.v1.0.map_or_else(SVector::zeros, |g| g.transpose()),
-        hxx: hess2(&v),
+        gx: gradient(&v),
+        hxx,
+        equalities: rows.iter().map(|r| r.re).collect(),
+        equality_gradients: rows.iter().map(gradient).collect(),
     }
 }
 

@@ -7,6 +7,7 @@
 //!      e_k(x_k, w_k) = 0                        (stage equality, NE rows)
 //!      lo_k ≤ c_k(x_k, w_k) ≤ hi_k              (stage inequalities, NC rows)
 //!      x_k[i] = value                           (state equalities: waypoints, end state)
+//!      r(x_N) = 0                               (terminal equalities, nonlinear)
 //! ```
 //! The stage equality must be solvable for the first `NE` components of `w` (its Jacobian
 //! with respect to them is invertible): the solver eliminates them stage by stage, which
@@ -72,6 +73,11 @@ macro_rules! forward_stage_problem {
     (@one $p:ident state_equalities) => {
         fn state_equalities(&self) -> Vec<$crate::nlp::StateEquality> {
             self.$p.state_equalities()
+        }
+    };
+    (@one $p:ident terminal_equalities) => {
+        fn terminal_equalities<T: Real>(&self, x: &SVector<T, NX>) -> Vec<T> {
+            self.$p.terminal_equalities(x)
         }
     };
     (@one $p:ident affine_in_state) => {
@@ -321,6 +327,16 @@ pub trait StageProblem<
     fn bounds(&self, k: usize) -> (SVector<f64, NC>, SVector<f64, NC>);
     /// The state equalities, any order.
     fn state_equalities(&self) -> Vec<StateEquality>;
+    /// Nonlinear equalities on the end state, `r(x_N) = 0`: conditions no single state
+    /// component says, such as the discrete Legendre transform at the last node of a
+    /// midpoint plan that ends at rest (`crate::transcription::variational`). The same
+    /// number of rows at every `x`. The solver treats them as it treats the state
+    /// equalities (dual-regularised rows of the last stage, multipliers after the state
+    /// equalities' in [`crate::solver::Iterate::y`]), with their exact curvature. Default:
+    /// none.
+    fn terminal_equalities<T: Real>(&self, _x: &SVector<T, NX>) -> Vec<T> {
+        Vec::new()
+    }
     /// `true` if the cost and the inequalities are affine in `x` (the `xx` and `xw` blocks of
     /// their Hessian vanish), which saves the solver two of its three second-order passes.
     /// A declaration, checked by the solver at its start point (it stops with an error if
@@ -432,8 +448,8 @@ pub trait StageProblem<
 }
 
 /// The largest violation of any constraint of `p` at the primal point `(x, w)`: dynamics
-/// `f_k(x_k, w_k) − x_{k+1}`, stage equalities, path bounds and state equalities; `∞` if
-/// any is NaN. What a plan reports as its `max_violation`, measured on the trajectory it
+/// `f_k(x_k, w_k) − x_{k+1}`, stage equalities, path bounds, state and terminal
+/// equalities; `∞` if any is NaN. What a plan reports as its `max_violation`, measured on the trajectory it
 /// returns rather than taken from the solver's filter.
 pub fn max_violation<
     P,
@@ -462,6 +478,9 @@ where
     }
     for e in p.state_equalities() {
         worst = worst.max((x[e.stage][e.index] - e.value).abs());
+    }
+    for r in p.terminal_equalities(&x[w.len()]) {
+        worst = worst.max(r.abs());
     }
     if worst.is_nan() {
         f64::INFINITY

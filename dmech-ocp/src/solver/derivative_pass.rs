@@ -119,11 +119,7 @@ impl<const NX: usize, const NW: usize, const NE: usize, const NF: usize, const N
             aux: with_room(capacity),
             qn: with_room(capacity),
             constants: ConstantsTable::default(),
-            terminal: TerminalDerivatives {
-                cost: 0.0,
-                gx: SVector::zeros(),
-                hxx: SMatrix::zeros(),
-            },
+            terminal: TerminalDerivatives::zeros(),
             couplings: Vec::new(),
             sweep: BackwardSweep::new(0, &SMatrix::zeros(), &SVector::zeros(), 0.0),
         }
@@ -211,7 +207,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 finish(k, d, a);
             });
         }
-        ws.terminal = self.p.terminal_derivatives(&it.x[self.n]);
+        ws.terminal = self
+            .p
+            .terminal_derivatives(&it.x[self.n], self.terminal_multipliers(&it.y));
         tm.derivatives += t0.elapsed().as_secs_f64();
     }
 }

@@ -22,7 +22,8 @@ pub struct Iterate<const NX: usize, const NW: usize, const NC: usize> {
     pub z_lo: Vec<SVector<f64, NC>>,
     /// The upper bounds' multipliers.
     pub z_hi: Vec<SVector<f64, NC>>,
-    /// The state equalities' multipliers, in the problem's order.
+    /// The state equalities' multipliers, in the problem's order, then the terminal
+    /// equalities' ([`crate::nlp::StageProblem::terminal_equalities`]).
     pub y: Vec<f64>,
     /// The global variables and their multipliers (empty without globals).
     pub globals: GlobalIterate,

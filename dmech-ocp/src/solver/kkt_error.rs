@@ -139,10 +139,16 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         for &j in &self.eqs_at[n] {
             gx_n[self.eqs[j].index] = 0.0;
         }
+        let gx_n = self.without_terminal_rows(gx_n, terminal);
         dual = dual.max(gx_n.amax());
-        for (j, e) in self.eqs.iter().enumerate() {
+        for e in &self.eqs {
             primal = primal.max((it.x[e.stage][e.index] - e.value).abs());
-            mult_sum += it.y[j].abs();
+        }
+        for r in &terminal.equalities {
+            primal = primal.max(r.abs());
+        }
+        for y in &it.y {
+            mult_sum += y.abs();
             mult_cnt += 1.0;
         }
         let mut global_dual = 0.0f64;
@@ -162,6 +168,41 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             primal,
             s_d,
         }
+    }
+
+    /// `g` less its least-squares combination of the terminal equalities' gradients, those
+    /// restricted, as `g` is, to the components no state equality at `x_N` fixes: the
+    /// dual residual at `x_N` with the best multipliers of those rows (what zeroing a
+    /// component does for a state equality's unit row; the iterate's `y` carries the
+    /// regularised update's round-off amplified by `1/δ_c`).
+    fn without_terminal_rows(
+        &self,
+        mut g: SVector<f64, NX>,
+        terminal: &TerminalDerivatives<NX>,
+    ) -> SVector<f64, NX> {
+        let m = terminal.equality_gradients.len();
+        if m == 0 {
+            return g;
+        }
+        let fixed = |a: &SVector<f64, NX>| {
+            let mut a = *a;
+            for &j in &self.eqs_at[self.n] {
+                a[self.eqs[j].index] = 0.0;
+            }
+            a
+        };
+        let rows: Vec<SVector<f64, NX>> = terminal.equality_gradients.iter().map(fixed).collect();
+        let a = nalgebra::DMatrix::from_fn(NX, m, |i, j| rows[j][i]);
+        let b = nalgebra::DVector::from_column_slice(g.as_slice());
+        // `min ‖A c − g‖` by the SVD (rank-safe: a row that vanishes or repeats is no
+        // obstacle); `g − A c` is the part of `g` no combination of the rows explains.
+        if let Ok(c) = a.clone().svd(true, true).solve(&b, 1e-12) {
+            let fit = a * c;
+            for i in 0..NX {
+                g[i] -= fit[i];
+            }
+        }
+        g
     }
 
     /// The largest `|t z − μ|` over all bounded sides, scaled by `s_d`.

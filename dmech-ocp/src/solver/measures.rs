@@ -50,6 +50,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         for e in &self.eqs {
             add(it.x[e.stage][e.index] - e.value);
         }
+        for r in self.p.terminal_equalities(&it.x[self.n]) {
+            add(r);
+        }
         obj += self.p.terminal_cost(&it.x[self.n]);
         let mut barrier = obj - mu * logs.value();
         if let Some(gs) = &self.globals {
@@ -86,6 +89,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         }
         for e in &self.eqs {
             worst = worst.max((x[e.stage][e.index] - e.value).abs());
+        }
+        for r in self.p.terminal_equalities(&x[self.n]) {
+            worst = worst.max(r.abs());
         }
         worst
     }

@@ -4,7 +4,7 @@
 //! Per iteration (`Solver::run`): stage derivatives in parallel (`derivative_pass.rs`);
 //! the KKT error (`kkt_error.rs`); the Newton step (`kkt.rs`): the stage equality eliminated for its `NE` dependent
 //! decisions, inequality slacks and multipliers condensed into the stage Hessian
-//! (`Cᵀ Σ C`), state equalities as dual-regularised rows (a quadratic term
+//! (`Cᵀ Σ C`), state and terminal equalities as dual-regularised rows (a quadratic term
 //! `‖G δx + c‖²/(2δ_c)` and the multiplier update `y⁺ = y + (G δx + c)/δ_c`), one backward
 //! and one forward Riccati sweep (`riccati.rs`), inertia correction by a primal shift when
 //! a stage's `H_uu` is not positive definite (`inertia.rs`); IPOPT's filter line search
@@ -165,6 +165,9 @@ pub struct Solver<
     bounds: Vec<Bounds<NC>>,
     eqs: Vec<StateEquality>,
     eqs_at: Vec<Vec<usize>>,
+    /// The number of terminal equalities ([`StageProblem::terminal_equalities`]): their
+    /// multipliers follow the state equalities' in `Iterate::y`.
+    terminal_rows: usize,
     /// The problem's global variables, if any (`globals.rs`).
     globals: Option<GlobalSpec>,
     /// The sparse KKT matrix's symbolic factorisation, once the sparse path needs it.
@@ -218,6 +221,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             assert!(e.stage <= n && e.index < NX, "state equality out of range");
             eqs_at[e.stage].push(j);
         }
+        let terminal_rows = p.terminal_equalities(&p.initial_state()).len();
         Solver {
             p,
             derived,
@@ -226,6 +230,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             bounds,
             eqs,
             eqs_at,
+            terminal_rows,
             globals,
             #[cfg(feature = "sparse-ldlt")]
             sparse: Default::default(),
@@ -303,10 +308,22 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             bounds: self.bounds.clone(),
             eqs: self.eqs.clone(),
             eqs_at: self.eqs_at.clone(),
+            terminal_rows: self.terminal_rows,
             globals,
             #[cfg(feature = "sparse-ldlt")]
             sparse: Default::default(),
         }
+    }
+
+    /// The number of equality multipliers in `Iterate::y`: the state equalities', then the
+    /// terminal equalities'.
+    fn equality_multipliers(&self) -> usize {
+        self.eqs.len() + self.terminal_rows
+    }
+
+    /// The terminal equalities' multipliers in `y` (empty if `y` has none).
+    fn terminal_multipliers<'y>(&self, y: &'y [f64]) -> &'y [f64] {
+        y.get(self.eqs.len()..).unwrap_or(&[])
     }
 
     /// The interior-point loop on the problem as given, with feasibility restoration.

@@ -40,6 +40,7 @@ pub(super) trait StageOracle<
     fn globals(&self) -> Option<Globals>;
     fn cost(&self, k: usize, x: &SVector<f64, NX>, w: &SVector<f64, NW>) -> f64;
     fn terminal_cost(&self, x: &SVector<f64, NX>) -> f64;
+    fn terminal_equalities(&self, x: &SVector<f64, NX>) -> Vec<f64>;
     fn constraints(&self, k: usize, x: &SVector<f64, NX>, w: &SVector<f64, NW>)
         -> SVector<f64, NC>;
     fn values(
@@ -92,7 +93,8 @@ pub(super) trait StageOracle<
         w: &SVector<f64, NW>,
         known: Precomputed<'_, NX, NW, NE, NC>,
     );
-    fn terminal_derivatives(&self, x: &SVector<f64, NX>) -> TerminalDerivatives<NX>;
+    /// [`terminal_derivatives`] with the terminal equalities' multipliers `y`.
+    fn terminal_derivatives(&self, x: &SVector<f64, NX>, y: &[f64]) -> TerminalDerivatives<NX>;
 }
 
 /// What the restoration problem's solver needs beyond a [`StageOracle`]: its proximity
@@ -174,6 +176,9 @@ where
     fn terminal_cost(&self, x: &SVector<f64, NX>) -> f64 {
         StageProblem::terminal_cost(self, x)
     }
+    fn terminal_equalities(&self, x: &SVector<f64, NX>) -> Vec<f64> {
+        StageProblem::terminal_equalities(self, x)
+    }
     fn constraints(
         &self,
         k: usize,
@@ -242,8 +247,8 @@ where
     ) {
         stage_first_derivatives_into(d, self, k, x, w, known);
     }
-    fn terminal_derivatives(&self, x: &SVector<f64, NX>) -> TerminalDerivatives<NX> {
-        terminal_derivatives(self, x)
+    fn terminal_derivatives(&self, x: &SVector<f64, NX>, y: &[f64]) -> TerminalDerivatives<NX> {
+        terminal_derivatives(self, x, y)
     }
 }
 

@@ -126,12 +126,13 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
 
     /// The step from the LQ solution: each stage's decision (with `dw_globals[k]` added,
     /// the globals' part of a problem that has them), slacks and bound multipliers, and the
-    /// state equalities' multipliers.
+    /// state and terminal equalities' multipliers (`terminal`: the last stage's derivatives).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn recover(
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
+        terminal: &TerminalDerivatives<NX>,
         elim: &[Elimination<NX, NW, NF>],
         sol: LqSolution<NX, NF>,
         mu: f64,
@@ -180,12 +181,21 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         let dt_hi = per_stage.iter().map(|s| s.1[1]).collect();
         let dz_lo = per_stage.iter().map(|s| s.1[2]).collect();
         let dz_hi = per_stage.iter().map(|s| s.1[3]).collect();
-        let y = self
+        let mut y: Vec<f64> = self
             .eqs
             .iter()
             .enumerate()
             .map(|(j, e)| it.y[j] + (dx[e.stage][e.index] + it.x[e.stage][e.index] - e.value) / dc)
             .collect();
+        let y_terminal = self.terminal_multipliers(&it.y);
+        for (j, (r, a)) in terminal
+            .equalities
+            .iter()
+            .zip(&terminal.equality_gradients)
+            .enumerate()
+        {
+            y.push(y_terminal.get(j).copied().unwrap_or(0.0) + (a.dot(&dx[n]) + r) / dc);
+        }
         Step {
             dx,
             dw,

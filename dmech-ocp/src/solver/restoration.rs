@@ -11,10 +11,10 @@
 //! restoration problem keeps the original's stages and replaces its objective by
 //!
 //! ```text
-//! ρ/2 Σ_j (x_{k_j}[i_j] − v_j)²  +  ζ/2 Σ_k (‖D_x (x_k − x̂_k)‖² + ‖D_w (w_k − ŵ_k)‖²)
+//! ρ/2 Σ_j (x_{k_j}[i_j] − v_j)² + ρ/2 ‖r(x_N)‖²  +  ζ/2 Σ_k (‖D_x (x_k − x̂_k)‖² + ‖D_w (w_k − ŵ_k)‖²)
 //! ```
 //!
-//! (the state equalities' residuals, squared, and a proximity to the point `(x̂, ŵ)` where
+//! (the state and terminal equalities' residuals, squared, and a proximity to the point `(x̂, ŵ)` where
 //! restoration began, `D = diag(min(1, 1/|x̂_i|))`, `ζ = √μ` following the restoration's
 //! barrier parameter down, so that the proximity vanishes at its solution), solved by the
 //! same interior point. `ρ = ρ₁/θ̂`, with `θ̂` the largest violation at entry, makes the penalty's
@@ -108,7 +108,13 @@ where
     }
     fn terminal_cost<T: Real>(&self, x: &SVector<T, NX>) -> T {
         let n = self.at.x_ref.len() - 1;
-        self.penalty(n, x) + proximity(x, &self.at.x_ref[n]) * (0.5 * self.zeta())
+        let mut terminal = T::zero();
+        for r in self.p.terminal_equalities(x) {
+            terminal += r * r;
+        }
+        self.penalty(n, x)
+            + terminal * (0.5 * self.at.rho)
+            + proximity(x, &self.at.x_ref[n]) * (0.5 * self.zeta())
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
         Vec::new()
@@ -147,12 +153,21 @@ pub(super) enum Restored<const NX: usize, const NW: usize, const NC: usize> {
 impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, const NC: usize>
     Solver<'a, NX, NW, NE, NF, NC>
 {
-    /// `Σ_j |x_{k_j}[i_j] − v_j|`, the state equalities' part of `θ`.
+    /// `Σ_j |x_{k_j}[i_j] − v_j| + Σ_j |r_j(x_N)|`, the state and terminal equalities'
+    /// part of `θ`.
     pub(super) fn state_equality_violation(&self, it: &Iterate<NX, NW, NC>) -> f64 {
-        self.eqs
+        let state: f64 = self
+            .eqs
             .iter()
             .map(|e| (it.x[e.stage][e.index] - e.value).abs())
-            .sum()
+            .sum();
+        let terminal: f64 = self
+            .p
+            .terminal_equalities(&it.x[self.n])
+            .iter()
+            .map(|r| r.abs())
+            .sum();
+        state + terminal
     }
 
     /// Restoration from `it` (measures `m`, barrier `mu`), within `max_iter` iterations and
@@ -213,7 +228,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         let target = KAPPA_RESTORATION * m.theta;
         // The state equalities' part may be zero at entry: within their tolerance then.
         let eq_target = KAPPA_RESTORATION * self.state_equality_violation(it)
-            + self.eqs.len() as f64 * self.opts.constr_viol_tol;
+            + self.equality_multipliers() as f64 * self.opts.constr_viol_tol;
         let done = |r: &Iterate<NX, NW, NC>, rm: &Measures| {
             let eq = self.state_equality_violation(r);
             !complete && eq <= eq_target && rm.theta + eq <= target
@@ -227,7 +242,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             },
         );
         let mut back = r.iterate;
-        back.y = vec![0.0; self.eqs.len()];
+        back.y = vec![0.0; self.equality_multipliers()];
         let violation = self.measures(&back, &self.values(&back), mu).theta_max;
         let feasible =
             complete && r.status == Status::Solved && violation <= FEASIBLE_FRACTION * m.theta_max;

@@ -34,7 +34,8 @@ where
     P: StageProblem<NX, NW, NE, NF, NC>,
 {
     crate::nlp::forward_stage_problem!(p: horizon, initial_state, dynamics, equality,
-        constraints, bounds, state_equalities, affine_in_state, constant_cost_curvature,
+        constraints, bounds, state_equalities, terminal_equalities, affine_in_state,
+        constant_cost_curvature,
         dynamics_jacobian, equality_jacobian, equality_partials, constraint_curvature);
     fn cost<T: Real>(&self, k: usize, x: &SVector<T, NX>, w: &SVector<T, NW>) -> T {
         self.p.cost(k, x, w) * T::from(self.c)

@@ -32,7 +32,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             t_hi: vec![SVector::repeat(1.0); self.n],
             z_lo: vec![SVector::zeros(); self.n],
             z_hi: vec![SVector::zeros(); self.n],
-            y: vec![0.0; self.eqs.len()],
+            y: vec![0.0; self.equality_multipliers()],
             globals: self
                 .globals
                 .as_ref()
@@ -68,10 +68,12 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
     /// A warm start from a previous solution (of this or a nearby problem): primal values
     /// and multipliers kept, slacks recomputed from the constraints at this problem and
     /// pushed at least `μ₀` into the interior, bound multipliers kept but not below
-    /// `WARM_MULT_FLOOR · μ₀/t`.
+    /// `WARM_MULT_FLOOR · μ₀/t`. Equality multipliers beyond this problem's are dropped,
+    /// missing ones start at zero.
     pub fn warm_iterate(&self, prev: Iterate<NX, NW, NC>) -> Iterate<NX, NW, NC> {
         let mut it = prev;
         it.x[0] = self.p.initial_state();
+        it.y.resize(self.equality_multipliers(), 0.0);
         let mu = self.opts.mu_init;
         if let Some(gs) = &self.globals {
             // Globals from the previous solution if it has them (kept, with their

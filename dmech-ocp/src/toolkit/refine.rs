@@ -23,10 +23,11 @@
 //! - multipliers: `λ` (piecewise constant: it belongs to a step, and jumps at a waypoint)
 //!   and the state equalities' `y` times `dual_scale`, each fine equality taking the
 //!   multiplier of the coarse equality on the same state component at the nearest time
-//!   (matched by what they constrain, not by their position in the list; `dual_scale` is
-//!   the caller's: how
-//!   the cost-to-go scales from the coarse to the fine problem, `N_f/N_c` for a cost summed
-//!   over stages without a factor `h`); bound multipliers and slacks interpolated as they
+//!   (matched by what they constrain, not by their position in the list), the terminal
+//!   equalities' each its own, times `h/H` too (rows in force units: the momentum matching
+//!   divided by the step) (`dual_scale` is the caller's: how the cost-to-go scales
+//!   from the coarse to the fine problem, `N_f/N_c` for a cost summed over stages without
+//!   a factor `h`); bound multipliers and slacks interpolated as they
 //!   are (a pointwise bound's multiplier balances one stage's cost gradient, whose size does
 //!   not depend on `h`), linearly between the coarse stages' middles `t_{k+½}`, where
 //!   each stage's constraints on `(x_k, w_k)` sit. The caller's warm start recomputes the
@@ -78,6 +79,25 @@ pub fn match_equality_multipliers(
                 .map_or(0.0, |(_, y)| y * dual_scale)
         })
         .collect()
+}
+
+/// The fine problem's `y`: the state equalities' multipliers matched
+/// ([`match_equality_multipliers`]), then the terminal equalities' (the entries of the coarse
+/// `y` after its state equalities'; the same rows on every mesh), times `dual_scale` and
+/// `h_fine/h_coarse`: a variational transcription's terminal rows are the last node's
+/// momentum matching divided by `h` (force units), so a multiplier, the objective's
+/// sensitivity to the row, is the sensitivity to the node's momentum times `h`.
+fn equality_multipliers(
+    lists: &EqualityLists,
+    coarse_y: &[f64],
+    (n_coarse, n_fine): (usize, usize),
+    dual_scale: f64,
+    step_ratio: f64,
+) -> Vec<f64> {
+    let mut y = match_equality_multipliers(lists, coarse_y, n_coarse, n_fine, dual_scale);
+    let terminal = coarse_y.iter().skip(lists.coarse.len());
+    y.extend(terminal.map(|v| v * dual_scale * step_ratio));
+    y
 }
 
 /// The fine iterate on `n_fine` steps of length `h_fine` from the coarse one (of
@@ -224,7 +244,13 @@ pub fn refine_varint_iterate<const NX: usize, const NW: usize, const NC: usize>(
         t_hi: bound(&coarse.t_hi),
         z_lo: bound(&coarse.z_lo),
         z_hi: bound(&coarse.z_hi),
-        y: match_equality_multipliers(equalities, &coarse.y, nc, n_fine, dual_scale),
+        y: equality_multipliers(
+            equalities,
+            &coarse.y,
+            (nc, n_fine),
+            dual_scale,
+            h_fine / h_coarse,
+        ),
         globals: Default::default(),
     }
 }

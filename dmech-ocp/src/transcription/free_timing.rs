@@ -429,13 +429,11 @@ where
         self.plan.problem.bounds(k)
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
-        let conditions = crate::transcription::conditions_for_scheme::<NU>(
-            self.plan.problem.conditions(),
-            self.plan.problem.horizon(),
-            NS,
-            self.plan.stages.discretisation,
-        );
-        crate::transcription::state_equalities(self.plan.stages.layout, &conditions)
+        // The first-order scheme only (checked in `new`): the conditions as they are.
+        crate::transcription::state_equalities(
+            self.plan.stages.layout,
+            &self.plan.scheme_conditions().state,
+        )
     }
     fn globals(&self) -> Option<Globals> {
         let m = self.segments();

@@ -50,8 +50,10 @@ impl<const NP: usize, const NS: usize, const NU: usize> StartState<NP, NS, NU> {
 
 /// A plan read back in the robot's terms, whatever the transcription: stage `k = 0..=N`
 /// holds the pose, the shape, the velocity leaving it, the input held from it and the
-/// previous input. At `k = N` the velocity is the one the robot arrives with and the input
-/// repeats `u_{N−1}`.
+/// previous input. At `k = N` the velocity is the one the robot arrives with (the midpoint
+/// scheme's: `v(t_N)` by the discrete Legendre transform at the last node,
+/// `dmech::VariationalIntegrator::node_velocity`; the first-order scheme's: `v_{N−1}`) and
+/// the input repeats `u_{N−1}`.
 #[derive(Clone, Debug)]
 pub struct PlannedTrajectory<const NP: usize, const NS: usize, const NU: usize> {
     /// The step.
@@ -68,7 +70,9 @@ pub enum Quantity {
     /// Shape component `i`.
     Shape(usize),
     /// Velocity component `i` *arriving* at the stage: `v_{k−1}` (variational) or `v(t_k)`
-    /// (Runge–Kutta). `Velocity(i) = 0` at the last stage says "arrive at rest" in both.
+    /// (Runge–Kutta). Every `Velocity(i) = 0` at the last stage says "arrive at rest": the
+    /// robot stays there with zero input afterwards, in every transcription (under the
+    /// midpoint scheme held by the momentum at the last node, [`conditions_for_scheme`]).
     Velocity(usize),
     /// Component `i` of the input before the stage, `u_{k−1}`.
     PreviousInput(usize),
@@ -218,52 +222,62 @@ pub fn state_equalities(layout: Layout, conditions: &[Condition]) -> Vec<StateEq
         .collect()
 }
 
-/// The conditions a variational transcription imposes for `conditions` under
-/// `discretisation`: the same, and for the midpoint scheme, where the conditions fix every
-/// velocity to zero at the last stage `n` ("arrive at rest"), also every previous input
-/// `u_{n−1}` to zero, unless a condition fixes it already.
+/// The conditions as a variational transcription holds them under one discretisation
+/// ([`conditions_for_scheme`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SchemeConditions {
+    /// The conditions held as state equalities.
+    pub state: Vec<Condition>,
+    /// Whether "arrive at rest" at the last stage is held by the midpoint scheme's terminal
+    /// condition on the momentum (the transcription's terminal equalities) instead of by
+    /// the velocity conditions there.
+    pub rest_by_momentum: bool,
+}
+
+/// How a variational transcription holds `conditions` (horizon `n`, `ns` shape
+/// coordinates) under `discretisation`: as they are, except under the midpoint scheme
+/// when they fix every velocity to zero at the last stage ("arrive at rest"). Those `ns`
+/// conditions then give way to the discrete Legendre transform at node `n`: the momentum
+/// the last interval brings to the node, `½ h F_{n−½}` of its force included, is the
+/// momentum of rest, so that the integrator's next step with zero input has `v_n = 0` as
+/// its solution (`VarIntTranscription`'s terminal equalities: node `n`'s momentum
+/// matching with `(v_n, u_n) = (0, 0)`). `v_{n−1}` and `u_{n−1}` stay free.
 ///
 /// Why: the midpoint scheme's momentum matching at node `n` weighs the forces of the
-/// intervals on both sides equally, `½ (F(s̄_{n−1}, v_{n−1}, u_{n−1}) + F(s̄_n, v_n, u_n))`.
-/// With `v_{n−1} = 0` alone, half of the last interval's impulse, `½ h F(s_n, 0, u_{n−1})`,
-/// is still in the node's momentum, and under zero input afterwards the robot moves on
-/// (a rolling disk 3.9 mm in 2 s at 20 ms). Rest with zero input after the plan needs
-/// `v_n = 0` to solve the matching at `n` with `u_n = 0`, that is
-/// `F(s_n, 0, u_{n−1}) + F(s_n, 0, 0) = −2 ∂ℓ/∂s(s_n, 0, 0)`: at a rest point without input
-/// (`∂ℓ/∂s = 0`, `F(s, 0, 0) = 0`) and a forcing whose input map is injective at zero
-/// velocity (torques, motor voltages), exactly `u_{n−1} = 0`. The first-order scheme's
-/// right-point force `F(s_n, v_n, u_n)` carries nothing of `u_{n−1}` past the node, and a
-/// Runge–Kutta state's `v(t_N)` is the velocity itself: neither needs more.
-pub fn conditions_for_scheme<const NU: usize>(
+/// intervals on both sides equally, `½ (F_{n−½} + F_{n+½})`, and its interval velocity
+/// `v_{n−1}` is the motion at `t_{n−½}`. Fixing `v_{n−1} = 0` alone leaves half of the last
+/// interval's impulse in the node's momentum, and the robot moves on after the plan (a
+/// rolling disk 3.9 mm in 2 s at 20 ms); fixing `u_{n−1} = 0` as well holds it, but puts
+/// the robot at rest a whole step early, an O(h) change that makes the plan's objective
+/// converge at first order. The condition on the momentum is the rest the continuous
+/// problem asks for at `t_n`, and keeps the scheme's second order (docs/ocp.md). The
+/// first-order scheme's right-point force `F(s_n, v_n, u_n)` carries nothing of `u_{n−1}`
+/// past the node and its `v_{n−1}` is the velocity arriving there; a Runge–Kutta state's
+/// `v(t_N)` is the velocity itself: neither needs more.
+pub fn conditions_for_scheme(
     conditions: Vec<Condition>,
     n: usize,
     ns: usize,
     discretisation: dmech::Discretisation,
-) -> Vec<Condition> {
-    if discretisation != dmech::Discretisation::Midpoint {
-        return conditions;
-    }
-    let fixed_at_end = |q: Quantity| conditions.iter().any(|c| c.stage == n && c.quantity == q);
+) -> SchemeConditions {
+    let rest_at_end = |c: &Condition| {
+        c.stage == n && matches!(c.quantity, Quantity::Velocity(_)) && c.value == 0.0
+    };
     let at_rest = (0..ns).all(|i| {
         conditions
             .iter()
-            .any(|c| c.stage == n && c.quantity == Quantity::Velocity(i) && c.value == 0.0)
+            .any(|c| rest_at_end(c) && c.quantity == Quantity::Velocity(i))
     });
-    if !at_rest {
-        return conditions;
+    if discretisation != dmech::Discretisation::Midpoint || !at_rest || ns == 0 {
+        return SchemeConditions {
+            state: conditions,
+            rest_by_momentum: false,
+        };
     }
-    let missing: Vec<Condition> = (0..NU)
-        .map(Quantity::PreviousInput)
-        .filter(|&q| !fixed_at_end(q))
-        .map(|quantity| Condition {
-            stage: n,
-            quantity,
-            value: 0.0,
-        })
-        .collect();
-    let mut all = conditions;
-    all.extend(missing);
-    all
+    SchemeConditions {
+        state: conditions.into_iter().filter(|c| !rest_at_end(c)).collect(),
+        rest_by_momentum: true,
+    }
 }
 
 /// `x_0` from the start state.

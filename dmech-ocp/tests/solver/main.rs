@@ -5,9 +5,11 @@
 //! - `clarabel_oracle`: a convex linear–quadratic OCP against `clarabel` on the same QP;
 //! - `free_timing`: global variables (free waypoint timing) against a golden-section search;
 //! - `ipm_small`: small problems of known structure;
-//! - `restoration`: feasibility restoration and the infeasible status.
+//! - `restoration`: feasibility restoration and the infeasible status;
+//! - `terminal_equalities`: a nonlinear condition on the end state.
 
 mod clarabel_oracle;
 mod free_timing;
 mod ipm_small;
 mod restoration;
+mod terminal_equalities;

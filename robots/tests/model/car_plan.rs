@@ -117,7 +117,10 @@ fn parallel_park_solves_with_the_steering_bound_active() {
 /// "Arrive at rest" is rest under the midpoint scheme too: both built-in plans, replayed
 /// through the integrator they were planned with and continued for 2 s with zero inputs
 /// (no steering torque, no drive voltage), stay where they ended to 1e-9 m; the replay
-/// follows the plan to the solver's tolerance through the motion's sensitivity.
+/// follows the plan to the solver's tolerance through the motion's sensitivity. The rest
+/// is the momentum's at the last node (`transcription::conditions_for_scheme`): the plan
+/// arrives with zero velocity (its Legendre transform) while its last interval still moves,
+/// where rest reached a step early would leave that interval at rest to round-off.
 #[test]
 fn midpoint_plans_stay_at_rest_after_their_end() {
     use dmech_ocp::toolkit::replay::replay;
@@ -156,6 +159,23 @@ fn midpoint_plans_stay_at_rest_after_their_end() {
             "{}: replay off by {:.2e}",
             problem.name,
             r.plan_deviation
+        );
+        let n = o.trajectory.stages.len() - 1;
+        let arriving = o.trajectory.stages[n].velocity.amax();
+        let last_interval = o.trajectory.stages[n - 1].velocity.amax();
+        println!(
+            "{}: arriving velocity {arriving:.1e}, last interval's {last_interval:.1e}",
+            problem.name
+        );
+        assert!(
+            arriving <= 1e-9,
+            "{}: arrives with {arriving:.2e}",
+            problem.name
+        );
+        assert!(
+            last_interval > 1e-6,
+            "{}: the last interval is at rest ({last_interval:.2e})",
+            problem.name
         );
     }
 }

@@ -387,6 +387,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
+        terminal: &TerminalDerivatives<NX>,
         lq: &[LqStage<NX, NF>],
         elim: &[Elimination<NX, NW, NF>],
         couplings: &[StageCoupling<NX, NW, NF>],
@@ -400,7 +401,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         let support = |k: usize| gs.g.support_of(k);
         let cps: Vec<LqCoupling<NX, NF, NW>> = couplings.iter().map(|c| c.0.clone()).collect();
         let sol = global_forward(sweep, &schur, lq, &cps, &support, &SVector::zeros(), &dp);
-        self.recover_with_globals(it, ders, elim, couplings, sol, &dp, y, mu, dc)
+        self.recover_with_globals(it, ders, terminal, elim, couplings, sol, &dp, y, mu, dc)
     }
 
     /// The step from the LQ solution and the globals' step `δp`, `y_g`: the stages'
@@ -410,6 +411,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         &self,
         it: &Iterate<NX, NW, NC>,
         ders: &[StageDerivatives<NX, NW, NE, NC>],
+        terminal: &TerminalDerivatives<NX>,
         elim: &[Elimination<NX, NW, NF>],
         couplings: &[StageCoupling<NX, NW, NF>],
         sol: LqSolution<NX, NF>,
@@ -419,7 +421,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         dc: f64,
     ) -> Step<NX, NW, NC> {
         let Some(gs) = self.globals.as_ref() else {
-            return self.recover(it, ders, elim, sol, mu, dc, None);
+            return self.recover(it, ders, terminal, elim, sol, mu, dc, None);
         };
         let support = |k: usize| gs.g.support_of(k);
         let dw_globals: Vec<SVector<f64, NW>> = (0..self.n)
@@ -431,7 +433,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                 couplings[k].1 * theta
             })
             .collect();
-        let mut step = self.recover(it, ders, elim, sol, mu, dc, Some(&dw_globals));
+        let mut step = self.recover(it, ders, terminal, elim, sol, mu, dc, Some(&dw_globals));
         let gi = &it.globals;
         let (mut dz_lo, mut dz_hi) = (vec![0.0; dp.len()], vec![0.0; dp.len()]);
         for j in 0..dp.len() {
@@ -532,6 +534,7 @@ impl RiccatiWithGlobals {
         Some(s.global_recover(
             it,
             &ws.ders,
+            &ws.terminal,
             &ws.lq,
             &ws.elim,
             &ws.couplings,

@@ -125,7 +125,7 @@ impl Riccati {
         dc: f64,
     ) -> Step<NX, NW, NC> {
         let sol = ws.sweep.forward(&ws.lq, &SVector::zeros());
-        s.recover(it, &ws.ders, &ws.elim, sol, mu, dc, None)
+        s.recover(it, &ws.ders, &ws.terminal, &ws.elim, sol, mu, dc, None)
     }
 }
 
@@ -358,8 +358,9 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         }
     }
 
-    /// The terminal stage of the LQ problem: the terminal cost's curvature and gradient and
-    /// the state equalities at `x_N`.
+    /// The terminal stage of the LQ problem: the terminal cost's curvature and gradient (the
+    /// curvature of `yᵀr` of the terminal equalities with it, `terminal.hxx`), the state
+    /// equalities at `x_N`, and the terminal equalities' dual-regularised rows.
     pub(super) fn terminal_lq(
         &self,
         it: &Iterate<NX, NW, NC>,
@@ -368,7 +369,31 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
     ) -> (SMatrix<f64, NX, NX>, SVector<f64, NX>) {
         let (mut q_n, mut q_vec_n) = (terminal.hxx, terminal.gx);
         self.add_state_equalities(self.n, it, dc, &mut q_n, &mut q_vec_n);
+        self.add_terminal_equalities(it, terminal, dc, &mut q_n, &mut q_vec_n);
         (q_n, q_vec_n)
+    }
+
+    /// The quadratic terms of the terminal equalities `r(x_N) = 0`: the rows `∇r_j` with
+    /// the regularisation `δ_c`, as a state equality's unit row, `‖∇r δx + r‖²/(2δ_c)`
+    /// and the multiplier `y_j`.
+    fn add_terminal_equalities(
+        &self,
+        it: &Iterate<NX, NW, NC>,
+        terminal: &TerminalDerivatives<NX>,
+        dc: f64,
+        q_mat: &mut SMatrix<f64, NX, NX>,
+        q: &mut SVector<f64, NX>,
+    ) {
+        let y = self.terminal_multipliers(&it.y);
+        for (j, (r, a)) in terminal
+            .equalities
+            .iter()
+            .zip(&terminal.equality_gradients)
+            .enumerate()
+        {
+            q_mat.ger(1.0 / dc, a, a, 1.0);
+            *q += a * (y.get(j).copied().unwrap_or(0.0) + r / dc);
+        }
     }
 
     /// The quadratic terms of the state equalities at stage `k`.

@@ -56,6 +56,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
             Ok((sol, dp, y)) => Ok(Some(self.recover_with_globals(
                 it,
                 &ws.ders,
+                &ws.terminal,
                 &ws.elim,
                 &ws.couplings,
                 sol,

@@ -11,7 +11,7 @@ use crate::toolkit::kinematic_start::{
 };
 use crate::transcription::layout::{check_pose_coordinates, segment, Layout, LayoutError};
 use crate::transcription::sizes::{Dims, StageSizes};
-use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem};
+use dmech::{Discretisation, ForcingQuadrature, PrincipalKinematicSystem, VariationalIntegrator};
 use dmech_lie::Real;
 use nalgebra::{SMatrix, SVector};
 use std::marker::PhantomData;
@@ -186,6 +186,34 @@ where
         (xs, ws)
     }
 
+    /// The problem's conditions as this transcription holds them ([`conditions_for_scheme`]).
+    pub fn scheme_conditions<const NC: usize>(&self) -> SchemeConditions
+    where
+        P: PlanningProblem<NP, NS, NU, NC>,
+    {
+        conditions_for_scheme(
+            self.problem.conditions(),
+            self.problem.horizon(),
+            NS,
+            self.stages.discretisation,
+        )
+    }
+
+    /// The velocity the robot arrives with at the last node, from its state
+    /// `x_N = (…, s_N, v_{N−1}, u_{N−1})`: the scheme's node velocity
+    /// ([`VariationalIntegrator::node_velocity`]; `v_{N−1}` itself for the first-order
+    /// scheme, and if Newton's method fails).
+    fn arriving_velocity(&self, x: &SVector<f64, NX>) -> SVector<f64, NS> {
+        let l = self.stages.layout;
+        let (s, v_prev, u_prev): (SVector<f64, NS>, SVector<f64, NS>, SVector<f64, NU>) =
+            (l.shape(x), segment(x, l.v_at()), segment(x, l.u_at()));
+        let h = self.stages.h;
+        VariationalIntegrator::new(h)
+            .with_discretisation(self.stages.discretisation)
+            .node_velocity(self.stages.sys, &(s - v_prev * h), &v_prev, &u_prev, &s)
+            .unwrap_or(v_prev)
+    }
+
     /// The typed view of `(x_k, w_k)`.
     /// (`w` may trail entries of its own beyond `(v_k, u_k)`, as free timing's do.)
     pub fn stage<T: Real, const NWX: usize>(
@@ -231,7 +259,7 @@ where
         stages.push(Stage {
             pose: segment(x, 0),
             shape: l.shape(x),
-            velocity: segment(x, l.v_at()),
+            velocity: self.arriving_velocity(x),
             input: segment(&w[n - 1], NS),
             previous_input: segment(x, l.u_at()),
         });
@@ -339,13 +367,17 @@ where
         self.problem.bounds(k)
     }
     fn state_equalities(&self) -> Vec<StateEquality> {
-        let conditions = conditions_for_scheme::<NU>(
-            self.problem.conditions(),
-            self.problem.horizon(),
-            NS,
-            self.stages.discretisation,
-        );
-        state_equalities(self.stages.layout, &conditions)
+        state_equalities(self.stages.layout, &self.scheme_conditions().state)
+    }
+    /// Under the midpoint scheme, a plan that arrives at rest ends on node `N`'s momentum
+    /// matching with `(v_N, u_N) = (0, 0)` ([`conditions_for_scheme`]).
+    fn terminal_equalities<T: Real>(&self, x: &SVector<T, NX>) -> Vec<T> {
+        if !self.scheme_conditions().rest_by_momentum {
+            return Vec::new();
+        }
+        let rest = SVector::<T, NW>::zeros();
+        let r = self.stages.equality::<T, DOF, NS, NU, NX, NW>(x, &rest);
+        r.iter().copied().collect()
     }
     fn affine_in_state(&self) -> bool {
         // The state holds pose, shape, v_{k−1} and u_{k−1}; the view exposes no v_{k−1}.
