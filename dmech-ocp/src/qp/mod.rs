@@ -15,7 +15,9 @@
 //! soft violation eliminated inside its stage (`newton.rs`); [`QpSolution`] carries the
 //! [`QpStatus`] (solved, or infeasible or unbounded with a certificate checked), the
 //! [`QpInfo`], and makes a [`WarmStart`] for the same horizon or, shifted by a stage,
-//! for the next sample of a receding horizon. Algorithm and derivation: `docs/qp.md`.
+//! for the next sample of a receding horizon. [`StageQp::to_text`] and
+//! [`StageQp::all_from_text`] write and read a plain-text form for other programs
+//! (`text.rs`). Algorithm and derivation: `docs/qp.md`.
 
 // Side, row and stage loops index several per-stage arrays (iterate, residual, factor,
 // sides) in step.
@@ -28,8 +30,10 @@ mod newton;
 mod problem;
 mod settings;
 mod solution;
+mod text;
 
 pub use ipm::QpSolver;
 pub use problem::{QpError, Rows, SoftPrice, Stage, StageQp, Terminal};
 pub use settings::{QpSettings, QpSettingsBuilder, SettingsError};
 pub use solution::{QpInfo, QpSolution, QpStatus, WarmStart};
+pub use text::QpTextError;
