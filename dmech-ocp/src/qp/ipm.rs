@@ -55,8 +55,9 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
         &self.settings
     }
 
-    /// Solve `qp` from a cold start: inputs zero, the states rolled out, every slack and
-    /// multiplier 1 (a soft row's violation 1 above the one of the rollout).
+    /// Solve `qp` from a cold start: inputs zero, the states rolled out, every slack at
+    /// least 1 (a soft row's violation 1 above the one of the rollout), a hard side's
+    /// multiplier 1, a soft side's price split evenly between its two multipliers.
     pub fn solve(&mut self, qp: &StageQp<NX, NU, NC>) -> QpSolution<NX, NU, NC> {
         let start = Instant::now();
         self.prepare(qp);
@@ -103,7 +104,7 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
 
     /// The states rolled out from the inputs; each present side's slack the row's
     /// distance to its bound (a soft side's violation first, kept or set), raised to
-    /// `floor`; multipliers raised to `floor` (`warm`) or set to 1.
+    /// `floor`; multipliers raised to `floor` (`warm`) or set ([`QpSolver::solve`]).
     fn start_slacks(&mut self, qp: &StageQp<NX, NU, NC>, floor: f64, warm: bool) {
         let n = qp.horizon();
         self.it[0].x = *qp.x0();
@@ -126,20 +127,23 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
             for j in 0..2 {
                 for i in 0..NC {
                     let gap = sd.b[j][i] - SIGN[j] * z[i];
-                    let (mut s, mut nu) = (0.0, 0.0);
-                    if let Side::Soft { .. } = sd.side[j][i] {
+                    // A cold soft side splits its price between λ and ν (`r_s = l2 s`);
+                    // a cold hard side starts at λ = 1.
+                    let (mut s, mut nu, mut lam) = (0.0, 0.0, 1.0);
+                    if let Side::Soft { l1, l2 } = sd.side[j][i] {
                         s = match warm {
                             true => ik.s[j][i].max(floor),
                             false => (-gap).max(0.0) + floor,
                         };
-                        nu = if warm { ik.nu[j][i].max(floor) } else { 1.0 };
+                        nu = 0.5 * (l1 + l2 * s);
+                        lam = nu;
+                    }
+                    if warm {
+                        (lam, nu) = (ik.lam[j][i].max(floor), ik.nu[j][i].max(floor));
                     }
                     let (t, lam) = match sd.side[j][i] {
                         Side::Absent => (1.0, 0.0),
-                        _ => {
-                            let lam = if warm { ik.lam[j][i].max(floor) } else { 1.0 };
-                            ((gap + s).max(floor), lam)
-                        }
+                        _ => ((gap + s).max(floor), lam),
                     };
                     ik.t[j][i] = t;
                     ik.lam[j][i] = lam;
