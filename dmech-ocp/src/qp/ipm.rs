@@ -55,9 +55,8 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
         &self.settings
     }
 
-    /// Solve `qp` from a cold start: inputs zero, the states rolled out, every slack at
-    /// least 1 (a soft row's violation 1 above the one of the rollout), a hard side's
-    /// multiplier 1, a soft side's price split evenly between its two multipliers.
+    /// Solve `qp` from a cold start: inputs zero, the states rolled out, slacks and
+    /// multipliers centred at [`QpSettings::start_mu`] (`start_slacks`).
     pub fn solve(&mut self, qp: &StageQp<NX, NU, NC>) -> QpSolution<NX, NU, NC> {
         let start = Instant::now();
         self.prepare(qp);
@@ -102,11 +101,16 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
         self.correction.resize(n, StageIterate::zeros());
     }
 
-    /// The states rolled out from the inputs; each present side's slack the row's
-    /// distance to its bound (a soft side's violation first, kept or set), raised to
-    /// `floor`; multipliers raised to `floor` (`warm`) or set ([`QpSolver::solve`]).
+    /// The states rolled out from the inputs, then each present side's slack, violation
+    /// and multipliers. Cold, centred at `μ_0 = start_mu`: a hard side's slack is the
+    /// row's distance to its bound raised to 1 and its multiplier `μ_0/t`; a soft side
+    /// splits its price between `λ` and `ν` (`r_s = 0`), its violation is the rollout's
+    /// plus `μ_0/ν` and its slack at least `μ_0/λ`. Warm (`floor` = [`QpSettings::warm_floor`]):
+    /// the start's multipliers and violations raised to `floor`, the slacks the rows'
+    /// distances (violation included) raised to `floor`.
     fn start_slacks(&mut self, qp: &StageQp<NX, NU, NC>, floor: f64, warm: bool) {
         let n = qp.horizon();
+        let mu0 = self.settings.start_mu;
         self.it[0].x = *qp.x0();
         for k in 0..n {
             let st = &qp.stages()[k];
@@ -117,33 +121,31 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
         for k in 0..=n {
             let rows = qp.rows(k);
             let ik = &mut self.it[k];
-            let z = rows.d * ik.x
-                + if k < n {
-                    rows.e * ik.u
-                } else {
-                    SVector::zeros()
-                };
+            let mut z = rows.d * ik.x;
+            if k < n {
+                z += rows.e * ik.u;
+            }
             let sd = &self.sides[k];
             for j in 0..2 {
                 for i in 0..NC {
                     let gap = sd.b[j][i] - SIGN[j] * z[i];
-                    // A cold soft side splits its price between λ and ν (`r_s = l2 s`);
-                    // a cold hard side starts at λ = 1.
-                    let (mut s, mut nu, mut lam) = (0.0, 0.0, 1.0);
-                    if let Side::Soft { l1, l2 } = sd.side[j][i] {
-                        s = match warm {
-                            true => ik.s[j][i].max(floor),
-                            false => (-gap).max(0.0) + floor,
-                        };
-                        nu = 0.5 * (l1 + l2 * s);
-                        lam = nu;
-                    }
-                    if warm {
-                        (lam, nu) = (ik.lam[j][i].max(floor), ik.nu[j][i].max(floor));
-                    }
-                    let (t, lam) = match sd.side[j][i] {
-                        Side::Absent => (1.0, 0.0),
-                        _ => ((gap + s).max(floor), lam),
+                    let (t, lam, s, nu) = match (sd.side[j][i], warm) {
+                        (Side::Absent, _) => (1.0, 0.0, 0.0, 0.0),
+                        (Side::Hard, false) => {
+                            let t = gap.max(1.0);
+                            (t, mu0 / t, 0.0, 0.0)
+                        }
+                        (Side::Soft { l1, l2 }, false) => {
+                            let s = (-gap).max(0.0) + 2.0 * mu0 / l1;
+                            let lam = 0.5 * (l1 + l2 * s);
+                            ((gap + s).max(mu0 / lam), lam, s, lam)
+                        }
+                        (Side::Hard, true) => (gap.max(floor), ik.lam[j][i].max(floor), 0.0, 0.0),
+                        (Side::Soft { .. }, true) => {
+                            let s = ik.s[j][i].max(floor);
+                            let (lam, nu) = (ik.lam[j][i].max(floor), ik.nu[j][i].max(floor));
+                            ((gap + s).max(floor), lam, s, nu)
+                        }
                     };
                     ik.t[j][i] = t;
                     ik.lam[j][i] = lam;
@@ -228,11 +230,11 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
                 &Target::Affine,
                 &mut self.affine,
             );
-            let alpha_aff = max_step(sides, it, &self.affine);
+            let alpha_aff = max_step(it, &self.affine);
             let sigma_mu = match pairs {
                 0 => 0.0,
                 _ => {
-                    let mu_aff = complementarity(sides, it, &self.affine, alpha_aff) / pairs as f64;
+                    let mu_aff = complementarity(it, &self.affine, alpha_aff) / pairs as f64;
                     (mu_aff / m.mu).powi(3) * m.mu
                 }
             };
@@ -242,8 +244,7 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
             };
             solve(qp, sides, it, res, &mut self.fac, &target, &mut self.dir);
             self.refine(qp, 0.1 * tol * scales.dual);
-            let (it, sides) = (&self.it, &self.sides);
-            let alpha = (self.settings.step_fraction * max_step(sides, it, &self.dir)).min(1.0);
+            let alpha = (self.settings.step_fraction * max_step(&self.it, &self.dir)).min(1.0);
             let (y_norm, dy_norm) = primal_norms(&self.it, &self.dir);
             if dy_norm > 1e8 * y_norm.max(scales.primal)
                 && dual_infeasible(qp, &self.sides, &self.dir, self.settings.certificate_tol)
@@ -340,7 +341,19 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
             },
             pi: self.it[..n].iter().map(|ik| ik.pi).collect(),
             row_multipliers: self.it.iter().map(|ik| ik.lam[0] - ik.lam[1]).collect(),
-            violations: self.it.iter().map(|ik| ik.s[0] + ik.s[1]).collect(),
+            violations: (0..=n)
+                .map(|k| {
+                    let (rows, ik) = (qp.rows(k), &self.it[k]);
+                    let mut z = rows.d * ik.x;
+                    if k < n {
+                        z += rows.e * ik.u;
+                    }
+                    SVector::from_fn(|i, _| match rows.soft[i] {
+                        Some(_) => (z[i] - rows.hi[i]).max(rows.lo[i] - z[i]).max(0.0),
+                        None => 0.0,
+                    })
+                })
+                .collect(),
             x,
             u,
             iterate: self.it.clone(),
@@ -356,33 +369,25 @@ fn converged(m: &Measures, scales: &Scales, pairs: usize, tol: f64) -> bool {
         && pairs as f64 * m.mu <= tol * m.objective.abs().max(1.0)
 }
 
-/// The largest `α ≤ 1` that keeps every present side's `t, λ` (and a soft side's `s, ν`)
-/// nonnegative along `d`.
+/// The largest `α ≤ 1` that keeps every side's `t, λ, s, ν` nonnegative along `d`. No
+/// branch on the sides' kinds: an absent side's direction is zero, and so is a hard
+/// side's `Δs, Δν` (`newton::solve`).
 fn max_step<const NX: usize, const NU: usize, const NC: usize>(
-    sides: &[StageSides<NC>],
     it: &[StageIterate<NX, NU, NC>],
     d: &[StageIterate<NX, NU, NC>],
 ) -> f64 {
     let mut alpha: f64 = 1.0;
-    let mut limit = |v: f64, dv: f64| {
-        if dv < 0.0 {
-            alpha = alpha.min(-v / dv);
-        }
-    };
-    for ((sd, ik), dk) in sides.iter().zip(it).zip(d) {
+    for (ik, dk) in it.iter().zip(d) {
         for j in 0..2 {
-            for i in 0..NC {
-                match sd.side[j][i] {
-                    Side::Absent => {}
-                    Side::Hard => {
-                        limit(ik.t[j][i], dk.t[j][i]);
-                        limit(ik.lam[j][i], dk.lam[j][i]);
-                    }
-                    Side::Soft { .. } => {
-                        limit(ik.t[j][i], dk.t[j][i]);
-                        limit(ik.lam[j][i], dk.lam[j][i]);
-                        limit(ik.s[j][i], dk.s[j][i]);
-                        limit(ik.nu[j][i], dk.nu[j][i]);
+            for (v, dv) in [
+                (&ik.t[j], &dk.t[j]),
+                (&ik.lam[j], &dk.lam[j]),
+                (&ik.s[j], &dk.s[j]),
+                (&ik.nu[j], &dk.nu[j]),
+            ] {
+                for i in 0..NC {
+                    if dv[i] < 0.0 {
+                        alpha = alpha.min(-v[i] / dv[i]);
                     }
                 }
             }
@@ -391,27 +396,21 @@ fn max_step<const NX: usize, const NU: usize, const NC: usize>(
     alpha
 }
 
-/// `Σ (t + αΔt)(λ + αΔλ) + Σ (s + αΔs)(ν + αΔν)` over the present sides.
+/// `Σ (t + αΔt)(λ + αΔλ) + Σ (s + αΔs)(ν + αΔν)` over the sides (an absent side's
+/// `λ` and its direction are zero, a hard side's `s, ν` too).
 fn complementarity<const NX: usize, const NU: usize, const NC: usize>(
-    sides: &[StageSides<NC>],
     it: &[StageIterate<NX, NU, NC>],
     d: &[StageIterate<NX, NU, NC>],
     alpha: f64,
 ) -> f64 {
     let mut sum = 0.0;
-    for ((sd, ik), dk) in sides.iter().zip(it).zip(d) {
+    for (ik, dk) in it.iter().zip(d) {
         for j in 0..2 {
-            for i in 0..NC {
-                let pair = |v: f64, dv: f64, w: f64, dw: f64| (v + alpha * dv) * (w + alpha * dw);
-                match sd.side[j][i] {
-                    Side::Absent => {}
-                    Side::Hard => sum += pair(ik.t[j][i], dk.t[j][i], ik.lam[j][i], dk.lam[j][i]),
-                    Side::Soft { .. } => {
-                        sum += pair(ik.t[j][i], dk.t[j][i], ik.lam[j][i], dk.lam[j][i]);
-                        sum += pair(ik.s[j][i], dk.s[j][i], ik.nu[j][i], dk.nu[j][i]);
-                    }
-                }
-            }
+            let t = ik.t[j] + dk.t[j] * alpha;
+            let lam = ik.lam[j] + dk.lam[j] * alpha;
+            let s = ik.s[j] + dk.s[j] * alpha;
+            let nu = ik.nu[j] + dk.nu[j] * alpha;
+            sum += t.dot(&lam) + s.dot(&nu);
         }
     }
     sum

@@ -24,6 +24,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod certificates;
+mod dense;
 mod ipm;
 mod iterate;
 mod newton;

@@ -3,13 +3,14 @@
 //! Riccati recursion over the stages, factored once per iteration and solved for the
 //! predictor and the corrector (`docs/qp.md`, "The Newton step").
 
+use super::dense;
 use super::iterate::{Side, StageIterate, StageResidual, StageSides, SIGN};
 use super::problem::StageQp;
-use nalgebra::{Cholesky, Const, SMatrix, SVector};
+use nalgebra::{SMatrix, SVector};
 
 /// What the factorisation keeps of stage `k`: per side the barrier weight `w = λ/t` and,
 /// for soft sides, the violation's own curvature `e = l2 + ν/s` and `d = e + w`; the condensed weight per row `W`; the
-/// cost-to-go Hessian `P_k` (`k ≥ 1`), the gain `K_k` and the Cholesky factor of
+/// cost-to-go Hessian `P_k` (`k ≥ 1`), the gain `K_k` and the Cholesky factor `L` of
 /// `R̂_k = R̃ + BᵀP_{k+1}B`; and the vector pass's `p_k`, `κ_k` and the sides' `ã`.
 #[derive(Clone, Debug)]
 pub(crate) struct StageFactor<const NX: usize, const NU: usize, const NC: usize> {
@@ -18,7 +19,7 @@ pub(crate) struct StageFactor<const NX: usize, const NU: usize, const NC: usize>
     d: [SVector<f64, NC>; 2],
     p: SMatrix<f64, NX, NX>,
     gain: SMatrix<f64, NU, NX>,
-    chol: Option<Cholesky<f64, Const<NU>>>,
+    chol: SMatrix<f64, NU, NU>,
     p_vec: SVector<f64, NX>,
     kappa: SVector<f64, NU>,
     a_side: [SVector<f64, NC>; 2],
@@ -33,7 +34,7 @@ impl<const NX: usize, const NU: usize, const NC: usize> StageFactor<NX, NU, NC> 
             d: [SVector::zeros(); 2],
             p: SMatrix::zeros(),
             gain: SMatrix::zeros(),
-            chol: None,
+            chol: SMatrix::zeros(),
             p_vec: SVector::zeros(),
             kappa: SVector::zeros(),
             a_side: [SVector::zeros(); 2],
@@ -89,44 +90,83 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
     }
     let rows = qp.rows(n);
     let weight = fac[n].row_weight(&sides[n]);
-    fac[n].p = qp.terminal().q + rows.d.tr_mul(&weighted(&weight, &rows.d));
+    let mut p_n = qp.terminal().q;
+    let mut unused = (
+        SMatrix::<f64, NU, NX>::zeros(),
+        SMatrix::<f64, NU, NU>::zeros(),
+    );
+    condense(rows, &weight, &mut p_n, &mut unused.0, &mut unused.1);
+    fac[n].p = p_n;
     let eye_u = SMatrix::<f64, NU, NU>::identity() * regularisation;
     for k in (0..n).rev() {
         let (st, rows) = (&qp.stages()[k], qp.rows(k));
         let (head, tail) = fac.split_at_mut(k + 1);
         let (f, next) = (&mut head[k], &tail[0]);
         let weight = f.row_weight(&sides[k]);
-        let (wd, we) = (weighted(&weight, &rows.d), weighted(&weight, &rows.e));
-        let pa = next.p * st.a;
-        let pb = next.p * st.b;
-        let r_hat = st.r + rows.e.tr_mul(&we) + st.b.tr_mul(&pb) + eye_u;
-        let s_hat = st.s.transpose() + we.tr_mul(&rows.d) + st.b.tr_mul(&pa);
+        let pa = dense::mul(&next.p, &st.a);
+        let pb = dense::mul(&next.p, &st.b);
+        let mut q_hat = st.q + dense::congruence(&st.a, &pa);
+        let mut s_hat = st.s.transpose() + dense::tr_mul(&st.b, &pa);
+        let mut r_hat = st.r + dense::tr_mul(&st.b, &pb) + eye_u;
+        condense(rows, &weight, &mut q_hat, &mut s_hat, &mut r_hat);
         let chol = r_hat.cholesky().ok_or(NotPositiveDefinite(k))?;
-        f.gain = -chol.solve(&s_hat);
-        f.chol = Some(chol);
+        f.chol = chol.unpack();
+        f.gain = -dense::cholesky_solve(&f.chol, &s_hat);
         if k > 0 {
-            // P_k = Q̃ + AᵀPA + Ŝᵀ K, formed on and above the diagonal and mirrored.
-            let q_tilde = st.q + rows.d.tr_mul(&wd);
-            let correction = s_hat.tr_mul(&f.gain);
+            // P_k = Q̂ + Ŝᵀ K, its upper triangle mirrored (the sum is symmetric but for
+            // rounding).
+            let p = q_hat + dense::tr_mul(&s_hat, &f.gain);
             for c in 0..NX {
-                for r in 0..=c {
-                    let v =
-                        q_tilde[(r, c)] + st.a.column(r).dot(&pa.column(c)) + correction[(r, c)];
-                    f.p[(r, c)] = v;
-                    f.p[(c, r)] = v;
+                for r in 0..c {
+                    f.p[(r, c)] = p[(r, c)];
+                    f.p[(c, r)] = p[(r, c)];
                 }
+                f.p[(c, c)] = p[(c, c)];
             }
         }
     }
     Ok(())
 }
 
-/// `diag(w) M`.
-fn weighted<const NC: usize, const C: usize>(
-    w: &SVector<f64, NC>,
-    m: &SMatrix<f64, NC, C>,
-) -> SMatrix<f64, NC, C> {
-    SMatrix::from_fn(|i, j| w[i] * m[(i, j)])
+/// The rows' barrier terms added to a stage's blocks: `Q += Dᵀ W D`, `Ŝ += Eᵀ W D`,
+/// `R += Eᵀ W E`, row by row as rank-one updates that skip the rows' zero entries
+/// (a box bound has one).
+fn condense<const NX: usize, const NU: usize, const NC: usize>(
+    rows: &super::problem::Rows<NX, NU, NC>,
+    weight: &SVector<f64, NC>,
+    q: &mut SMatrix<f64, NX, NX>,
+    s_hat: &mut SMatrix<f64, NU, NX>,
+    r: &mut SMatrix<f64, NU, NU>,
+) {
+    for i in 0..NC {
+        let w = weight[i];
+        if w == 0.0 {
+            continue;
+        }
+        let d: [f64; NX] = std::array::from_fn(|c| rows.d[(i, c)]);
+        let e: [f64; NU] = std::array::from_fn(|c| rows.e[(i, c)]);
+        for c in 0..NX {
+            let wd = w * d[c];
+            if wd == 0.0 {
+                continue;
+            }
+            for r_ in 0..NX {
+                q[(r_, c)] += d[r_] * wd;
+            }
+            for r_ in 0..NU {
+                s_hat[(r_, c)] += e[r_] * wd;
+            }
+        }
+        for c in 0..NU {
+            let we = w * e[c];
+            if we == 0.0 {
+                continue;
+            }
+            for r_ in 0..NU {
+                r[(r_, c)] += e[r_] * we;
+            }
+        }
+    }
 }
 
 /// The complementarity targets of a solve: `r_c = tλ − target` per side (and `sν` for the
@@ -256,12 +296,11 @@ pub(crate) fn solve<const NX: usize, const NU: usize, const NC: usize>(
         let r_tilde = rk.r_u + rows.e.tr_mul(&a_net);
         let (head, tail) = fac.split_at_mut(k + 1);
         let (f, next) = (&mut head[k], &tail[0]);
-        let pc = next.p * rk.r_dyn + next.p_vec;
-        let h_u = r_tilde + st.b.tr_mul(&pc);
-        let chol = f.chol.as_ref().expect("factored before solved");
-        f.kappa = -chol.solve(&h_u);
+        let pc = dense::mul_vec(&next.p, &rk.r_dyn) + next.p_vec;
+        let h_u = r_tilde + dense::tr_mul_vec(&st.b, &pc);
+        f.kappa = -dense::cholesky_solve(&f.chol, &h_u);
         if k > 0 {
-            f.p_vec = q_tilde + st.a.tr_mul(&pc) + f.gain.tr_mul(&h_u);
+            f.p_vec = q_tilde + dense::tr_mul_vec(&st.a, &pc) + dense::tr_mul_vec(&f.gain, &h_u);
         }
     }
     // Forward: dx_0 = 0 (x_0 is given and held).
@@ -269,10 +308,10 @@ pub(crate) fn solve<const NX: usize, const NU: usize, const NC: usize>(
     for k in 0..n {
         let st = &qp.stages()[k];
         let f = &fac[k];
-        let du = f.gain * dir[k].x + f.kappa;
-        let dx_next = st.a * dir[k].x + st.b * du + res[k].r_dyn;
+        let du = dense::mul_vec(&f.gain, &dir[k].x) + f.kappa;
+        let dx_next = dense::mul_vec(&st.a, &dir[k].x) + dense::mul_vec(&st.b, &du) + res[k].r_dyn;
         dir[k].u = du;
-        dir[k].pi = fac[k + 1].p * dx_next + fac[k + 1].p_vec;
+        dir[k].pi = dense::mul_vec(&fac[k + 1].p, &dx_next) + fac[k + 1].p_vec;
         dir[k + 1].x = dx_next;
     }
     dir[n].u = SVector::zeros();

@@ -21,11 +21,13 @@ pub struct QpSettings {
     pub warm_floor: f64,
     /// Tolerance of the infeasibility and unboundedness certificates.
     pub certificate_tol: f64,
+    /// The complementarity `tλ` a cold start is centred at (`docs/qp.md`, "Starts").
+    pub start_mu: f64,
 }
 
 impl Default for QpSettings {
     /// `tol = 1e-8`, `max_iter = 50`, `step_fraction = 0.995`, `regularisation = 1e-10`,
-    /// `warm_floor = 1e-3`, `certificate_tol = 1e-7`.
+    /// `warm_floor = 1e-3`, `certificate_tol = 1e-7`, `start_mu = 10`.
     fn default() -> Self {
         QpSettings {
             tol: 1e-8,
@@ -34,6 +36,7 @@ impl Default for QpSettings {
             regularisation: 1e-10,
             warm_floor: 1e-3,
             certificate_tol: 1e-7,
+            start_mu: 10.0,
         }
     }
 }
@@ -93,6 +96,12 @@ impl QpSettingsBuilder {
         self
     }
 
+    /// [`QpSettings::start_mu`].
+    pub fn start_mu(mut self, v: f64) -> Self {
+        self.0.start_mu = v;
+        self
+    }
+
     /// The settings, each checked against its range.
     pub fn build(self) -> Result<QpSettings, SettingsError> {
         let s = self.0;
@@ -115,6 +124,8 @@ impl QpSettingsBuilder {
         )?;
         let ct = s.certificate_tol;
         check("certificate_tol", ct, ct > 0.0 && ct < 1.0, "(0, 1)")?;
+        let mu0 = s.start_mu;
+        check("start_mu", mu0, mu0 > 0.0 && mu0.is_finite(), "(0, ∞)")?;
         Ok(s)
     }
 }

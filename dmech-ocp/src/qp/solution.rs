@@ -57,7 +57,8 @@ pub struct QpSolution<const NX: usize, const NU: usize, const NC: usize> {
     /// The rows' multipliers per stage `0 … N`, signed: `> 0` where the upper side
     /// holds the row, `< 0` where the lower side does.
     pub row_multipliers: Vec<SVector<f64, NC>>,
-    /// The soft rows' violations per stage `0 … N`.
+    /// The soft rows' violations per stage `0 … N`, `max(z − hi, lo − z, 0)` at the
+    /// returned point (zero on hard rows).
     pub violations: Vec<SVector<f64, NC>>,
     pub(crate) iterate: Vec<StageIterate<NX, NU, NC>>,
 }

@@ -135,7 +135,8 @@ pub fn check_kkt<const NX: usize, const NU: usize, const NC: usize>(
                 assert!(lo.is_finite() || -l <= stat_tol);
                 assert!(
                     !lo.is_finite() || -l * slack_lo <= pair_tol,
-                    "stage {k} row {i}"
+                    "stage {k} row {i}: λ {l:e}, slack {slack_lo:e}, v {v:e}, tolerance {pair_tol:e}, {:?}",
+                    sol.info
                 );
             }
             if let Some(p) = price {
