@@ -1,7 +1,8 @@
 //! The constrained alternative to the LQ controller: a QP per 5-ms sample over a horizon of
 //! `N_p` samples along the plan, on the linear time-varying error model, solved by the
-//! stage-structured interior point `dmech_ocp::qp`, warm-started from the previous
-//! sample's solution shifted by a stage (docs/tracking.md, "MPC").
+//! stage-structured interior point `dmech_ocp::qp`, from a cold start each sample (the
+//! warm start from the previous sample's solution took more iterations on these QPs:
+//! docs/tracking.md, "MPC").
 //!
 //! Stage `j` of the QP has the state `x_j = (e_j, p_j)`: the error state and the feedback
 //! voltage of the stage before (`p_0` the voltage applied last), so that the rate rows
@@ -23,9 +24,7 @@ use super::linear::{linear_model_params, linearise_at, zoh, NIN, NZ};
 use super::lq::{LqController, Q_Y, SAMPLE};
 use crate::wip::simulate::Trajectory;
 use crate::wip::{Wip, WipParams};
-use dmech_ocp::qp::{
-    QpError, QpSettings, QpSolution, QpSolver, QpStatus, SoftPrice, Stage, StageQp, Terminal,
-};
+use dmech_ocp::qp::{QpError, QpSettings, QpSolver, QpStatus, SoftPrice, Stage, StageQp, Terminal};
 use nalgebra::{SMatrix, SVector};
 use std::sync::Mutex;
 use std::thread::ThreadId;
@@ -89,20 +88,17 @@ pub struct MpcSample {
     pub u_prev: [f64; 2],
 }
 
-/// One thread's solver and the solution it found last, for the next sample's warm start.
+/// One thread's solver (its buffers reused from sample to sample).
 #[derive(Debug)]
 struct Workspace {
     thread: ThreadId,
     solver: QpSolver<QP_NX, NIN, QP_NC>,
-    previous: Option<(usize, QpSolution<QP_NX, NIN, QP_NC>)>,
 }
 
 /// The MPC along one plan: the linear time-varying model at every sample, precomputed.
 ///
-/// Each thread that calls [`MpcController::feedback`] gets its own solver; a call at
-/// sample `k` starts from that thread's solution at `k − 1`, shifted by a stage, when
-/// there is one (a run's samples come in order on one thread), and cold otherwise, so a
-/// run's results do not depend on what other threads run.
+/// Each thread that calls [`MpcController::feedback`] gets its own solver, whose buffers
+/// it reuses; every QP starts cold, so a run's results depend on its own samples alone.
 #[derive(Debug)]
 pub struct MpcController {
     pub lq: LqController,
@@ -217,16 +213,12 @@ impl MpcController {
         let solution = self
             .stage_qp(k, e0, u_prev)
             .ok()
-            .map(|qp| match &ws.previous {
-                Some((before, sol)) if before + 1 == k => ws.solver.solve_warm(&qp, &sol.shifted()),
-                _ => ws.solver.solve(&qp),
-            });
+            .map(|qp| ws.solver.solve(&qp));
         let solution = solution.filter(|sol| sol.status == QpStatus::Solved);
         let u_fb = solution
             .as_ref()
             .map_or_else(|| self.lq.feedback(e0), |sol| [sol.u[0][0], sol.u[0][1]]);
         let solved = solution.is_some();
-        ws.previous = solution.map(|sol| (k, sol));
         self.workspaces
             .lock()
             .expect("no panics while held")
@@ -248,7 +240,6 @@ impl MpcController {
             None => Workspace {
                 thread,
                 solver: QpSolver::new(self.settings.clone()),
-                previous: None,
             },
         }
     }
@@ -584,7 +575,8 @@ mod tests {
 
     /// The QPs of a real run, solved by clarabel too: the hook plan
     /// (`tests/data/track_hook_h20.csv`, 7 s), the paper's sensors, seed 1, every QP the
-    /// loop solved (warm-started, as in the loop) against clarabel's cold solve of the
+    /// loop solved (its move, and a warm start from the previous QP's shifted solution)
+    /// against clarabel's solve of the
     /// same QP written out (`oracle`). Both stop at a gap within `ε = 1e-8` of
     /// `max(1, |f|)`; each solution within `δ = 4 ε max(1, |f*|)` of the optimum (gap and
     /// residual terms); the QP is strongly convex in `δu` with modulus `m = 2` (`R = 2I`,
@@ -610,16 +602,21 @@ mod tests {
         let calls = mpc.recorded();
         assert_eq!(calls.len(), run.samples.len());
         let (mut worst, mut active) = (0.0f64, 0);
+        let mut solver = QpSolver::new(mpc.settings.clone());
+        let mut previous: Option<dmech_ocp::qp::QpSolution<QP_NX, NIN, QP_NC>> = None;
         for (call, sample) in calls.iter().zip(&run.samples) {
             let (u, f) = mpc.clarabel_solve(call.k, &call.e0, call.u_prev).unwrap();
             let qp = mpc.stage_qp(call.k, &call.e0, call.u_prev).unwrap();
-            let ours = QpSolver::new(mpc.settings.clone()).solve(&qp);
+            let ours = match &previous {
+                Some(p) => solver.solve_warm(&qp, &p.shifted()),
+                None => solver.solve(&qp),
+            };
             assert_eq!(ours.status, QpStatus::Solved);
             let delta = 4.0 * QP_TOL * f.abs().max(1.0);
             assert!((ours.info.objective - f).abs() <= 2.0 * delta);
             let tol = 2.0 * (2.0 * delta / 2.0).sqrt();
             for w in 0..2 {
-                // The loop's (warm-started) move and a cold solve, both against clarabel.
+                // The loop's (cold) move and the warm-started solve, both against clarabel.
                 let d = (sample.u_fb[w] - u[w])
                     .abs()
                     .max((ours.u[0][w] - u[w]).abs());
@@ -632,6 +629,7 @@ mod tests {
                 worst = worst.max(d / tol);
             }
             active += usize::from(ours.violations.iter().any(|v| v.amax() > 1e-6));
+            previous = Some(ours);
         }
         println!(
             "{} QPs, {active} with a soft row violated: worst δu_0 difference {worst:.1e} of \
