@@ -225,6 +225,7 @@ def peer_proxqp(qp, form):
     l = np.where(np.isfinite(l), l, -1e20); u = np.where(np.isfinite(u), u, 1e20)
     t0 = time.perf_counter()
     q = proxsuite.proxqp.dense.QP(nv, 0, C.shape[0])
+    q.settings.compute_timings = True
     q.init(c["P"], c["f"], None, None, C, l, u)
     q.solve()
     wall = time.perf_counter() - t0
@@ -241,6 +242,7 @@ def peer_piqp_dense(qp, form):
     t0 = time.perf_counter()
     s = piqp.DenseSolver()
     s.settings.verbose = False
+    s.settings.compute_timings = True
     s.setup(np.asfortranarray(c["P"]), c["f"], None, None, np.asfortranarray(c["C"]), c["l"], c["u"], xl, np.full(nv, INF))
     status = s.solve()
     wall = time.perf_counter() - t0
@@ -255,6 +257,7 @@ def peer_piqp_sparse(qp, form):
     t0 = time.perf_counter()
     s = piqp.SparseSolver()
     s.settings.verbose = False
+    s.settings.compute_timings = True
     s.setup(sp.triu(c["P"], format="csc"), c["f"], c["M"], c["m"], c["C"], c["l"], c["u"], xl, np.full(nv, INF))
     status = s.solve()
     wall = time.perf_counter() - t0
@@ -347,7 +350,7 @@ def main():
     for r in results.values():
         r["ratio_to_ours_cold"] = r["median_us"] / base
     info = dict(started=started, machine=platform.processor() or platform.machine(),
-                cpu=open("/proc/cpuinfo").read().split("model name")[1].split("\n")[0].strip(": ") if os.path.exists("/proc/cpuinfo") else "",
+                cpu=open("/proc/cpuinfo").read().split("model name")[1].split("\n")[0].strip(": \t") if os.path.exists("/proc/cpuinfo") else "",
                 affinity=sorted(os.sched_getaffinity(0)), qps=len(qps), file=os.path.basename(a.qps),
                 rounds=a.rounds, load=os.getloadavg(),
                 versions={p: importlib.metadata.version(p) for p in
