@@ -19,6 +19,8 @@
 //! - [`toolkit`]: starts from a geometric path, refinement to a finer mesh, mesh sequencing,
 //!   a plan in one call, a replay through the integrator.
 //! - [`tracking`]: a plan tracked in closed loop: its linearisation, LQ gains, a plant run.
+//! - [`qp`]: a stage-structured convex QP and its interior point, for model predictive
+//!   control (`docs/qp.md`).
 //!
 //! Every stage function is generic over the scalar, so exact Jacobians and Hessians come
 //! from dual numbers, stage by stage. Sizes are said once, by the robot and its problem
@@ -28,6 +30,7 @@
 #![warn(missing_docs)]
 
 pub mod nlp;
+pub mod qp;
 pub mod solver;
 pub mod toolkit;
 pub mod tracking;

@@ -73,7 +73,8 @@ pub enum ControllerArg {
     /// The paper's LQ controller on the ZOH-discretised linear model.
     Lq,
     /// A QP per sample over 0.1 s along the plan (linear time-varying model; voltage bound
-    /// hard, rate and tilt bounds soft), solved by clarabel.
+    /// hard, rate and tilt bounds soft), solved by the stage-structured interior point
+    /// `dmech_ocp::qp`.
     Mpc,
 }
 

@@ -1,0 +1,134 @@
+//! Products of the small fixed-size matrices of the Newton step, written as column
+//! `axpy`s and column dot products that the compiler unrolls and vectorises, skipping the
+//! structural zeros of the right factor (an entry of `B` in `A B`, a column of `A` in
+//! `Aᵀ B`): a stage's `A` and `B` often carry zero blocks (an input memory in the state,
+//! rows without a term), and a skipped entry saves a whole column operation.
+
+use nalgebra::{SMatrix, SVector};
+
+/// `A B`.
+#[inline]
+pub(crate) fn mul<const R: usize, const K: usize, const C: usize>(
+    a: &SMatrix<f64, R, K>,
+    b: &SMatrix<f64, K, C>,
+) -> SMatrix<f64, R, C> {
+    let mut out = SMatrix::<f64, R, C>::zeros();
+    for c in 0..C {
+        let col = &mut out.as_mut_slice()[c * R..(c + 1) * R];
+        for k in 0..K {
+            let s = b[(k, c)];
+            if s != 0.0 {
+                let a_col = &a.as_slice()[k * R..(k + 1) * R];
+                for r in 0..R {
+                    col[r] += a_col[r] * s;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `A v`.
+#[inline]
+pub(crate) fn mul_vec<const R: usize, const K: usize>(
+    a: &SMatrix<f64, R, K>,
+    v: &SVector<f64, K>,
+) -> SVector<f64, R> {
+    let mut out = SVector::<f64, R>::zeros();
+    for k in 0..K {
+        let s = v[k];
+        if s != 0.0 {
+            let a_col = &a.as_slice()[k * R..(k + 1) * R];
+            for r in 0..R {
+                out[r] += a_col[r] * s;
+            }
+        }
+    }
+    out
+}
+
+/// `Aᵀ B`, a zero column of `A` giving a zero row without a product.
+#[inline]
+pub(crate) fn tr_mul<const K: usize, const R: usize, const C: usize>(
+    a: &SMatrix<f64, K, R>,
+    b: &SMatrix<f64, K, C>,
+) -> SMatrix<f64, R, C> {
+    let mut out = SMatrix::<f64, R, C>::zeros();
+    for r in 0..R {
+        let a_col = &a.as_slice()[r * K..(r + 1) * K];
+        if a_col.iter().all(|&x| x == 0.0) {
+            continue;
+        }
+        for c in 0..C {
+            out[(r, c)] = dot(a_col, &b.as_slice()[c * K..(c + 1) * K]);
+        }
+    }
+    out
+}
+
+/// `Aᵀ v`.
+#[inline]
+pub(crate) fn tr_mul_vec<const K: usize, const R: usize>(
+    a: &SMatrix<f64, K, R>,
+    v: &SVector<f64, K>,
+) -> SVector<f64, R> {
+    SVector::from_fn(|r, _| dot(&a.as_slice()[r * K..(r + 1) * K], v.as_slice()))
+}
+
+/// `Aᵀ M A` for a symmetric `M`, formed on and above the diagonal and mirrored; a zero
+/// column of `A` gives a zero row and column.
+#[inline]
+pub(crate) fn congruence<const K: usize, const R: usize>(
+    a: &SMatrix<f64, K, R>,
+    ma: &SMatrix<f64, K, R>,
+) -> SMatrix<f64, R, R> {
+    let mut out = SMatrix::<f64, R, R>::zeros();
+    let zero: [bool; R] = std::array::from_fn(|r| a.column(r).iter().all(|&x| x == 0.0));
+    for c in 0..R {
+        if zero[c] {
+            continue;
+        }
+        let ma_col = &ma.as_slice()[c * K..(c + 1) * K];
+        for r in 0..=c {
+            if zero[r] {
+                continue;
+            }
+            let v = dot(&a.as_slice()[r * K..(r + 1) * K], ma_col);
+            out[(r, c)] = v;
+            out[(c, r)] = v;
+        }
+    }
+    out
+}
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// `X = (L Lᵀ)⁻¹ B` for a lower-triangular `L` with a positive diagonal: forward and back
+/// substitution, column by column.
+#[inline]
+pub(crate) fn cholesky_solve<const N: usize, const C: usize>(
+    l: &SMatrix<f64, N, N>,
+    b: &SMatrix<f64, N, C>,
+) -> SMatrix<f64, N, C> {
+    let mut x = *b;
+    for c in 0..C {
+        for i in 0..N {
+            let mut v = x[(i, c)];
+            for k in 0..i {
+                v -= l[(i, k)] * x[(k, c)];
+            }
+            x[(i, c)] = v / l[(i, i)];
+        }
+        for i in (0..N).rev() {
+            let mut v = x[(i, c)];
+            for k in i + 1..N {
+                v -= l[(k, i)] * x[(k, c)];
+            }
+            x[(i, c)] = v / l[(i, i)];
+        }
+    }
+    x
+}
