@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-from typing import Any, Dict, Mapping, Optional, Sequence, Union
+from typing import Any, Callable, Dict, Mapping, NamedTuple, Optional, Sequence, Union
 
 import numpy as np
 
@@ -25,6 +25,7 @@ __all__ = [
     "INPUT_NAMES",
     "Params",
     "Plan",
+    "SolverProgress",
     "Trajectory",
     "params",
     "plan",
@@ -200,6 +201,20 @@ class Plan(Trajectory):
             f.write("\n")
 
 
+class SolverProgress(NamedTuple):
+    """One iteration of the solver, as its iteration table prints it."""
+
+    iteration: int
+    #: the solve's number of stages (a mesh sequence solves once per mesh)
+    stages: int
+    #: the objective the solver minimises, scaled as the iteration table prints it
+    objective: float
+    primal_infeasibility: float
+    dual_infeasibility: float
+    barrier: float
+    elapsed_s: float
+
+
 def _waypoints_json(problem: Mapping[str, Any]) -> str:
     w = dict(problem)
     if "points" in w:
@@ -222,6 +237,7 @@ def plan(
     threads: Optional[int] = None,
     hessian: str = "sr1",
     verbose: bool = False,
+    progress: Optional[Callable[[SolverProgress], Any]] = None,
 ) -> Plan:
     """Plan the WIP's least-energy motion through waypoints (``wip plan``).
 
@@ -230,7 +246,9 @@ def plan(
     ``duration``, ``start_heading``, ``end_heading``, optional ``accel`` and ``name``).
     ``integrator``: ``"first-order"`` (the paper's), ``"midpoint"``, ``"rk1"``, ``"rk2"``,
     ``"rk4"``; ``current``: ``"dynamic"`` or ``"algebraic"``. ``verbose`` prints the
-    solver's iteration table on stderr. The solve runs without the GIL.
+    solver's iteration table on stderr; ``progress``, if given, is called after every
+    iteration with a :class:`SolverProgress` (an exception it raises is raised when the
+    solve returns). The solve runs without the GIL.
 
     Raises :class:`BadInputError` for a refused request (the command line's message),
     :class:`InfeasibleError` or :class:`NotSolvedError` (with the plan as ``.result``)
@@ -260,6 +278,7 @@ def plan(
         time_price,
         hessian,
         bool(verbose),
+        None if progress is None else (lambda *row: progress(SolverProgress(*row))),
     )
     result = Plan(
         **_trajectory(d["table"]),

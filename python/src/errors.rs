@@ -45,3 +45,45 @@ pub fn bad_input(message: impl std::fmt::Display) -> PyErr {
 pub fn run_failed(message: impl std::fmt::Display) -> PyErr {
     native(Kind::Run, message)
 }
+
+/// A Python callback called from native code that runs without the GIL: each call
+/// attaches to the interpreter; the first exception it raises is kept (the run goes on)
+/// and raised when the run returns ([`Callback::finish`]).
+pub struct Callback {
+    f: pyo3::Py<pyo3::PyAny>,
+    raised: std::sync::Mutex<Option<PyErr>>,
+}
+
+impl Callback {
+    /// Wrap `f`.
+    pub fn new(f: pyo3::Py<pyo3::PyAny>) -> Self {
+        Callback {
+            f,
+            raised: std::sync::Mutex::new(None),
+        }
+    }
+
+    /// Call it with the arguments `make` builds, unless it raised before.
+    pub fn call<A>(&self, make: impl FnOnce(pyo3::Python<'_>) -> A)
+    where
+        A: for<'py> pyo3::call::PyCallArgs<'py>,
+    {
+        let mut raised = self.raised.lock().unwrap_or_else(|e| e.into_inner());
+        if raised.is_some() {
+            return;
+        }
+        pyo3::Python::attach(|py| {
+            if let Err(e) = self.f.call1(py, make(py)) {
+                *raised = Some(e);
+            }
+        });
+    }
+
+    /// `Err` with the callback's first exception, if it raised.
+    pub fn finish(&self) -> pyo3::PyResult<()> {
+        match self.raised.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+}

@@ -1,9 +1,9 @@
 //! The WIP from Python: plan, simulate, parameters.
 
-use crate::errors::{bad_input, run_failed};
+use crate::errors::{bad_input, run_failed, Callback};
 use crate::table::Table;
 use dmech::Integrator;
-use dmech_ocp::solver::{Curvature, IpOptions};
+use dmech_ocp::solver::{Curvature, IpOptions, IterationObserver, IterationReport};
 use dmech_ocp::transcription::free_timing::TotalTime;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -12,6 +12,7 @@ use robots::wip::plan::request::{PlanRequest, PlanRun, ProblemSource};
 use robots::wip::plan::CurrentModel;
 use robots::wip::simulate::{check_simulation, simulate, Trajectory};
 use robots::wip::{ReducedState, Wip, WipParams};
+use std::sync::Arc;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(wip_plan, m)?)?;
@@ -56,7 +57,7 @@ pub fn trajectory_table(traj: &Trajectory) -> Table {
 /// its `message` (the command line's line), for the Python side to raise.
 #[pyfunction]
 #[pyo3(signature = (problem, waypoints, step, integrator, current, params, u_max, max_iter,
-    max_stages, threads, free_timing, time_price, hessian, verbose))]
+    max_stages, threads, free_timing, time_price, hessian, verbose, progress))]
 #[allow(clippy::too_many_arguments)]
 fn wip_plan<'py>(
     py: Python<'py>,
@@ -74,6 +75,7 @@ fn wip_plan<'py>(
     time_price: Option<f64>,
     hessian: &str,
     verbose: bool,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let defaults = PlanRequest::default();
     let source = match (problem, waypoints) {
@@ -108,6 +110,23 @@ fn wip_plan<'py>(
     if time_price.is_some() && !free_timing {
         return Err(bad_input("time_price needs free_timing"));
     }
+    let callback = progress.map(|f| Arc::new(Callback::new(f)));
+    let observer = callback.clone().map(|cb| {
+        IterationObserver(Arc::new(move |r: &IterationReport| {
+            let r = *r;
+            cb.call(|_| {
+                (
+                    r.iteration,
+                    r.stages,
+                    r.objective,
+                    r.primal_infeasibility,
+                    r.dual_infeasibility,
+                    r.barrier,
+                    r.elapsed_s,
+                )
+            })
+        }))
+    });
     let request = PlanRequest {
         problem: source,
         integrator: integrator_from(integrator)?,
@@ -122,13 +141,15 @@ fn wip_plan<'py>(
             max_iter,
             threads: threads.unwrap_or(defaults.options.threads),
             curvature,
+            observer,
             ..defaults.options
         },
     };
-    let run = py
-        .detach(|| request.run())
-        .map_err(|e| bad_input(e.to_string()))?;
-    plan_dict(py, &run)
+    let run = py.detach(|| request.run());
+    if let Some(cb) = &callback {
+        cb.finish()?;
+    }
+    plan_dict(py, &run.map_err(bad_input)?)
 }
 
 fn plan_dict<'py>(py: Python<'py>, run: &PlanRun) -> PyResult<Bound<'py, PyDict>> {

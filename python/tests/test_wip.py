@@ -167,3 +167,21 @@ def test_the_solve_releases_the_gil():
     # The solve takes tens of milliseconds at least; a thread held off by the GIL would
     # run only at the solve's start and end (a handful of iterations of this loop).
     assert spins > 10_000
+
+
+def test_progress_reports_every_iteration_of_every_mesh():
+    seen = []
+    p = dmech.wip.plan("zigzag", step=0.01, progress=seen.append)
+    assert all(isinstance(r, dmech.wip.SolverProgress) for r in seen)
+    # Mesh sequencing solves the coarse meshes first, the plan's own last.
+    assert seen[-1].stages == p.summary["N"]
+    assert len(seen) >= p.iterations
+    assert seen[-1].primal_infeasibility < 1e-8
+
+
+def test_an_exception_in_the_callback_is_raised_after_the_solve():
+    def fail(_):
+        raise KeyError("stop")
+
+    with pytest.raises(KeyError, match="stop"):
+        dmech.wip.plan("zigzag", step=0.02, progress=fail)
