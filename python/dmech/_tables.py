@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Dict
+from typing import Any, Dict, Tuple
 
 import numpy as np
 
@@ -39,3 +39,44 @@ class Result:
             elif a != b:
                 return False
         return True
+
+
+@dataclasses.dataclass(eq=False)
+class TimeSeries(Result):
+    """Samples in time: ``t`` (s), ``states`` (one row per sample, columns
+    ``state_names``) and ``inputs`` (the inputs held from each sample on, columns
+    ``input_names``)."""
+
+    t: np.ndarray
+    states: np.ndarray
+    inputs: np.ndarray
+
+    state_names: Tuple[str, ...] = ()
+    input_names: Tuple[str, ...] = ()
+
+    def column(self, name: str) -> np.ndarray:
+        """One column by name: ``"t"``, a state or an input."""
+        if name == "t":
+            return self.t
+        if name in self.state_names:
+            return self.states[:, self.state_names.index(name)]
+        if name in self.input_names:
+            return self.inputs[:, self.input_names.index(name)]
+        raise KeyError(name)
+
+    def to_pandas(self):
+        """The table as a pandas DataFrame (columns ``t``, the states, the inputs)."""
+        import pandas as pd
+
+        names = ("t",) + tuple(self.state_names) + tuple(self.input_names)
+        return pd.DataFrame({n: self.column(n) for n in names})
+
+
+def series(d: Dict[str, Any], state_names, input_names) -> Dict[str, Any]:
+    """The fields of a :class:`TimeSeries` from a native table."""
+    cols = table(d)
+    return {
+        "t": cols["t"],
+        "states": stack(cols, state_names),
+        "inputs": stack(cols, input_names),
+    }

@@ -12,13 +12,14 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-from typing import Any, Callable, Dict, Mapping, NamedTuple, Optional, Sequence, Union
+from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import _native
-from ._tables import Result, stack, table
-from .errors import BadInputError, InfeasibleError, NotSolvedError, call
+from ._tables import TimeSeries, series
+from ._plans import SolvedPlan, SolverProgress, problem_args, progress_callback, raise_unless_solved, solve_fields
+from .errors import BadInputError, call
 
 __all__ = [
     "STATE_NAMES",
@@ -122,69 +123,31 @@ def _params_json(p: Optional[Union[Params, Mapping[str, float], str, os.PathLike
 
 
 @dataclasses.dataclass(eq=False)
-class Trajectory(Result):
-    """A trajectory: times ``t`` (s), ``states`` (one row per node, columns
-    :data:`STATE_NAMES`) and ``inputs`` (the voltages applied from each node on, columns
-    :data:`INPUT_NAMES`; the last row repeats the one before)."""
+class Trajectory(TimeSeries):
+    """A trajectory of the WIP: times ``t`` (s), ``states`` (columns :data:`STATE_NAMES`)
+    and ``inputs`` (the voltages applied from each node on, :data:`INPUT_NAMES`; the last
+    row repeats the one before)."""
 
-    t: np.ndarray
-    states: np.ndarray
-    inputs: np.ndarray
-
-    state_names = STATE_NAMES
-    input_names = INPUT_NAMES
-
-    def column(self, name: str) -> np.ndarray:
-        """One column by name: ``"t"``, a state or an input."""
-        if name == "t":
-            return self.t
-        if name in STATE_NAMES:
-            return self.states[:, STATE_NAMES.index(name)]
-        if name in INPUT_NAMES:
-            return self.inputs[:, INPUT_NAMES.index(name)]
-        raise KeyError(name)
-
-    def to_pandas(self):
-        """The table of ``trajectory.csv`` as a pandas DataFrame."""
-        import pandas as pd
-
-        cols = {"t": self.t}
-        cols.update({n: self.column(n) for n in STATE_NAMES + INPUT_NAMES})
-        return pd.DataFrame(cols)
+    state_names: Tuple[str, ...] = STATE_NAMES
+    input_names: Tuple[str, ...] = INPUT_NAMES
 
 
-def _trajectory(d: Dict[str, Any]) -> Dict[str, np.ndarray]:
-    cols = table(d)
-    return {
-        "t": cols["t"],
-        "states": stack(cols, STATE_NAMES),
-        "inputs": stack(cols, INPUT_NAMES),
-    }
+def _trajectory(d: Dict[str, Any]) -> Dict[str, Any]:
+    return series(d, STATE_NAMES, INPUT_NAMES)
 
 
 @dataclasses.dataclass(eq=False)
-class Plan(Trajectory):
-    """A plan of :func:`plan`: its trajectory and how the solve went (the figures of
-    ``summary.json``)."""
+class Plan(SolvedPlan):
+    """A plan of :func:`plan`: its trajectory (as :class:`Trajectory`) and how the solve
+    went (the figures of ``summary.json``)."""
 
-    name: str = ""
-    status: str = ""
-    objective: float = float("nan")
-    iterations: int = 0
-    max_violation: float = float("nan")
+    state_names: Tuple[str, ...] = STATE_NAMES
+    input_names: Tuple[str, ...] = INPUT_NAMES
     duality_gap: float = float("nan")
-    solve_time_s: float = float("nan")
     setup_time_s: float = float("nan")
-    step: float = float("nan")
-    integrator: str = ""
     current: str = ""
     waypoints: np.ndarray = dataclasses.field(default_factory=lambda: np.empty((0, 2)))
     waypoint_stages: np.ndarray = dataclasses.field(default_factory=lambda: np.empty(0, int))
-    summary: Dict[str, Any] = dataclasses.field(default_factory=dict)
-
-    @property
-    def solved(self) -> bool:
-        return self.status == "solved"
 
     def save(self, directory: Union[str, os.PathLike]) -> None:
         """Write ``trajectory.csv`` and ``summary.json`` into ``directory`` (created if
@@ -199,27 +162,6 @@ class Plan(Trajectory):
         with open(os.path.join(directory, "summary.json"), "w", encoding="utf-8") as f:
             json.dump(self.summary, f, indent=2)
             f.write("\n")
-
-
-class SolverProgress(NamedTuple):
-    """One iteration of the solver, as its iteration table prints it."""
-
-    iteration: int
-    #: the solve's number of stages (a mesh sequence solves once per mesh)
-    stages: int
-    #: the objective the solver minimises, scaled as the iteration table prints it
-    objective: float
-    primal_infeasibility: float
-    dual_infeasibility: float
-    barrier: float
-    elapsed_s: float
-
-
-def _waypoints_json(problem: Mapping[str, Any]) -> str:
-    w = dict(problem)
-    if "points" in w:
-        w["points"] = np.asarray(w["points"], dtype=float).tolist()
-    return json.dumps(w)
 
 
 def plan(
@@ -254,14 +196,7 @@ def plan(
     :class:`InfeasibleError` or :class:`NotSolvedError` (with the plan as ``.result``)
     when it is not solved.
     """
-    if isinstance(problem, Mapping):
-        name, waypoints = None, _waypoints_json(problem)
-    elif isinstance(problem, (str, os.PathLike)):
-        name, waypoints = os.fspath(problem), None
-    else:
-        raise BadInputError(
-            "problem must be a benchmark's name, a waypoint file's path or a dict of waypoints"
-        )
+    name, waypoints = problem_args(problem, "waypoint")
     d = call(
         _native.wip_plan,
         name,
@@ -278,29 +213,18 @@ def plan(
         time_price,
         hessian,
         bool(verbose),
-        None if progress is None else (lambda *row: progress(SolverProgress(*row))),
+        progress_callback(progress),
     )
     result = Plan(
         **_trajectory(d["table"]),
-        name=d["name"],
-        status=d["status"],
-        objective=d["objective"],
-        iterations=d["iterations"],
-        max_violation=d["max_violation"],
+        **solve_fields(d),
         duality_gap=d["duality_gap"],
-        solve_time_s=d["solve_time_s"],
         setup_time_s=d["setup_time_s"],
-        step=d["step"],
-        integrator=d["integrator"],
         current=d["current"],
         waypoints=np.asarray(d["waypoints"], dtype=float).reshape(-1, 2),
         waypoint_stages=np.asarray(d["waypoint_stages"], dtype=int),
-        summary=json.loads(d["summary"]),
     )
-    if d["message"] is not None:
-        cls = InfeasibleError if d["status"] == "infeasible" else NotSolvedError
-        raise cls(d["message"], result)
-    return result
+    return raise_unless_solved(d, result)
 
 
 def _inputs_csv(inputs: Any, names: Sequence[str]) -> str:

@@ -7,7 +7,10 @@
 
 use pyo3::prelude::*;
 
+mod car;
 mod errors;
+mod options;
+mod snakeboard;
 mod table;
 mod wip;
 
@@ -16,5 +19,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NativeError", m.py().get_type::<errors::NativeError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     wip::register(m)?;
+    car::register(m)?;
+    snakeboard::register(m)?;
     Ok(())
 }

@@ -1,18 +1,18 @@
 //! The WIP from Python: plan, simulate, parameters.
 
-use crate::errors::{bad_input, run_failed, Callback};
+use crate::errors::{bad_input, run_failed};
+use crate::options::{finish, solver_options};
 use crate::table::Table;
 use dmech::Integrator;
-use dmech_ocp::solver::{Curvature, IpOptions, IterationObserver, IterationReport};
 use dmech_ocp::transcription::free_timing::TotalTime;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use robots::cli::on_solver_stack;
 use robots::io::parse_inputs;
 use robots::wip::plan::request::{PlanRequest, PlanRun, ProblemSource};
 use robots::wip::plan::CurrentModel;
 use robots::wip::simulate::{check_simulation, simulate, Trajectory};
 use robots::wip::{ReducedState, Wip, WipParams};
-use std::sync::Arc;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(wip_plan, m)?)?;
@@ -83,23 +83,17 @@ fn wip_plan<'py>(
         (None, Some(json)) => ProblemSource::Json(json),
         _ => return Err(bad_input("give a problem's name or waypoints, not both")),
     };
-    let curvature = match hessian {
-        "sr1" => Curvature::Sr1,
-        "exact" => Curvature::Exact,
-        other => {
-            return Err(bad_input(format!(
-                "unknown hessian '{other}' (expected sr1 or exact)"
-            )))
-        }
-    };
-    if max_iter == 0 || max_stages == 0 {
-        return Err(bad_input("max_iter and max_stages must be at least 1"));
+    if max_stages == 0 {
+        return Err(bad_input("max_stages must be at least 1"));
     }
-    if let Some(n) = threads {
-        if !(1..=64).contains(&n) {
-            return Err(bad_input(format!("'{n}' is not a thread count in 1..=64")));
-        }
-    }
+    let (options, callback) = solver_options(
+        defaults.options.clone(),
+        max_iter,
+        threads,
+        hessian,
+        verbose,
+        progress,
+    )?;
     let total = match time_price {
         Some(p) if !(p.is_finite() && p >= 0.0) => {
             return Err(bad_input(format!("'{p}' is not a price per second ≥ 0")))
@@ -110,23 +104,6 @@ fn wip_plan<'py>(
     if time_price.is_some() && !free_timing {
         return Err(bad_input("time_price needs free_timing"));
     }
-    let callback = progress.map(|f| Arc::new(Callback::new(f)));
-    let observer = callback.clone().map(|cb| {
-        IterationObserver(Arc::new(move |r: &IterationReport| {
-            let r = *r;
-            cb.call(|_| {
-                (
-                    r.iteration,
-                    r.stages,
-                    r.objective,
-                    r.primal_infeasibility,
-                    r.dual_infeasibility,
-                    r.barrier,
-                    r.elapsed_s,
-                )
-            })
-        }))
-    });
     let request = PlanRequest {
         problem: source,
         integrator: integrator_from(integrator)?,
@@ -136,19 +113,10 @@ fn wip_plan<'py>(
         u_max,
         max_stages,
         free_timing: free_timing.then_some(total),
-        options: IpOptions {
-            verbose,
-            max_iter,
-            threads: threads.unwrap_or(defaults.options.threads),
-            curvature,
-            observer,
-            ..defaults.options
-        },
+        options,
     };
-    let run = py.detach(|| request.run());
-    if let Some(cb) = &callback {
-        cb.finish()?;
-    }
+    let run = py.detach(|| on_solver_stack(|| request.run()));
+    finish(&callback)?;
     plan_dict(py, &run.map_err(bad_input)?)
 }
 
@@ -215,7 +183,7 @@ fn wip_simulate<'py>(
     )
     .map_err(bad_input)?;
     let traj = py
-        .detach(|| simulate(&wip, integrator, step, &x, &inputs, n))
+        .detach(|| on_solver_stack(|| simulate(&wip, integrator, step, &x, &inputs, n)))
         .map_err(run_failed)?;
     let d = PyDict::new(py);
     d.set_item("table", trajectory_table(&traj).into_py(py)?)?;
