@@ -38,6 +38,17 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
         last: &LineSearch<NX, NW, NE, NC>,
         t_start: Instant,
     ) {
+        if let Some(observer) = &self.opts.observer {
+            (observer.0)(&IterationReport {
+                iteration: iter,
+                stages: self.n,
+                objective: m.objective,
+                primal_infeasibility: kkt.primal,
+                dual_infeasibility: kkt.dual,
+                barrier: mu,
+                elapsed_s: t_start.elapsed().as_secs_f64(),
+            });
+        }
         if self.opts.verbose {
             let _ =
                 writeln!(

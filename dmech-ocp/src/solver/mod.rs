@@ -60,7 +60,9 @@ use kkt::globals::GlobalSpec;
 pub use kkt::riccati;
 use kkt_error::{KktError, StageAux};
 use line_search::LineSearch;
-pub use options::{Curvature, Failure, IpOptions, KktMethod, Status, Timings};
+pub use options::{
+    Curvature, Failure, IpOptions, IterationObserver, IterationReport, KktMethod, Status, Timings,
+};
 pub use parallel::STAGE_THREAD_STACK;
 use parallel::{par_collect, par_fill, par_update, par_zip, par_zip3, PAR_CHUNK};
 use quasi_newton::QuasiNewton;
@@ -247,6 +249,7 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
                     IpOptions {
                         max_iter: 1,
                         verbose: false,
+                        observer: None,
                         time_limit: f64::INFINITY,
                         ..self.opts.clone()
                     },

@@ -38,6 +38,39 @@ pub struct IpOptions {
     /// a solve whose iterate seeds another that restarts at this barrier: mesh
     /// sequencing's coarse meshes (`docs/ocp.md`, "Mesh sequencing").
     pub final_barrier: Option<f64>,
+    /// Called after every iteration with its measures (progress of a long solve), whether
+    /// or not the table is printed. `None`: nothing is called.
+    pub observer: Option<IterationObserver>,
+}
+
+/// What an iteration reports to an [`IterationObserver`]: the iteration table's row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IterationReport {
+    /// The iteration of this solve (from 0; a mesh sequence solves once per mesh).
+    pub iteration: usize,
+    /// The solve's number of stages `N`.
+    pub stages: usize,
+    /// The objective at the iterate, as the solver minimises it (scaled:
+    /// `docs/solver.md`, "Objective scaling").
+    pub objective: f64,
+    /// The scaled primal infeasibility (`inf_pr`).
+    pub primal_infeasibility: f64,
+    /// The scaled dual infeasibility (`inf_du`).
+    pub dual_infeasibility: f64,
+    /// The barrier parameter `μ`.
+    pub barrier: f64,
+    /// Seconds since the solve started.
+    pub elapsed_s: f64,
+}
+
+/// A callback per iteration ([`IpOptions::observer`]); shared, so options stay `Clone`.
+#[derive(Clone)]
+pub struct IterationObserver(pub std::sync::Arc<dyn Fn(&IterationReport) + Send + Sync>);
+
+impl std::fmt::Debug for IterationObserver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("IterationObserver")
+    }
 }
 
 /// The curvature of the dynamics and the stage equalities, `∇²(λᵀf + νᵀe)`, in the
@@ -92,6 +125,7 @@ impl Default for IpOptions {
             time_limit: f64::INFINITY,
             kkt: KktMethod::Riccati,
             final_barrier: None,
+            observer: None,
         }
     }
 }

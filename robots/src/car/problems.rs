@@ -24,6 +24,18 @@ pub struct CarProblem {
     pub reverse: bool,
 }
 
+/// The most stages a car plan takes (about 2 kB each while solving).
+pub const MAX_STAGES: f64 = 200_000.0;
+
+/// A plan of more than [`MAX_STAGES`] stages.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{duration} s at {step} s is {stages:.0} stages, more than 200000: use a larger --step")]
+pub struct TooManyStages {
+    pub duration: f64,
+    pub step: f64,
+    pub stages: f64,
+}
+
 /// The car's width (m): the sideways offset of `parallel-park`.
 pub const CAR_WIDTH: f64 = 0.2;
 
@@ -58,6 +70,19 @@ impl CarProblem {
             _ => None,
         }
     }
+    /// `Err` if a plan at `step` would have more than [`MAX_STAGES`] stages.
+    pub fn check_stages(&self, step: f64) -> Result<(), TooManyStages> {
+        let stages = self.duration / step;
+        if stages > MAX_STAGES {
+            return Err(TooManyStages {
+                duration: self.duration,
+                step,
+                stages,
+            });
+        }
+        Ok(())
+    }
+
     /// All poses in order, each heading taken modulo 2π to within π of the one before
     /// (the start's as given): the car turns the short way between two poses, 3.0 → −3.0
     /// being a turn of 0.28 rad, not of 6 rad.

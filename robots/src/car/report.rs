@@ -36,19 +36,19 @@ impl CarTrajectory {
         t
     }
 
+    /// Row `k` of trajectory.csv, in the columns of [`CSV_HEADER`].
+    pub fn row(&self, k: usize) -> Vec<f64> {
+        std::iter::once(self.t[k])
+            .chain(self.pose[k].iter().copied())
+            .chain(self.shape[k].iter().copied())
+            .chain(self.velocity[k].iter().copied())
+            .chain(self.input[k].iter().copied())
+            .collect()
+    }
+
     /// trajectory.csv; an error naming the time and column of a non-finite value.
     pub fn csv(&self) -> Result<String, NonFiniteValue> {
-        result_csv(
-            CSV_HEADER,
-            (0..self.t.len()).map(|k| {
-                std::iter::once(self.t[k])
-                    .chain(self.pose[k].iter().copied())
-                    .chain(self.shape[k].iter().copied())
-                    .chain(self.velocity[k].iter().copied())
-                    .chain(self.input[k].iter().copied())
-                    .collect()
-            }),
-        )
+        result_csv(CSV_HEADER, (0..self.t.len()).map(|k| self.row(k)))
     }
 
     /// The largest distance between a problem pose and the trajectory's pose at its stage.

@@ -38,21 +38,21 @@ impl SnakeboardTrajectory {
         t
     }
 
+    /// Row `k` of trajectory.csv, in the columns of [`CSV_HEADER`] (`J` the momentum).
+    pub fn row(&self, board: &Snakeboard, k: usize) -> Vec<f64> {
+        let (v, phi) = (&self.velocity[k], self.shape[k][1]);
+        std::iter::once(self.t[k])
+            .chain(self.pose[k].iter().copied())
+            .chain(self.shape[k].iter().copied())
+            .chain(v.iter().copied())
+            .chain(std::iter::once(board.momentum(phi, v[0], v[2])))
+            .chain(self.input[k].iter().copied())
+            .collect()
+    }
+
     /// trajectory.csv; an error naming the time and column of a non-finite value.
     pub fn csv(&self, board: &Snakeboard) -> Result<String, NonFiniteValue> {
-        result_csv(
-            CSV_HEADER,
-            (0..self.t.len()).map(|k| {
-                let (v, phi) = (&self.velocity[k], self.shape[k][1]);
-                std::iter::once(self.t[k])
-                    .chain(self.pose[k].iter().copied())
-                    .chain(self.shape[k].iter().copied())
-                    .chain(v.iter().copied())
-                    .chain(std::iter::once(board.momentum(phi, v[0], v[2])))
-                    .chain(self.input[k].iter().copied())
-                    .collect()
-            }),
-        )
+        result_csv(CSV_HEADER, (0..self.t.len()).map(|k| self.row(board, k)))
     }
 
     /// The distance of the last pose from `end`: position and heading, the larger.

@@ -212,3 +212,65 @@ pub fn check_stability(
     let modes = modes_at(w, x0, inputs.at(0.0), what)?;
     crate::check::check_simulation_step(what, &modes, Scheme::from(integrator), h)
 }
+
+/// Why an open-loop run was not made or did not finish: the checks of `wip simulate`
+/// before it starts, and the run's own failure.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimulateRequestError {
+    /// The step is outside (0, 1] s.
+    #[error("the step must be in (0, 1] s, got {0}")]
+    Step(f64),
+    /// The inputs are off the step grid, beyond their limit, or span no step.
+    #[error(transparent)]
+    Inputs(#[from] crate::io::InputError),
+    /// Too many steps, or a step beyond the scheme's stability bound at the start.
+    #[error(transparent)]
+    Check(#[from] CheckError),
+    /// A step failed.
+    #[error(transparent)]
+    Run(#[from] SimulationError),
+}
+
+impl SimulateRequestError {
+    /// Whether the request itself is malformed (the command line's usage errors, exit 2).
+    pub fn is_usage(&self) -> bool {
+        matches!(self, SimulateRequestError::Step(_))
+    }
+}
+
+/// The checks of `wip simulate` before a run from `x0` with the voltages of `inputs`
+/// (`what` names them in messages): the step in (0, 1] s, every voltage within
+/// `±max_voltage`, at most `max_steps` steps, every input on the step grid, and the step
+/// within the scheme's stability bound at the start. Returns the number of steps.
+#[allow(clippy::too_many_arguments)]
+pub fn check_simulation(
+    w: &Wip,
+    integrator: Integrator,
+    h: f64,
+    x0: &ReducedState,
+    inputs: &InputSchedule,
+    what: &str,
+    max_steps: usize,
+    max_voltage: f64,
+) -> Result<usize, SimulateRequestError> {
+    if !(h > 0.0 && h <= 1.0) {
+        return Err(SimulateRequestError::Step(h));
+    }
+    inputs.check_limits(
+        what,
+        [
+            ("uR", max_voltage, "V", "--max-voltage"),
+            ("uL", max_voltage, "V", "--max-voltage"),
+        ],
+    )?;
+    crate::check::check_size(
+        "simulate: steps",
+        inputs.end() / h,
+        max_steps,
+        300.0,
+        "--max-steps",
+    )?;
+    let n = inputs.steps_on_grid(h, what, "--step")?;
+    check_stability(w, integrator, h, x0, inputs)?;
+    Ok(n)
+}

@@ -177,13 +177,8 @@ fn run_plan(a: PlanArgs) -> Result<(), String> {
         .integrator
         .variational()
         .expect("the parser offers the variational schemes");
+    problem.check_stages(a.step).map_err(|e| e.to_string())?;
     let stages = problem.duration / a.step;
-    if stages > 200_000.0 {
-        return Err(format!(
-            "{} s at {} s is {stages:.0} stages, more than 200000: use a larger --step",
-            problem.duration, a.step
-        ));
-    }
     // The mesh's checks (whole steps, distinct poses, no two on one stage) before any work.
     CarPlan::new(&problem, CarBounds::default(), a.step).map_err(|e| e.to_string())?;
     let mut files = OutputSet::create(&a.out).map_err(|e| e.to_string())?;

@@ -4,18 +4,14 @@ use crate::common::{
     load_params, plan_step, positive_count, thread_count, usage_error, CurrentArg, Failure,
 };
 use dmech::Integrator;
-use dmech_ocp::solver::{IpOptions, KktMethod, Status};
+use dmech_ocp::solver::{IpOptions, KktMethod};
 use dmech_ocp::transcription::free_timing::TotalTime;
-use robots::check::check_size;
 use robots::cli::integrator_parser;
 use robots::cli::HessianArg;
 use robots::io::OutputSet;
-use robots::wip::plan::free_timing::plan_free_timing;
-use robots::wip::plan::problems;
-use robots::wip::plan::report::{plots, reduced_trajectory, summary_json, waypoint_error_max};
-use robots::wip::plan::{plan, PlanBounds};
-use robots::wip::simulate::{check_plan_step, trajectory_csv};
-use robots::wip::Wip;
+use robots::wip::plan::report::{plots, waypoint_error_max};
+use robots::wip::plan::request::{PlanRequest, PlanRequestError, ProblemSource, SUPPLY_VOLTAGE};
+use robots::wip::simulate::trajectory_csv;
 use robots::{progress, say};
 use std::path::PathBuf;
 
@@ -101,10 +97,10 @@ fn voltage_bound(s: &str) -> Result<f64, String> {
     let v: f64 = s
         .parse()
         .map_err(|_| format!("'{s}' is not a number of volts"))?;
-    if v > 0.0 && v <= 5.0 {
+    if v > 0.0 && v <= SUPPLY_VOLTAGE {
         Ok(v)
     } else {
-        Err(format!("{v} V is outside (0, 5] V"))
+        Err(PlanRequestError::VoltageBound(v).to_string())
     }
 }
 
@@ -116,174 +112,89 @@ fn time_price(s: &str) -> Result<f64, String> {
     }
 }
 
-/// Memory per stage while solving: 466 MB peak at 16,940 stages (docs/ocp.md, scale table).
-const BYTES_PER_STAGE: f64 = 28e3;
-
 pub fn run(a: PlanArgs) -> Result<(), Failure> {
-    let t_setup = std::time::Instant::now();
-    let h = a.step;
-    let problem = match problems::by_name(&a.problem, h) {
-        Some(p) => p,
-        None if a.problem.ends_with(".json") || std::path::Path::new(&a.problem).exists() => {
-            problems::from_file(std::path::Path::new(&a.problem), h)?
-        }
-        None => {
-            return Err(usage_error(
-                "plan",
-                format!(
-                    "unknown problem '{}': expected eight, zigzag or a waypoint FILE.json",
-                    a.problem
-                ),
-            ))
-        }
-    };
-    check_size(
-        &format!("plan {}: stages at h = {h} s", problem.name),
-        problem.n as f64,
-        a.max_stages,
-        BYTES_PER_STAGE,
-        "--max-stages",
-    )?;
-    if a.free_timing && a.integrator != Integrator::FirstOrder {
-        return Err(usage_error(
-            "plan",
-            format!(
-                "--free-timing needs --integrator first-order (got {})",
-                a.integrator.name()
-            ),
-        ));
-    }
-    let wip = Wip::new(load_params(a.params.as_deref())?);
-    check_plan_step(&wip, a.integrator, h)?;
-    let mut files = OutputSet::create(&a.out)?;
     let defaults = IpOptions::default();
-    let opts = a.hessian.apply(IpOptions {
-        verbose: !a.quiet,
-        max_iter: a.max_iter,
-        threads: a.threads.unwrap_or(defaults.threads),
-        kkt: match a.kkt {
-            KktArg::Riccati => KktMethod::Riccati,
-            KktArg::Sparse => KktMethod::SparseLdlt,
-        },
-        ..defaults
-    });
-    let (integrator, current) = (a.integrator.name(), a.current.model().name());
-    let setup = t_setup.elapsed().as_secs_f64();
+    let request = PlanRequest {
+        problem: ProblemSource::Named(a.problem.clone()),
+        integrator: a.integrator,
+        current: a.current.model(),
+        step: a.step,
+        params: load_params(a.params.as_deref())?,
+        u_max: a.u_max,
+        max_stages: a.max_stages,
+        free_timing: a.free_timing.then_some(match a.time_price {
+            Some(p) => TotalTime::Priced(p),
+            None => TotalTime::Fixed,
+        }),
+        options: a.hessian.apply(IpOptions {
+            verbose: !a.quiet,
+            max_iter: a.max_iter,
+            threads: a.threads.unwrap_or(defaults.threads),
+            kkt: match a.kkt {
+                KktArg::Riccati => KktMethod::Riccati,
+                KktArg::Sparse => KktMethod::SparseLdlt,
+            },
+            ..defaults
+        }),
+    };
+    let prepared = request.prepare().map_err(request_failure)?;
+    let mut files = OutputSet::create(&a.out)?;
+    let problem = &prepared.problem;
     if !a.quiet {
         progress!(
-            "wip plan {}: {} stages of {} s, {} waypoints, integrator {integrator}, {current} current",
+            "wip plan {}: {} stages of {} s, {} waypoints, integrator {}, {} current",
             problem.name,
             problem.n,
             problem.h,
-            problem.points.len()
+            problem.points.len(),
+            a.integrator.name(),
+            a.current.model().name()
         );
     }
-    let bounds = PlanBounds {
-        u_max: a.u_max,
-        ..PlanBounds::default()
-    };
-    let total = match a.time_price {
-        Some(p) => TotalTime::Priced(p),
-        None => TotalTime::Fixed,
-    };
-    let (o, free) = if a.free_timing {
-        let f = plan_free_timing(&wip, &problem, bounds, a.current.model(), total, opts)
-            .map_err(|e| Failure::Run(e.to_string()))?;
-        let fixed = (f.fixed.objective, f.fixed.iterations, f.fixed.timings.total);
+    let run = prepared.solve().map_err(request_failure)?;
+    if let Some(f) = &run.free_timing {
         say!(
             "{}: fixed timing {} after {} iterations in {:.2} s, objective {:.6}",
-            problem.name,
-            f.fixed.status.code(),
-            fixed.1,
-            fixed.2,
-            fixed.0
+            run.problem.name,
+            f.fixed_status.code(),
+            f.fixed.1,
+            f.fixed.2,
+            f.fixed.0
         );
-        (f.free, Some((fixed, f.ratios, f.time_cost)))
-    } else {
-        let o = plan(
-            &wip,
-            &problem,
-            bounds,
-            a.integrator,
-            a.current.model(),
-            opts,
-        );
-        (o, None)
-    };
-    let traj = reduced_trajectory(&wip, &o);
-    let csv = trajectory_csv(&traj)?;
-    files.write("trajectory.csv", csv.as_bytes())?;
-    let summary = summary_json(
-        &problem.name,
-        integrator,
-        current,
-        &problem,
-        &o,
-        &traj,
-        &bounds,
-        setup,
-    );
-    let summary = match &free {
-        None => summary,
-        Some(((objective, iterations, time), ratios, time_cost)) => {
-            let mut v: serde_json::Value =
-                serde_json::from_str(&summary).expect("summary_json writes JSON");
-            let t = &traj.t;
-            let durations: Vec<f64> = problem
-                .stages
-                .windows(2)
-                .map(|w| t[w[1]] - t[w[0]])
-                .collect();
-            v["free_timing"] = serde_json::json!({
-                "time_price": a.time_price,
-                "duration_s": t.last(),
-                "time_cost": time_cost,
-                "step_ratios": ratios,
-                "segment_durations_s": durations,
-                "waypoint_times_s": problem.stages.iter().map(|&k| t[k]).collect::<Vec<f64>>(),
-                "fixed_timing": {
-                    "objective": objective, "iterations": iterations, "solve_time_s": time
-                }
-            });
-            serde_json::to_string_pretty(&v).expect("JSON") + "\n"
-        }
-    };
-    files.write("summary.json", summary.as_bytes())?;
-    for (name, svg) in plots(&problem, &traj, &bounds) {
+    }
+    let (o, traj) = (&run.outcome, &run.trajectory);
+    files.write("trajectory.csv", trajectory_csv(traj)?.as_bytes())?;
+    files.write("summary.json", run.summary_json().as_bytes())?;
+    for (name, svg) in plots(&run.problem, traj, &run.bounds()) {
         files.write(&name, svg.as_bytes())?;
     }
     files.commit()?;
-    let status = o.status.code();
     say!(
-        "{}: {status} after {} iterations in {:.2} s (set-up {:.3} s); objective {:.6}, max violation {:.1e}, waypoint error {:.1e} m",
-        problem.name,
+        "{}: {} after {} iterations in {:.2} s (set-up {:.3} s); objective {:.6}, max violation {:.1e}, waypoint error {:.1e} m",
+        run.problem.name,
+        o.status.code(),
         o.iterations,
         o.timings.total,
-        setup,
+        run.setup_s,
         o.objective,
         o.max_violation,
-        waypoint_error_max(&problem, &traj)
+        waypoint_error_max(&run.problem, traj)
     );
     say!(
         "wrote {}/{{trajectory.csv, summary.json, *.svg}}",
         a.out.display()
     );
-    match o.status {
-        Status::Solved => Ok(()),
-        Status::Infeasible { violation } => Err(Failure::Run(format!(
-            "infeasible: feasibility restoration ended at a point of local infeasibility, largest violation {violation:.3e} (waypoints or end state out of reach within the bounds)"
-        ))),
-        Status::MaxIterations => Err(Failure::Run(format!(
-            "not solved within {} iterations (--max-iter)",
-            o.iterations
-        ))),
-        Status::TimeLimit => Err(Failure::Run(format!(
-            "not solved within the time limit ({} iterations)",
-            o.iterations
-        ))),
-        Status::Diverged => Err(Failure::Run(
-            "the iterates diverged (non-finite or unbounded values)".into(),
-        )),
-        Status::Failed(why) => Err(Failure::Run(format!("solver failed: {why}"))),
+    match run.not_solved() {
+        None => Ok(()),
+        Some(why) => Err(Failure::Run(why)),
+    }
+}
+
+/// A refused request: bad usage (exit 2) or a refused input (exit 1).
+fn request_failure(e: PlanRequestError) -> Failure {
+    if e.is_usage() {
+        usage_error("plan", e)
+    } else {
+        Failure::Run(e.to_string())
     }
 }

@@ -2,12 +2,11 @@
 
 use crate::common::{load_params, positive_count, sim_step, Failure};
 use dmech::Integrator;
-use robots::check::check_size;
 use robots::cli::integrator_parser;
 use robots::io::{read_inputs, OutputSet};
 use robots::say;
 use robots::wip::simulate::trajectory_csv;
-use robots::wip::simulate::{check_stability, simulate};
+use robots::wip::simulate::{check_simulation, simulate};
 use robots::wip::{ReducedState, Wip};
 use std::path::PathBuf;
 
@@ -57,21 +56,19 @@ pub fn run(a: SimulateArgs) -> Result<(), Failure> {
         " (one row a step at most: raise it with --max-steps)",
     )?;
     let what = format!("inputs file {}", a.inputs.display());
-    let v = a.max_voltage;
-    sched.check_limits(
-        &what,
-        [
-            ("uR", v, "V", "--max-voltage"),
-            ("uL", v, "V", "--max-voltage"),
-        ],
-    )?;
-    let steps = sched.end() / h;
-    check_size("simulate: steps", steps, a.max_steps, 300.0, "--max-steps")?;
-    let n = sched.steps_on_grid(h, &what, "--step")?;
-
     let wip = Wip::new(params);
     let integrator = a.integrator;
-    check_stability(&wip, integrator, h, &x, &sched)?;
+    let n = check_simulation(
+        &wip,
+        integrator,
+        h,
+        &x,
+        &sched,
+        &what,
+        a.max_steps,
+        a.max_voltage,
+    )
+    .map_err(|e| Failure::Run(e.to_string()))?;
     let mut files = OutputSet::create(&a.out)?;
     let t0 = std::time::Instant::now();
     let traj = simulate(&wip, integrator, h, &x, &sched, n)?;

@@ -8,6 +8,7 @@ pub mod free_timing;
 mod problem;
 pub mod problems;
 pub mod report;
+pub mod request;
 mod sequence;
 pub mod start;
 
