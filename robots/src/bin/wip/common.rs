@@ -34,7 +34,8 @@ run_failures!(
     robots::io::NonFiniteValue,
     robots::simulation::SimulationError,
     robots::wip::track::mpc::MpcDesignError,
-    robots::wip::diagnose::generate::GenerateError
+    robots::wip::diagnose::generate::GenerateError,
+    robots::wip::diagnose::request::GenerateRunError
 );
 
 impl From<String> for Failure {

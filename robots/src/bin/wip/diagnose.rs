@@ -1,11 +1,10 @@
 //! `wip diagnose`: compare the model with a measured log, name the unmodelled effect, refit.
 
 use crate::common::{load_params, positive_count, positive_number, Failure};
-use robots::diagnose::report::{diagnosis_json, report_md, residual_plots, residuals_csv};
-use robots::diagnose::{diagnose, DiagnoseOptions, Plant};
+use robots::diagnose::report::residual_plots;
+use robots::diagnose::{DiagnoseOptions, Plant};
 use robots::io::OutputSet;
-use robots::wip::diagnose::effects::CALIBRATED;
-use robots::wip::diagnose::refit::refit_params;
+use robots::wip::diagnose::request::{calibration_keys, diagnose_log, name_list};
 use robots::wip::diagnose::WipPlant;
 use robots::{progress, say};
 use std::path::PathBuf;
@@ -71,21 +70,11 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
     if let Some(n) = a.threads {
         opts.threads = n;
     }
-    let list = |s: &str| {
-        s.split(',')
-            .map(|x| x.trim().to_string())
-            .filter(|x| !x.is_empty())
-            .collect::<Vec<_>>()
-    };
     if let Some(c) = &a.calibrate {
-        opts.calibrate = if c == "default" {
-            CALIBRATED.iter().map(|s| s.to_string()).collect()
-        } else {
-            list(c)
-        };
+        opts.calibrate = calibration_keys(c);
     }
     if let Some(e) = &a.exclude {
-        opts.exclude = list(e);
+        opts.exclude = name_list(e);
     }
     let p = load_params(a.params.as_deref())?;
     let plant = WipPlant::new(p);
@@ -108,23 +97,19 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
             progress!("{line}");
         }
     };
-    let d = diagnose(&plant, &log, &opts, &report).map_err(|e| e.to_string())?;
-    let json = serde_json::to_string_pretty(&diagnosis_json(&plant, &d))
-        .map_err(|e| format!("diagnosis.json: {e}"))?;
+    let source = a.data.display().to_string();
+    let out = diagnose_log(&plant, &log, &opts, &source, &report).map_err(|e| e.to_string())?;
+    let d = &out.diagnosis;
+    let json =
+        serde_json::to_string_pretty(&out.json).map_err(|e| format!("diagnosis.json: {e}"))?;
     files.write("diagnosis.json", (json + "\n").as_bytes())?;
-    let note = "`params_refit.json` holds the refitted model in the parameter-file format (`--params`): the robot's own parameters that the diagnosis moved (a calibration, friction, payload) go in; the other effects (sensor offset and filter, floor slope, delay, voltage gain, dead zone, unequal wheels, stick-slip, backlash) are not parameters of the model and are only reported here.";
-    let md = report_md(&plant, &d, &log, &a.data.display().to_string(), note);
-    files.write("report.md", md.as_bytes())?;
-    for (name, svg) in residual_plots(&plant, &d, &log) {
+    files.write("report.md", out.report_md.as_bytes())?;
+    for (name, svg) in residual_plots(&plant, d, &log) {
         files.write(&name, svg.as_bytes())?;
     }
-    files.write("residuals.csv", residuals_csv(&plant, &d, &log).as_bytes())?;
+    files.write("residuals.csv", out.residuals_csv.as_bytes())?;
     // The refitted model as a parameter file that plan/simulate read.
-    let (refit, left_out) = refit_params(&plant, &d);
-    refit
-        .validate()
-        .map_err(|e| format!("params_refit.json: {e}"))?;
-    files.write("params_refit.json", refit.to_json().as_bytes())?;
+    files.write("params_refit.json", out.refit.to_json().as_bytes())?;
     files.commit()?;
     say!(
         "cause: {}; error {:.3} -> {:.3} (1 = noise floor), gain {:.3}; {:.1} s",
@@ -160,10 +145,10 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
             );
         }
     }
-    if !left_out.is_empty() {
+    if !out.left_out.is_empty() {
         say!(
             "  params_refit.json cannot hold {} (not parameters of the model file; see diagnosis.json)",
-            left_out.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")
+            out.left_out.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")
         );
     }
     say!(

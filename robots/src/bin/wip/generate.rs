@@ -1,11 +1,9 @@
 //! `wip generate`: a synthetic measured log from a closed-loop run with hidden effects.
 
 use crate::common::{load_params, usage_error, Failure};
-use robots::diagnose::Plant;
 use robots::io::OutputSet;
 use robots::say;
-use robots::wip::diagnose::effects::Effect;
-use robots::wip::diagnose::generate::{draw_effect, generate, truth_substeps, Rng, RunSettings};
+use robots::wip::diagnose::request::{generate_run, parse_effects};
 use robots::wip::diagnose::WipPlant;
 use std::path::PathBuf;
 
@@ -45,76 +43,22 @@ fn duration(s: &str) -> Result<f64, String> {
     }
 }
 
-/// The effects named by `--effect`: known names, none repeated.
-fn parse_effects(spec: &str) -> Result<Vec<Effect>, Failure> {
-    if spec == "none" {
-        return Ok(Vec::new());
-    }
-    let mut effects: Vec<Effect> = Vec::new();
-    for name in spec.split('+').map(str::trim) {
-        let e = Effect::from_name(name).ok_or_else(|| {
-            usage_error(
-                "generate",
-                format!(
-                    "unknown effect '{name}' (expected one of: {})",
-                    Effect::ALL.map(|e| e.name()).join(", ")
-                ),
-            )
-        })?;
-        if effects.contains(&e) {
-            return Err(usage_error(
-                "generate",
-                format!("--effect names '{name}' twice: each effect is applied once"),
-            ));
-        }
-        effects.push(e);
-    }
-    Ok(effects)
-}
-
 pub fn run(a: GenerateArgs) -> Result<(), Failure> {
-    let names = parse_effects(&a.effect)?;
+    let names = parse_effects(&a.effect).map_err(|e| usage_error("generate", e))?;
     let p = load_params(a.params.as_deref())?;
     let mut files = OutputSet::create(&a.out)?;
-    // The magnitudes come from their own stream so that the run (reference, noise) does not
-    // change with the effect.
-    let mut rng = Rng::new(a.seed.wrapping_add(1000));
-    let effects: Vec<(Effect, Vec<f64>)> = names
-        .iter()
-        .map(|&e| (e, draw_effect(e, &p, &mut rng)))
-        .collect();
-    let mut settings = RunSettings {
-        duration: a.duration,
-        ..Default::default()
-    };
-    settings.substeps = truth_substeps(&p, &effects, &settings)?;
-    let g = generate(&p, &effects, a.seed, &settings)?;
+    let g = generate_run(&p, &names, a.seed, a.duration)?;
     let plant = WipPlant::new(p);
-    files.write(
-        "log.csv",
-        g.log.to_csv(plant.channels(), plant.inputs()).as_bytes(),
-    )?;
-    let truth: Vec<serde_json::Value> = effects
-        .iter()
-        .map(|(e, theta)| {
-            let mut m = serde_json::Map::new();
-            for (n, v) in e.parameter_names().iter().zip(theta) {
-                m.insert((*n).to_string(), serde_json::json!(v));
-            }
-            serde_json::json!({ "effect": e.name(), "parameters": m })
-        })
-        .collect();
-    let json = serde_json::to_string_pretty(&serde_json::json!({
-        "seed": a.seed, "duration_s": a.duration, "h": settings.h, "effects": truth
-    }))
-    .map_err(|e| format!("truth.json: {e}"))?;
+    files.write("log.csv", g.log_csv(&plant).as_bytes())?;
+    let json = serde_json::to_string_pretty(&g.truth_json(a.seed))
+        .map_err(|e| format!("truth.json: {e}"))?;
     files.write("truth.json", (json + "\n").as_bytes())?;
     files.commit()?;
     say!(
         "generated {} rows ({} s) with {}; wrote {}/{{log.csv, truth.json}}",
         g.log.len(),
         a.duration,
-        if effects.is_empty() {
+        if g.effects.is_empty() {
             "no hidden effect".to_string()
         } else {
             a.effect.clone()

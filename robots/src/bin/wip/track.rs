@@ -5,13 +5,11 @@ use robots::check::check_size;
 use robots::io::OutputSet;
 use robots::say;
 use robots::wip::simulate::Trajectory;
-use robots::wip::track::closed_loop::{track_with_substeps, Controller, TrackConfig, TrackError};
-use robots::wip::track::lq::{LqController, SAMPLE};
-use robots::wip::track::monte_carlo::{monte_carlo, perturbed, quantile, with_mean_delay, McRun};
-use robots::wip::track::mpc::MpcController;
-use robots::wip::track::observer::SensorModel;
+use robots::wip::track::closed_loop::{Controller, TrackConfig};
+use robots::wip::track::lq::SAMPLE;
+use robots::wip::track::monte_carlo::{monte_carlo, quantile, with_mean_delay, McRun};
 use robots::wip::track::report::{plan_path, plots, read_plan, tracking_csv, tracking_json};
-use robots::wip::track::simulated_robot::substeps;
+use robots::wip::track::request::{ControllerKind, PreparedTrack, TrackRequest};
 use std::path::PathBuf;
 
 /// Track a planned trajectory in closed loop.
@@ -89,45 +87,33 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         300.0,
         "--max-samples",
     )?;
-    let plant = a
-        .plant_seed
-        .map_or(params, |n| perturbed(&params, a.param_error, n));
-    // The plant's RK4 substeps, before the controller's design: a plant that cannot be
-    // simulated is refused at once (a Monte Carlo run checks every seed's plant).
-    let substeps = substeps(&plant, &plan.x[0], SAMPLE).map_err(|e| match a.plant_seed {
-        Some(seed) => Failure::from(TrackError::Seed {
-            seed,
-            source: Box::new(e),
-        }),
-        None => Failure::from(e),
-    })?;
-    let lq = LqController::design(&params)
-        .map_err(|e| Failure::Run(format!("the LQ design failed: {e}")))?;
-    let mpc = match a.controller {
-        ControllerArg::Lq => None,
-        ControllerArg::Mpc => Some(MpcController::design(&params, &plan)?),
-    };
-    let controller = mpc.as_ref().map_or(Controller::Lq(&lq), Controller::Mpc);
-    let cfg = TrackConfig {
-        plant,
-        nominal: params,
-        sensors: match (a.ideal, a.mean_delay) {
-            (true, _) => SensorModel::ideal(),
-            (false, Some(m)) => with_mean_delay(m),
-            (false, None) => SensorModel::paper(),
+    let request = TrackRequest {
+        controller: match a.controller {
+            ControllerArg::Lq => ControllerKind::Lq,
+            ControllerArg::Mpc => ControllerKind::Mpc,
         },
+        params,
         seed: a.seed,
+        ideal: a.ideal,
+        mean_delay: a.mean_delay,
+        plant_seed: a.plant_seed,
+        param_error: a.param_error,
     };
+    let prepared = request
+        .prepare(&plan)
+        .map_err(|e| Failure::Run(e.to_string()))?;
+    let controller = prepared.controller();
+    let cfg = &prepared.config;
     if a.delay_sweep {
-        return delay_sweep(&a, &plan, controller, &cfg, a.monte_carlo.unwrap_or(20));
+        return delay_sweep(&a, &plan, controller, cfg, a.monte_carlo.unwrap_or(20));
     }
     if let Some(n) = a.monte_carlo {
-        return monte_carlo_run(&a, &plan, controller, &cfg, n);
+        return monte_carlo_run(&a, &prepared, n);
     }
     let mut files = OutputSet::create(&a.out)?;
     let t0 = std::time::Instant::now();
     let long = *plan.t.last().unwrap_or(&0.0) > 2.0;
-    let run = track_with_substeps(&plan, controller, &cfg, substeps, |f| {
+    let run = prepared.run(|f| {
         if long {
             robots::progress!("\rtrack: {:3.0} %", 100.0 * f);
         }
@@ -196,24 +182,11 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
 
 /// `--monte-carlo N`: seeds 1..=N with plant parameter error, a table on stdout and
 /// montecarlo.json (docs/formats.md).
-fn monte_carlo_run(
-    a: &TrackArgs,
-    plan: &Trajectory,
-    controller: Controller<'_>,
-    cfg: &TrackConfig,
-    n: usize,
-) -> Result<(), Failure> {
+fn monte_carlo_run(a: &TrackArgs, prepared: &PreparedTrack<'_>, n: usize) -> Result<(), Failure> {
+    let controller = prepared.controller();
     let mut files = OutputSet::create(&a.out)?;
     let t0 = std::time::Instant::now();
-    let runs = monte_carlo(
-        plan,
-        controller,
-        &cfg.plant,
-        &cfg.sensors,
-        a.param_error,
-        n as u64,
-        a.threads,
-    )?;
+    let runs = prepared.monte_carlo(a.param_error, n as u64, a.threads)?;
     let elapsed = t0.elapsed().as_secs_f64();
     // A diverged run's figures are not a result: the quantiles are over the others.
     let results = || runs.iter().filter(|r| r.diverged_at.is_none());

@@ -7,6 +7,7 @@ pub mod generate;
 pub mod plant;
 pub mod prediction;
 pub mod refit;
+pub mod request;
 pub mod reversal_lockout;
 
 pub use plant::{Channel, WipPlant};

@@ -10,4 +10,5 @@ pub mod monte_carlo;
 pub mod mpc;
 pub mod observer;
 pub mod report;
+pub mod request;
 pub mod simulated_robot;
