@@ -1,4 +1,5 @@
-"""The wheeled inverted pendulum (WIP) with DC motors: plan, simulate, parameters.
+"""The wheeled inverted pendulum (WIP) with DC motors: plan, simulate, track, generate and
+diagnose; its parameters.
 
 >>> import dmech
 >>> plan = dmech.wip.plan("eight")                       # doctest: +SKIP
@@ -20,6 +21,7 @@ from . import _native
 from ._tables import TimeSeries, series
 from ._plans import SolvedPlan, SolverProgress, problem_args, progress_callback, raise_unless_solved, solve_fields
 from .errors import BadInputError, call
+from ._wip_params import Params, ParamsLike, params, params_json as _params_json
 
 __all__ = [
     "STATE_NAMES",
@@ -31,6 +33,15 @@ __all__ = [
     "params",
     "plan",
     "simulate",
+    "track",
+    "Tracking",
+    "MonteCarlo",
+    "TRACKING_COLUMNS",
+    "generate",
+    "GeneratedLog",
+    "diagnose",
+    "Diagnosis",
+    "Cause",
 ]
 
 #: The reduced state of every trajectory, in order: pose (m, m, rad), tilt (rad), tilt
@@ -38,88 +49,6 @@ __all__ = [
 STATE_NAMES = ("x", "y", "theta", "alpha", "v_alpha", "v_d", "v_theta", "iR", "iL")
 #: The inputs: the two motor voltages (V).
 INPUT_NAMES = ("uR", "uL")
-
-
-class Params:
-    """The WIP's model parameters (SI units), the keys of a parameter file.
-
-    ``Params()`` is the default robot; ``Params.load(path)`` reads a parameter file (any
-    subset of the keys; the rest keep their defaults), ``p.replace(m_b=0.3)`` changes keys,
-    ``p.save(path)`` writes every key. Every constructor checks the values as
-    ``wip --params`` does and raises :class:`BadInputError` naming a bad key.
-    """
-
-    __slots__ = ("_values",)
-
-    def __init__(self, **values: float) -> None:
-        text = json.dumps(values) if values else _native.wip_default_params()
-        object.__setattr__(self, "_values", json.loads(call(_native.wip_check_params, text)))
-
-    @classmethod
-    def from_json(cls, text: str) -> "Params":
-        """From the text of a parameter file."""
-        p = cls.__new__(cls)
-        object.__setattr__(p, "_values", json.loads(call(_native.wip_check_params, text)))
-        return p
-
-    @classmethod
-    def load(cls, path: Union[str, os.PathLike]) -> "Params":
-        """From a parameter file."""
-        with open(path, encoding="utf-8") as f:
-            return cls.from_json(f.read())
-
-    def to_json(self) -> str:
-        """The parameter file's text (every key)."""
-        return json.dumps(self._values, indent=2) + "\n"
-
-    def save(self, path: Union[str, os.PathLike]) -> None:
-        """Write the parameter file."""
-        with open(path, "w", encoding="utf-8") as f:
-            f.write(self.to_json())
-
-    def replace(self, **changes: float) -> "Params":
-        """A copy with some keys changed."""
-        return Params(**{**self._values, **changes})
-
-    def to_dict(self) -> Dict[str, float]:
-        return dict(self._values)
-
-    def __getattr__(self, key: str) -> float:
-        try:
-            return self._values[key]
-        except KeyError:
-            raise AttributeError(key) from None
-
-    def __setattr__(self, key: str, value: Any) -> None:
-        raise AttributeError("Params is immutable: use replace()")
-
-    def __getstate__(self):
-        return self._values
-
-    def __setstate__(self, values):
-        object.__setattr__(self, "_values", values)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, Params) and self._values == other._values
-
-    def __repr__(self) -> str:
-        body = ", ".join(f"{k}={v!r}" for k, v in self._values.items())
-        return f"Params({body})"
-
-
-def params() -> Params:
-    """The default parameters (``wip params``)."""
-    return Params()
-
-
-def _params_json(p: Optional[Union[Params, Mapping[str, float], str, os.PathLike]]) -> Optional[str]:
-    if p is None:
-        return None
-    if isinstance(p, Params):
-        return p.to_json()
-    if isinstance(p, Mapping):
-        return json.dumps(dict(p))
-    return Params.load(p).to_json()
 
 
 @dataclasses.dataclass(eq=False)
@@ -130,6 +59,15 @@ class Trajectory(TimeSeries):
 
     state_names: Tuple[str, ...] = STATE_NAMES
     input_names: Tuple[str, ...] = INPUT_NAMES
+
+
+def trajectory_csv(trajectory: TimeSeries) -> str:
+    """A trajectory as ``trajectory.csv``'s text (17 significant digits: exact)."""
+    header = ",".join(("t",) + STATE_NAMES + INPUT_NAMES)
+    rows = np.column_stack([trajectory.t, trajectory.states, trajectory.inputs])
+    lines = [header]
+    lines += [repr(float(r[0])) + "".join(f",{v:.17e}" for v in r[1:]) for r in rows]
+    return "\n".join(lines) + "\n"
 
 
 def _trajectory(d: Dict[str, Any]) -> Dict[str, Any]:
@@ -153,12 +91,8 @@ class Plan(SolvedPlan):
         """Write ``trajectory.csv`` and ``summary.json`` into ``directory`` (created if
         missing), as ``wip plan`` writes them; ``wip track DIR`` reads the folder."""
         os.makedirs(directory, exist_ok=True)
-        header = ",".join(("t",) + STATE_NAMES + INPUT_NAMES)
-        rows = np.column_stack([self.t, self.states, self.inputs])
         with open(os.path.join(directory, "trajectory.csv"), "w", encoding="utf-8") as f:
-            f.write(header + "\n")
-            for r in rows:
-                f.write(repr(float(r[0])) + "".join(f",{v:.17e}" for v in r[1:]) + "\n")
+            f.write(trajectory_csv(self))
         with open(os.path.join(directory, "summary.json"), "w", encoding="utf-8") as f:
             json.dump(self.summary, f, indent=2)
             f.write("\n")
@@ -170,7 +104,7 @@ def plan(
     step: float = 0.005,
     integrator: str = "first-order",
     current: str = "dynamic",
-    params: Optional[Union[Params, Mapping[str, float], str, os.PathLike]] = None,
+    params: Optional[ParamsLike] = None,
     u_max: float = 5.0,
     free_timing: bool = False,
     time_price: Optional[float] = None,
@@ -257,7 +191,7 @@ def simulate(
     *,
     integrator: str = "first-order",
     step: float = 0.005,
-    params: Optional[Union[Params, Mapping[str, float], str, os.PathLike]] = None,
+    params: Optional[ParamsLike] = None,
     max_steps: int = 2_000_000,
     max_voltage: float = 24.0,
 ) -> Trajectory:
@@ -280,3 +214,7 @@ def simulate(
         float(max_voltage),
     )
     return Trajectory(**_trajectory(d["table"]))
+
+
+from ._wip_diagnose import Cause, Diagnosis, GeneratedLog, diagnose, generate  # noqa: E402
+from ._wip_track import TRACKING_COLUMNS, MonteCarlo, Tracking, track  # noqa: E402

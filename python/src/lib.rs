@@ -13,12 +13,16 @@ mod options;
 mod snakeboard;
 mod table;
 mod wip;
+mod wip_diagnose;
+mod wip_track;
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NativeError", m.py().get_type::<errors::NativeError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     wip::register(m)?;
+    wip_track::register(m)?;
+    wip_diagnose::register(m)?;
     car::register(m)?;
     snakeboard::register(m)?;
     Ok(())
