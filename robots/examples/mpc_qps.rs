@@ -31,6 +31,12 @@ fn flag(args: &[String], name: &str, default: usize) -> usize {
         .map_or(default, |v| v.parse().expect("a whole number"))
 }
 
+/// The number after `name`, if given.
+fn number(args: &[String], name: &str) -> Option<f64> {
+    let at = args.iter().position(|a| a == name)?;
+    Some(args.get(at + 1)?.parse().expect("a number"))
+}
+
 fn dump(args: &[String]) {
     let (dir, out) = (PathBuf::from(&args[0]), PathBuf::from(&args[1]));
     let (seed, from) = (flag(args, "--seed", 1), flag(args, "--from", 0));
@@ -64,7 +70,7 @@ fn dump(args: &[String]) {
         run.fell_at.is_some(),
         out.display()
     );
-    // The loop's own per-sample QP times (warm-started, set-up included).
+    // The loop's own per-sample QP times (the QP built and solved as the MPC does).
     let ms = |v: &[f64], q: f64| 1e3 * quantile(v, q);
     for (what, v) in [("CPU", &run.qp_solve_s), ("wall", &run.qp_wall_s)] {
         eprintln!(
@@ -80,7 +86,11 @@ fn time(args: &[String]) {
     let text = std::fs::read_to_string(&args[0]).expect("a QP file");
     let qps = MpcQp::all_from_text(&text).expect("QPs in the text form");
     let rounds = flag(args, "--rounds", 5).max(1);
-    let settings = QpSettings::default();
+    let mut settings = QpSettings::builder();
+    if let Some(mu0) = number(args, "--start-mu") {
+        settings = settings.start_mu(mu0);
+    }
+    let settings = settings.build().expect("valid settings");
     let mut solver = QpSolver::new(settings);
     // Set-up as the MPC does it, each time: the QP built (validated) from its parts.
     let parts = |qp: &MpcQp| (*qp.x0(), qp.stages().to_vec(), qp.terminal().clone());
