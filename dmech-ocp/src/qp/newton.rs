@@ -115,7 +115,7 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         if k > 0 {
             // P_k = Q̂ + Ŝᵀ K, its upper triangle mirrored (the sum is symmetric but for
             // rounding).
-            let p = q_hat + dense::tr_mul(&s_hat, &f.gain);
+            let p = q_hat + dense::tr_mul_narrow(&s_hat, &f.gain);
             for c in 0..NX {
                 for r in 0..c {
                     f.p[(r, c)] = p[(r, c)];
