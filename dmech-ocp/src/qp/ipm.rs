@@ -240,7 +240,10 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
             };
             solve(qp, sides, it, res, &mut self.fac, &target, &mut self.dir);
             self.refine(qp, 0.1 * tol * scales.dual);
-            let alpha = (self.settings.step_fraction * max_step(&self.it, &self.dir)).min(1.0);
+            // τ → 1 as μ → 0 (IPOPT's rule): near the solution a step of 0.995 would cap
+            // the reduction of μ at 200 per iteration.
+            let tau = self.settings.step_fraction.max(1.0 - m.mu);
+            let alpha = (tau * max_step(&self.it, &self.dir)).min(1.0);
             let (y_norm, dy_norm) = primal_norms(&self.it, &self.dir);
             if dy_norm > 1e8 * y_norm.max(scales.primal)
                 && dual_infeasible(qp, &self.sides, &self.dir, self.settings.certificate_tol)
