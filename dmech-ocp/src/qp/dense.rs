@@ -86,32 +86,6 @@ pub(crate) fn tr_mul_vec<const K: usize, const R: usize>(
     SVector::from_fn(|r, _| dot(&a.as_slice()[r * K..(r + 1) * K], v.as_slice()))
 }
 
-/// `Aᵀ M A` for a symmetric `M`, formed on and above the diagonal and mirrored; a zero
-/// column of `A` gives a zero row and column.
-#[inline]
-pub(crate) fn congruence<const K: usize, const R: usize>(
-    a: &SMatrix<f64, K, R>,
-    ma: &SMatrix<f64, K, R>,
-) -> SMatrix<f64, R, R> {
-    let mut out = SMatrix::<f64, R, R>::zeros();
-    let zero: [bool; R] = std::array::from_fn(|r| a.column(r).iter().all(|&x| x == 0.0));
-    for c in 0..R {
-        if zero[c] {
-            continue;
-        }
-        let ma_col = &ma.as_slice()[c * K..(c + 1) * K];
-        for r in 0..=c {
-            if zero[r] {
-                continue;
-            }
-            let v = dot(&a.as_slice()[r * K..(r + 1) * K], ma_col);
-            out[(r, c)] = v;
-            out[(c, r)] = v;
-        }
-    }
-    out
-}
-
 /// `aᵀb` in four interleaved partial sums (`i mod 4`), added pairwise at the end: the
 /// compiler keeps a float sum in order, so one accumulator would be a chain of dependent
 /// additions; four are one vector register.

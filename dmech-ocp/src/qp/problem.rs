@@ -197,6 +197,9 @@ pub struct StageQp<const NX: usize, const NU: usize, const NC: usize> {
     x0: SVector<f64, NX>,
     stages: Vec<Stage<NX, NU, NC>>,
     terminal: Terminal<NX, NU, NC>,
+    /// Each stage's `Aᵀ` and `Bᵀ`: the interior point's products with them (`Aᵀπ`,
+    /// `AᵀPA`, `AᵀPB`) become `axpy`s over their columns rather than dot products.
+    a_t: Vec<SMatrix<f64, NX, NX>>,
 }
 
 impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
@@ -220,10 +223,12 @@ impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
         if !positive_semidefinite(&terminal.q) {
             return Err(QpError::NotConvex { stage: n });
         }
+        let a_t = stages.iter().map(|st| st.a.transpose()).collect();
         Ok(StageQp {
             x0,
             stages,
             terminal,
+            a_t,
         })
     }
 
@@ -245,6 +250,11 @@ impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
     /// The terminal stage.
     pub fn terminal(&self) -> &Terminal<NX, NU, NC> {
         &self.terminal
+    }
+
+    /// `A_kᵀ`.
+    pub(crate) fn a_t(&self, k: usize) -> &SMatrix<f64, NX, NX> {
+        &self.a_t[k]
     }
 
     /// The rows of stage `k ≤ N`.
