@@ -233,11 +233,11 @@ pub(crate) fn newton_residual<const NX: usize, const NU: usize, const NC: usize>
             o.r_x = st.q * dk.x
                 + st.s * dk.u
                 + dense::mul_vec(qp.a_t(k), &dk.pi)
-                + rows.d.tr_mul(&net)
+                + dense::mul_vec(qp.d_t(k), &net)
                 + res[k].r_x;
         } else {
             o.r_u = SVector::zeros();
-            o.r_x = qp.terminal().q * dk.x + rows.d.tr_mul(&net) + res[k].r_x;
+            o.r_x = qp.terminal().q * dk.x + dense::mul_vec(qp.d_t(k), &net) + res[k].r_x;
         }
         if k > 0 {
             o.r_x -= d[k - 1].pi;
@@ -291,7 +291,7 @@ pub(crate) fn solve<const NX: usize, const NU: usize, const NC: usize>(
             }
         }
         let rows = qp.rows(k);
-        let q_tilde = rk.r_x + rows.d.tr_mul(&a_net);
+        let q_tilde = rk.r_x + dense::mul_vec(qp.d_t(k), &a_net);
         if k == n {
             f.p_vec = q_tilde;
             continue;

@@ -197,9 +197,11 @@ pub struct StageQp<const NX: usize, const NU: usize, const NC: usize> {
     x0: SVector<f64, NX>,
     stages: Vec<Stage<NX, NU, NC>>,
     terminal: Terminal<NX, NU, NC>,
-    /// Each stage's `Aᵀ` and `Bᵀ`: the interior point's products with them (`Aᵀπ`,
-    /// `AᵀPA`, `AᵀPB`) become `axpy`s over their columns rather than dot products.
+    /// Each stage's `Aᵀ` and each stage's rows' `Dᵀ` (`0 … N`): the interior point's
+    /// products with them (`Aᵀπ`, `AᵀPA`, `AᵀPB`, `Dᵀλ`) become `axpy`s over their
+    /// columns rather than dot products.
     a_t: Vec<SMatrix<f64, NX, NX>>,
+    d_t: Vec<SMatrix<f64, NX, NC>>,
 }
 
 impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
@@ -224,11 +226,14 @@ impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
             return Err(QpError::NotConvex { stage: n });
         }
         let a_t = stages.iter().map(|st| st.a.transpose()).collect();
+        let rows = stages.iter().map(|st| &st.rows).chain([&terminal.rows]);
+        let d_t = rows.map(|rows| rows.d.transpose()).collect();
         Ok(StageQp {
             x0,
             stages,
             terminal,
             a_t,
+            d_t,
         })
     }
 
@@ -255,6 +260,11 @@ impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
     /// `A_kᵀ`.
     pub(crate) fn a_t(&self, k: usize) -> &SMatrix<f64, NX, NX> {
         &self.a_t[k]
+    }
+
+    /// `D_kᵀ` of the rows of stage `k ≤ N`.
+    pub(crate) fn d_t(&self, k: usize) -> &SMatrix<f64, NX, NC> {
+        &self.d_t[k]
     }
 
     /// The rows of stage `k ≤ N`.
