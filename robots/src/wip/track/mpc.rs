@@ -54,8 +54,8 @@ pub type MpcQp = StageQp<QP_NX, NIN, QP_NC>;
 const QP_TOL: f64 = 1e-8;
 /// The complementarity the interior point's cold start is centred at
 /// ([`QpSettings::start_mu`]): these QPs' bounds are small (a rate bound of 0.01 V per
-/// sample); on 530 QPs of the 4.4-V eight for each of seeds 1–3, 7.8 iterations on
-/// average (at most 10) against 9.0 (at most 11) at the default 10 (docs/qp.md).
+/// sample); on 530 QPs of the 4.4-V eight for each of seeds 1–3, 7.4–7.5 iterations on
+/// average (at most 10) against 8.7–8.8 (at most 11) at the default 10 (docs/qp.md).
 pub const QP_START_MU: f64 = 0.1;
 
 /// The interior point's settings for the MPC's QPs.
