@@ -25,7 +25,13 @@ fn qps() -> Vec<MpcQp> {
 
 fn bench(c: &mut Criterion) {
     let qps = qps();
-    let mut solver = QpSolver::<10, 2, 5>::new(QpSettings::default());
+    // The MPC's settings (robots' `mpc::qp_settings`): the default tolerance, the cold
+    // start centred at μ0 = 0.1.
+    let settings = QpSettings::builder()
+        .start_mu(0.1)
+        .build()
+        .expect("valid settings");
+    let mut solver = QpSolver::<10, 2, 5>::new(settings);
     // The warm starts: each QP from the solution of the one before (cold for the first).
     let mut previous: Option<QpSolution<10, 2, 5>> = None;
     let starts: Vec<_> = qps

@@ -3,21 +3,22 @@
 //!
 //! ```text
 //! mpc_qps dump PLAN_DIR OUT.qps [--seed N] [--from K] [--count N] [--stride S]
-//! mpc_qps time FILE.qps [--rounds R] > ours.json
+//! mpc_qps time FILE.qps [--rounds R] [--start-mu MU] > ours.json
 //! ```
 //! `dump` runs the closed loop along `PLAN_DIR/trajectory.csv` (nominal plant, the paper's
 //! sensors, seed `N`, default 1), records every sample's QP and writes those of samples
 //! `K, K+S, …` (`count` of them; default all) in `dmech_ocp::qp`'s text form, and prints the
 //! loop's own per-sample QP times (median, 99th percentile, largest; thread CPU and wall
-//! clock). `time` solves
-//! every QP of a file `R` times (default 5) cold, and once more warm from the previous
-//! QP's solution shifted by a stage (meaningful for a file of consecutive samples, stride
-//! 1), and prints per QP the median time (s) over the rounds, the iterations and `δu_0`.
+//! clock). `time` solves every QP of a file with the MPC's settings (`mpc::qp_settings`;
+//! another cold start's `μ0` by `--start-mu`) `R` times (default 5) cold, and once more
+//! warm from the previous QP's solution shifted by a stage (meaningful for a file of
+//! consecutive samples, stride 1), and prints per QP the median time (s) over the rounds,
+//! the iterations and `δu_0`.
 
-use dmech_ocp::qp::{QpSettings, QpSolver, QpStatus};
+use dmech_ocp::qp::{QpSolver, QpStatus};
 use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::monte_carlo::quantile;
-use robots::wip::track::mpc::{MpcController, MpcQp};
+use robots::wip::track::mpc::{qp_settings, MpcController, MpcQp};
 use robots::wip::track::observer::SensorModel;
 use robots::wip::track::report::read_plan;
 use robots::wip::WipParams;
@@ -29,6 +30,12 @@ fn flag(args: &[String], name: &str, default: usize) -> usize {
         .position(|a| a == name)
         .and_then(|i| args.get(i + 1))
         .map_or(default, |v| v.parse().expect("a whole number"))
+}
+
+/// The number after `name`, if given.
+fn number(args: &[String], name: &str) -> Option<f64> {
+    let at = args.iter().position(|a| a == name)?;
+    Some(args.get(at + 1)?.parse().expect("a number"))
 }
 
 fn dump(args: &[String]) {
@@ -64,7 +71,7 @@ fn dump(args: &[String]) {
         run.fell_at.is_some(),
         out.display()
     );
-    // The loop's own per-sample QP times (warm-started, set-up included).
+    // The loop's own per-sample QP times (the QP built and solved as the MPC does).
     let ms = |v: &[f64], q: f64| 1e3 * quantile(v, q);
     for (what, v) in [("CPU", &run.qp_solve_s), ("wall", &run.qp_wall_s)] {
         eprintln!(
@@ -80,7 +87,11 @@ fn time(args: &[String]) {
     let text = std::fs::read_to_string(&args[0]).expect("a QP file");
     let qps = MpcQp::all_from_text(&text).expect("QPs in the text form");
     let rounds = flag(args, "--rounds", 5).max(1);
-    let settings = QpSettings::default();
+    // The MPC's settings, or another start.
+    let mut settings = qp_settings();
+    if let Some(mu0) = number(args, "--start-mu") {
+        settings.start_mu = mu0;
+    }
     let mut solver = QpSolver::new(settings);
     // Set-up as the MPC does it, each time: the QP built (validated) from its parts.
     let parts = |qp: &MpcQp| (*qp.x0(), qp.stages().to_vec(), qp.terminal().clone());
@@ -138,7 +149,7 @@ fn main() {
         _ => {
             eprintln!(
                 "usage: mpc_qps dump PLAN_DIR OUT.qps [--seed N] [--from K] [--count N] \
-                 [--stride S] | mpc_qps time FILE.qps [--rounds R]"
+                 [--stride S] | mpc_qps time FILE.qps [--rounds R] [--start-mu MU]"
             );
             std::process::exit(2);
         }

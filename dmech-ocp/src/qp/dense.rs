@@ -66,6 +66,17 @@ pub(crate) fn tr_mul<const K: usize, const R: usize, const C: usize>(
     out
 }
 
+/// `Aᵀ B` for a wide `A` of few rows (`K`, the inputs): each column of the product the
+/// `axpy`s of `Aᵀ`'s columns by that column of `B`, rather than `R · C` dot products of
+/// length `K`.
+#[inline]
+pub(crate) fn tr_mul_narrow<const K: usize, const R: usize, const C: usize>(
+    a: &SMatrix<f64, K, R>,
+    b: &SMatrix<f64, K, C>,
+) -> SMatrix<f64, R, C> {
+    mul(&a.transpose(), b)
+}
+
 /// `Aᵀ v`.
 #[inline]
 pub(crate) fn tr_mul_vec<const K: usize, const R: usize>(
@@ -75,35 +86,23 @@ pub(crate) fn tr_mul_vec<const K: usize, const R: usize>(
     SVector::from_fn(|r, _| dot(&a.as_slice()[r * K..(r + 1) * K], v.as_slice()))
 }
 
-/// `Aᵀ M A` for a symmetric `M`, formed on and above the diagonal and mirrored; a zero
-/// column of `A` gives a zero row and column.
+/// `aᵀb` in four interleaved partial sums (`i mod 4`), added pairwise at the end: the
+/// compiler keeps a float sum in order, so one accumulator would be a chain of dependent
+/// additions; four are one vector register.
 #[inline]
-pub(crate) fn congruence<const K: usize, const R: usize>(
-    a: &SMatrix<f64, K, R>,
-    ma: &SMatrix<f64, K, R>,
-) -> SMatrix<f64, R, R> {
-    let mut out = SMatrix::<f64, R, R>::zeros();
-    let zero: [bool; R] = std::array::from_fn(|r| a.column(r).iter().all(|&x| x == 0.0));
-    for c in 0..R {
-        if zero[c] {
-            continue;
-        }
-        let ma_col = &ma.as_slice()[c * K..(c + 1) * K];
-        for r in 0..=c {
-            if zero[r] {
-                continue;
-            }
-            let v = dot(&a.as_slice()[r * K..(r + 1) * K], ma_col);
-            out[(r, c)] = v;
-            out[(c, r)] = v;
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
         }
     }
-    out
-}
-
-#[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    for (i, (x, y)) in ra.iter().zip(rb).enumerate() {
+        acc[i] += x * y;
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3])
 }
 
 /// `X = (L Lᵀ)⁻¹ B` for a lower-triangular `L` with a positive diagonal: forward and back

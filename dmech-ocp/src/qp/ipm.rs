@@ -135,11 +135,7 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
                             let t = gap.max(1.0);
                             (t, mu0 / t, 0.0, 0.0)
                         }
-                        (Side::Soft { l1, l2 }, false) => {
-                            let s = (-gap).max(0.0) + 2.0 * mu0 / l1;
-                            let lam = 0.5 * (l1 + l2 * s);
-                            ((gap + s).max(mu0 / lam), lam, s, lam)
-                        }
+                        (Side::Soft { l1, l2 }, false) => centred_soft_side(gap, l1, l2, mu0),
                         (Side::Hard, true) => (gap.max(floor), ik.lam[j][i].max(floor), 0.0, 0.0),
                         (Side::Soft { .. }, true) => {
                             let s = ik.s[j][i].max(floor);
@@ -244,7 +240,10 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
             };
             solve(qp, sides, it, res, &mut self.fac, &target, &mut self.dir);
             self.refine(qp, 0.1 * tol * scales.dual);
-            let alpha = (self.settings.step_fraction * max_step(&self.it, &self.dir)).min(1.0);
+            // τ → 1 as μ → 0 (IPOPT's rule): near the solution a step of 0.995 would cap
+            // the reduction of μ at 200 per iteration.
+            let tau = self.settings.step_fraction.max(1.0 - m.mu);
+            let alpha = (tau * max_step(&self.it, &self.dir)).min(1.0);
             let (y_norm, dy_norm) = primal_norms(&self.it, &self.dir);
             if dy_norm > 1e8 * y_norm.max(scales.primal)
                 && dual_infeasible(qp, &self.sides, &self.dir, self.settings.certificate_tol)
@@ -359,6 +358,44 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
             iterate: self.it.clone(),
         }
     }
+}
+
+/// A soft side's start at the complementarity `μ`, its slack equation `t − s = g` (`g`
+/// the row's distance to its bound, negative where the rollout violates it) and its
+/// stationarity `λ + ν = l1 + l2 s` all holding: `t λ = s ν = μ` make that
+/// `h(s) = μ/(s + g) + μ/s − l1 − l2 s = 0`, decreasing and convex on
+/// `s > max(0, −g)`. With `l2 = 0` its root is that of
+/// `l1 s² + (l1 g − 2μ) s − μ g = 0`, in closed form; otherwise that closed form at the
+/// price `p = l1 + l2 s₁` of a first root `s₁`, then Newton steps (from the left of
+/// the root, where they rise to it monotonically; guarded to stay in the domain).
+/// Returns `(t, λ, s, ν)`.
+fn centred_soft_side(g: f64, l1: f64, l2: f64, mu: f64) -> (f64, f64, f64, f64) {
+    // The positive root of p s² + (p g − 2μ) s − μ g = 0, without cancellation.
+    let root = |p: f64| {
+        let b = p * g - 2.0 * mu;
+        let sq = (p * g).hypot(2.0 * mu);
+        match b <= 0.0 {
+            true => (sq - b) / (2.0 * p),
+            false => 2.0 * mu * g / (b + sq),
+        }
+    };
+    let lower = (-g).max(0.0);
+    // A price at least that of the violation the rollout has (l2 alone: one unit of it).
+    let p1 = match l1 + l2 * lower {
+        p if p > 0.0 => p,
+        _ => l2,
+    };
+    let mut s = root(p1);
+    if l2 > 0.0 {
+        s = root(l1 + l2 * s);
+        for _ in 0..3 {
+            let h = mu / (s + g) + mu / s - l1 - l2 * s;
+            let dh = -mu / ((s + g) * (s + g)) - mu / (s * s) - l2;
+            s = (s - h / dh).max(0.5 * (s + lower));
+        }
+    }
+    let t = s + g;
+    (t, mu / t, s, mu / s)
 }
 
 /// Stationarity and primal residual within `tol` of their scales, and the duality gap

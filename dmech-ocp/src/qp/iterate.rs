@@ -160,14 +160,15 @@ pub(crate) fn residuals<const NX: usize, const NU: usize, const NC: usize>(
             m.objective += 0.5 * ik.x.dot(&qx) + ik.x.dot(&su) + 0.5 * ik.u.dot(&ru);
             m.objective += st.q_vec.dot(&ik.x) + st.r_vec.dot(&ik.u);
             rk.r_u = ru + st.s.tr_mul(&ik.x) + st.r_vec + st.b.tr_mul(&ik.pi) + rows.e.tr_mul(&net);
-            rk.r_x = qx + su + st.q_vec + st.a.tr_mul(&ik.pi) + rows.d.tr_mul(&net);
+            let a_pi = super::dense::mul_vec(qp.a_t(k), &ik.pi);
+            rk.r_x = qx + su + st.q_vec + a_pi + super::dense::mul_vec(qp.d_t(k), &net);
             rk.r_dyn = st.a * ik.x + st.b * ik.u + st.c - it[k + 1].x;
             rk.z = rows.d * ik.x + rows.e * ik.u;
         } else {
             let t = qp.terminal();
             let qx = t.q * ik.x;
             m.objective += 0.5 * ik.x.dot(&qx) + t.q_vec.dot(&ik.x);
-            rk.r_x = qx + t.q_vec + rows.d.tr_mul(&net);
+            rk.r_x = qx + t.q_vec + super::dense::mul_vec(qp.d_t(k), &net);
             rk.r_u = SVector::zeros();
             rk.r_dyn = SVector::zeros();
             rk.z = rows.d * ik.x;

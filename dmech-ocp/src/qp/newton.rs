@@ -105,8 +105,9 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         let weight = f.row_weight(&sides[k]);
         let pa = dense::mul(&next.p, &st.a);
         let pb = dense::mul(&next.p, &st.b);
-        let mut q_hat = st.q + dense::congruence(&st.a, &pa);
-        let mut s_hat = st.s.transpose() + dense::tr_mul(&st.b, &pa);
+        let mut q_hat = st.q + dense::mul(qp.a_t(k), &pa);
+        // Ŝ = Sᵀ + BᵀPA = (S + AᵀPB)ᵀ: axpys over Aᵀ's columns.
+        let mut s_hat = (st.s + dense::mul(qp.a_t(k), &pb)).transpose();
         let mut r_hat = st.r + dense::tr_mul(&st.b, &pb) + eye_u;
         condense(rows, &weight, &mut q_hat, &mut s_hat, &mut r_hat);
         let chol = r_hat.cholesky().ok_or(NotPositiveDefinite(k))?;
@@ -115,7 +116,7 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         if k > 0 {
             // P_k = Q̂ + Ŝᵀ K, its upper triangle mirrored (the sum is symmetric but for
             // rounding).
-            let p = q_hat + dense::tr_mul(&s_hat, &f.gain);
+            let p = q_hat + dense::tr_mul_narrow(&s_hat, &f.gain);
             for c in 0..NX {
                 for r in 0..c {
                     f.p[(r, c)] = p[(r, c)];
@@ -229,11 +230,14 @@ pub(crate) fn newton_residual<const NX: usize, const NU: usize, const NC: usize>
                 + st.b.tr_mul(&dk.pi)
                 + rows.e.tr_mul(&net)
                 + res[k].r_u;
-            o.r_x =
-                st.q * dk.x + st.s * dk.u + st.a.tr_mul(&dk.pi) + rows.d.tr_mul(&net) + res[k].r_x;
+            o.r_x = st.q * dk.x
+                + st.s * dk.u
+                + dense::mul_vec(qp.a_t(k), &dk.pi)
+                + dense::mul_vec(qp.d_t(k), &net)
+                + res[k].r_x;
         } else {
             o.r_u = SVector::zeros();
-            o.r_x = qp.terminal().q * dk.x + rows.d.tr_mul(&net) + res[k].r_x;
+            o.r_x = qp.terminal().q * dk.x + dense::mul_vec(qp.d_t(k), &net) + res[k].r_x;
         }
         if k > 0 {
             o.r_x -= d[k - 1].pi;
@@ -287,7 +291,7 @@ pub(crate) fn solve<const NX: usize, const NU: usize, const NC: usize>(
             }
         }
         let rows = qp.rows(k);
-        let q_tilde = rk.r_x + rows.d.tr_mul(&a_net);
+        let q_tilde = rk.r_x + dense::mul_vec(qp.d_t(k), &a_net);
         if k == n {
             f.p_vec = q_tilde;
             continue;
@@ -300,7 +304,7 @@ pub(crate) fn solve<const NX: usize, const NU: usize, const NC: usize>(
         let h_u = r_tilde + dense::tr_mul_vec(&st.b, &pc);
         f.kappa = -dense::cholesky_solve(&f.chol, &h_u);
         if k > 0 {
-            f.p_vec = q_tilde + dense::tr_mul_vec(&st.a, &pc) + dense::tr_mul_vec(&f.gain, &h_u);
+            f.p_vec = q_tilde + dense::mul_vec(qp.a_t(k), &pc) + dense::tr_mul_vec(&f.gain, &h_u);
         }
     }
     // Forward: dx_0 = 0 (x_0 is given and held).
@@ -311,7 +315,10 @@ pub(crate) fn solve<const NX: usize, const NU: usize, const NC: usize>(
         let du = dense::mul_vec(&f.gain, &dir[k].x) + f.kappa;
         let dx_next = dense::mul_vec(&st.a, &dir[k].x) + dense::mul_vec(&st.b, &du) + res[k].r_dyn;
         dir[k].u = du;
-        dir[k].pi = dense::mul_vec(&fac[k + 1].p, &dx_next) + fac[k + 1].p_vec;
+        // The predictor's Δπ is never used (its sides' directions are).
+        if !matches!(target, Target::Affine) {
+            dir[k].pi = dense::mul_vec(&fac[k + 1].p, &dx_next) + fac[k + 1].p_vec;
+        }
         dir[k + 1].x = dx_next;
     }
     dir[n].u = SVector::zeros();

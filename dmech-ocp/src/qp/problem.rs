@@ -197,6 +197,11 @@ pub struct StageQp<const NX: usize, const NU: usize, const NC: usize> {
     x0: SVector<f64, NX>,
     stages: Vec<Stage<NX, NU, NC>>,
     terminal: Terminal<NX, NU, NC>,
+    /// Each stage's `Aᵀ` and each stage's rows' `Dᵀ` (`0 … N`): the interior point's
+    /// products with them (`Aᵀπ`, `AᵀPA`, `AᵀPB`, `Dᵀλ`) become `axpy`s over their
+    /// columns rather than dot products.
+    a_t: Vec<SMatrix<f64, NX, NX>>,
+    d_t: Vec<SMatrix<f64, NX, NC>>,
 }
 
 impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
@@ -220,10 +225,15 @@ impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
         if !positive_semidefinite(&terminal.q) {
             return Err(QpError::NotConvex { stage: n });
         }
+        let a_t = stages.iter().map(|st| st.a.transpose()).collect();
+        let rows = stages.iter().map(|st| &st.rows).chain([&terminal.rows]);
+        let d_t = rows.map(|rows| rows.d.transpose()).collect();
         Ok(StageQp {
             x0,
             stages,
             terminal,
+            a_t,
+            d_t,
         })
     }
 
@@ -245,6 +255,16 @@ impl<const NX: usize, const NU: usize, const NC: usize> StageQp<NX, NU, NC> {
     /// The terminal stage.
     pub fn terminal(&self) -> &Terminal<NX, NU, NC> {
         &self.terminal
+    }
+
+    /// `A_kᵀ`.
+    pub(crate) fn a_t(&self, k: usize) -> &SMatrix<f64, NX, NX> {
+        &self.a_t[k]
+    }
+
+    /// `D_kᵀ` of the rows of stage `k ≤ N`.
+    pub(crate) fn d_t(&self, k: usize) -> &SMatrix<f64, NX, NC> {
+        &self.d_t[k]
     }
 
     /// The rows of stage `k ≤ N`.
@@ -285,8 +305,14 @@ fn soft_cost<const NX: usize, const NU: usize, const NC: usize>(
         .sum()
 }
 
+/// Every entry of `v` finite: no entry with the exponent bits all set (an infinity or a
+/// NaN), tested by an or over the entries (no early exit: the loop vectorises).
 fn finite(stage: usize, what: &'static str, v: &[f64]) -> Result<(), QpError> {
-    match v.iter().all(|x| x.is_finite()) {
+    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
+    let not_finite = v
+        .iter()
+        .fold(false, |acc, x| acc | (x.to_bits() & EXPONENT == EXPONENT));
+    match !not_finite {
         true => Ok(()),
         false => Err(QpError::NotFinite { stage, what }),
     }
@@ -305,14 +331,14 @@ fn validate_stage<const NX: usize, const NU: usize, const NC: usize>(
     finite(k, "q", st.q_vec.as_slice())?;
     finite(k, "r", st.r_vec.as_slice())?;
     validate_rows(k, &st.rows)?;
-    // [Q S; Sᵀ R] assembled: NX + NU is small.
-    let n = NX + NU;
-    let mut h = nalgebra::DMatrix::<f64>::zeros(n, n);
-    h.view_mut((0, 0), (NX, NX)).copy_from(&st.q);
-    h.view_mut((0, NX), (NX, NU)).copy_from(&st.s);
-    h.view_mut((NX, 0), (NU, NX)).copy_from(&st.s.transpose());
-    h.view_mut((NX, NX), (NU, NU)).copy_from(&st.r);
-    match positive_semidefinite(&h) {
+    // [Q S; Sᵀ R] by its entries.
+    let h = |i: usize, j: usize| match (i < NX, j < NX) {
+        (true, true) => st.q[(i, j)],
+        (true, false) => st.s[(i, j - NX)],
+        (false, true) => st.s[(j, i - NX)],
+        (false, false) => st.r[(i - NX, j - NX)],
+    };
+    match positive_semidefinite_by(NX + NU, h) {
         true => Ok(()),
         false => Err(QpError::NotConvex { stage: k }),
     }
@@ -344,30 +370,55 @@ fn validate_rows<const NX: usize, const NU: usize, const NC: usize>(
     Ok(())
 }
 
-/// Whether the symmetric matrix `h` is positive semidefinite, by a Cholesky
-/// factorisation with diagonal pivoting (the largest remaining diagonal first, which keeps
-/// the rounding at `O(n u max|h|)`): once every remaining diagonal is below
-/// `ε = 1e-12 n max|h_ij|`, the remainder of a semidefinite matrix is zero to rounding,
-/// so a remaining entry above `√(ε max|h_ij|)` (or a diagonal below `−ε`) refutes it.
-/// Asymmetry beyond `ε` refutes it too.
+/// Whether the symmetric matrix `h` is positive semidefinite ([`positive_semidefinite_by`]).
 fn positive_semidefinite<R, C, S>(h: &nalgebra::Matrix<f64, R, C, S>) -> bool
 where
     R: nalgebra::Dim,
     C: nalgebra::Dim,
     S: nalgebra::RawStorage<f64, R, C>,
 {
-    let n = h.nrows();
-    let scale = h.amax();
-    let eps = 1e-12 * n as f64 * scale;
-    let mut m = nalgebra::DMatrix::<f64>::from_fn(n, n, |i, j| h[(i, j)]);
+    positive_semidefinite_by(h.nrows(), |i, j| h[(i, j)])
+}
+
+/// Whether the symmetric `n × n` matrix with the entries `h(i, j)` is positive
+/// semidefinite, by a Cholesky factorisation with diagonal pivoting (the largest
+/// remaining diagonal first, which keeps the rounding at `O(n u max|h_ij|)`): once every
+/// remaining diagonal is below `ε = 1e-12 n max|h_ij|`, the remainder of a semidefinite
+/// matrix is zero to rounding, so a remaining entry above `√(ε max|h_ij|)` (or a diagonal
+/// below `−ε`) refutes it. Asymmetry beyond `ε` refutes it too. An index without an
+/// off-diagonal entry (a diagonal cost term, a zero row) takes no part in the
+/// factorisation (a pivot on it changes no other entry): it is checked on its own,
+/// `h_ii ≥ −ε`, and the factorisation runs on the coupled indices alone (none for a
+/// diagonal Hessian, and then nothing is allocated).
+fn positive_semidefinite_by(n: usize, h: impl Fn(usize, usize) -> f64) -> bool {
+    let mut scale: f64 = 0.0;
     for i in 0..n {
-        for j in 0..i {
-            if (m[(i, j)] - m[(j, i)]).abs() > eps {
-                return false;
-            }
+        for j in 0..n {
+            scale = scale.max(h(i, j).abs());
         }
     }
-    let mut left: Vec<usize> = (0..n).collect();
+    let eps = 1e-12 * n as f64 * scale;
+    let mut coupled = Vec::new();
+    for i in 0..n {
+        let mut alone = true;
+        for j in 0..n {
+            if j < i && (h(i, j) - h(j, i)).abs() > eps {
+                return false;
+            }
+            alone &= j == i || h(i, j) == 0.0;
+        }
+        match alone {
+            true if h(i, i) < -eps => return false,
+            true => {}
+            false => coupled.push(i),
+        }
+    }
+    if coupled.is_empty() {
+        return true;
+    }
+    let c = coupled.len();
+    let mut m = nalgebra::DMatrix::<f64>::from_fn(c, c, |i, j| h(coupled[i], coupled[j]));
+    let mut left: Vec<usize> = (0..c).collect();
     while let Some((at, &k)) = left
         .iter()
         .enumerate()
@@ -404,6 +455,21 @@ mod tests {
         // A zero pivot with a coupling below it: [[0, 1], [1, 1]] has eigenvalues ±.
         let coupled = SMatrix::<f64, 2, 2>::new(0.0, 1.0, 1.0, 1.0);
         assert!(!positive_semidefinite(&coupled));
+    }
+
+    #[test]
+    fn indices_without_coupling_are_checked_alone() {
+        // Index 0 decoupled; {1, 2} coupled and semidefinite (determinant zero).
+        let psd = SMatrix::<f64, 3, 3>::new(1.0, 0.0, 0.0, 0.0, 2.0, 1.0, 0.0, 1.0, 0.5);
+        assert!(positive_semidefinite(&psd));
+        let negative_alone =
+            SMatrix::<f64, 3, 3>::new(-1e-3, 0.0, 0.0, 0.0, 2.0, 1.0, 0.0, 1.0, 0.5);
+        assert!(!positive_semidefinite(&negative_alone));
+        let indefinite_block =
+            SMatrix::<f64, 3, 3>::new(1.0, 0.0, 0.0, 0.0, 1.0, 2.0, 0.0, 2.0, 1.0);
+        assert!(!positive_semidefinite(&indefinite_block));
+        let diagonal = SMatrix::<f64, 2, 2>::new(3.0, 0.0, 0.0, 0.0);
+        assert!(positive_semidefinite(&diagonal));
     }
 
     #[test]

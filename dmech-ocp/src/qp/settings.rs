@@ -8,8 +8,8 @@ pub struct QpSettings {
     pub tol: f64,
     /// Iterations, at most.
     pub max_iter: usize,
-    /// The fraction of the step to the boundary taken at most (`τ` of the
-    /// fraction-to-the-boundary rule).
+    /// The least fraction of the step to the boundary taken at most: `τ = max(step_fraction,
+    /// 1 − μ)` of the fraction-to-the-boundary rule (IPOPT's), so that `τ → 1` as `μ → 0`.
     pub step_fraction: f64,
     /// The diagonal added to every stage's `R̃` in the Newton systems: a convex QP's
     /// `R + Bᵀ P B` may be singular in a direction without curvature; the shift keeps the
