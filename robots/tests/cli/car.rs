@@ -101,16 +101,7 @@ fn car_simulates_a_straight_start() {
 /// a tenth of the open loop's miss; a Monte Carlo reports its percentiles.
 #[test]
 fn car_tracks_its_plans_in_closed_loop() {
-    let end_error = |args: &[&str], name: &str| {
-        let dir = scratch(name);
-        let out = car().args(args).arg("--out").arg(&dir).output().unwrap();
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        read_json(dir.join("tracking.json"))
-    };
+    let end_error = |args: &[&str], name: &str| run_track(args, name).0;
     for problem in ["parallel-park", "lane-change"] {
         let ideal = end_error(
             &["track", problem, "--ideal"],
@@ -150,16 +141,7 @@ fn car_tracks_its_plans_in_closed_loop() {
 /// within the bounds: `tests/tests/generic/tracking_mpc.rs`.)
 #[test]
 fn car_tracks_its_plans_by_mpc() {
-    let run = |args: &[&str], name: &str| {
-        let dir = scratch(name);
-        let out = car().args(args).arg("--out").arg(&dir).output().unwrap();
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        (read_json(dir.join("tracking.json")), dir)
-    };
+    let run = run_track;
     for (problem, stages) in [("parallel-park", 300), ("lane-change", 250)] {
         let mpc = ["track", problem, "--controller", "mpc"];
         let (ideal, _) = run(
@@ -210,4 +192,17 @@ fn car_tracks_its_plans_by_mpc() {
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
+}
+
+/// `car ARGS --out DIR` (DIR a scratch directory named `name`), which must succeed:
+/// tracking.json and DIR.
+fn run_track(args: &[&str], name: &str) -> (serde_json::Value, std::path::PathBuf) {
+    let dir = scratch(name);
+    let out = car().args(args).arg("--out").arg(&dir).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (read_json(dir.join("tracking.json")), dir)
 }
