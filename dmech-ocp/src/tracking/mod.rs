@@ -50,6 +50,13 @@ pub enum TrackingError {
         /// The stage.
         stage: usize,
     },
+    /// The plant's step gave a value that is not finite (a state or input not finite, or
+    /// a step beyond the model's reach).
+    #[error("the plant's step {stage} is not finite")]
+    NotFinite {
+        /// The stage.
+        stage: usize,
+    },
     /// The plant's stage equality was not solved (Newton on the eliminated decisions).
     #[error("the plant's step {stage} did not converge (residual {residual:.2e})")]
     PlantStep {
@@ -99,7 +106,7 @@ where
 
 /// One step of `plant` from `x` with input `u`: the eliminated decisions by Newton on the
 /// stage equality from `guess` (to `1e-12` relative), then the dynamics. Returns `x_{k+1}`
-/// and the decision.
+/// and the decision, or an error if either is not finite.
 pub fn plant_step<
     P,
     const NX: usize,
@@ -139,7 +146,11 @@ where
         return Err(TrackingError::PlantStep { stage: k, residual });
     }
     let w = decision(&v);
-    Ok((plant.dynamics(k, x, &w), w))
+    let next = plant.dynamics(k, x, &w);
+    if !next.iter().chain(w.iter()).all(|z| z.is_finite()) {
+        return Err(TrackingError::NotFinite { stage: k });
+    }
+    Ok((next, w))
 }
 
 /// A closed-loop run of `plant` from `x0` along the plan `(x̄, w̄)` with the gains `K_k`

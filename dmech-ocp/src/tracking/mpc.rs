@@ -199,8 +199,14 @@ impl<const NX: usize, const NF: usize> Mpc<NX, NF> {
     pub fn lq_input(&self, k: usize, dx: &SVector<f64, NX>) -> Result<SVector<f64, NF>, MpcError> {
         self.check_sample(k)?;
         let u = self.inputs[k] - self.lq.gains[k] * dx;
+        // A comparison, not `max`/`min`: a NaN stays NaN (and the plant's step refuses it).
+        let clamp = |v: f64, lo: f64, hi: f64| match v {
+            v if v < lo => lo,
+            v if v > hi => hi,
+            v => v,
+        };
         Ok(SVector::from_fn(|i, _| {
-            u[i].max(self.lower[i]).min(self.upper[i])
+            clamp(u[i], self.lower[i], self.upper[i])
         }))
     }
 

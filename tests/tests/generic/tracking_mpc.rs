@@ -8,7 +8,7 @@ use dmech::Discretisation;
 use dmech_ocp::qp::QpSettings;
 use dmech_ocp::tracking::{
     linearise_along, lq_design, track_by, LinearisedPlan, Mpc, MpcError, MpcSettings,
-    TrackingWeights,
+    TrackingError, TrackingWeights,
 };
 use dmech_ocp::transcription::VarIntTranscription;
 use dmech_tests::random_system::{RandomSystem, Se2Family};
@@ -248,4 +248,17 @@ fn bad_mpc_data_is_refused() {
     let m = mpc.input(3, &SVector::repeat(f64::NAN)).unwrap();
     assert_eq!(m.status, None);
     assert!(!m.solved());
+    // The fallback keeps the NaN, and the plant's step refuses it (here its Newton, whose
+    // Jacobian at a NaN input does not factor).
+    assert!(m.input.iter().all(|u| u.is_nan()));
+    let plant = VarIntTranscription::new(&system, Reference(N), H, Discretisation::Midpoint);
+    let run = track_by(&plant, &SVector::zeros(), &pw, |_, _| m.input);
+    assert!(
+        matches!(
+            run,
+            Err(TrackingError::SingularEquality { stage: 0 }
+                | TrackingError::NotFinite { stage: 0 })
+        ),
+        "{run:?}"
+    );
 }
