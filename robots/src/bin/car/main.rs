@@ -384,9 +384,23 @@ fn run_track(a: TrackArgs) -> Result<(), String> {
         files.write(&name, svg.as_bytes()).map_err(put)?;
     }
     files.commit().map_err(put)?;
+    say_tracked(&problem.name, runs, controller, &summary, &a.out);
+    Ok(())
+}
+
+/// The one-line result of `car track` (and the QPs' figures for the MPC), and where the
+/// files are.
+fn say_tracked(
+    name: &str,
+    runs: u64,
+    controller: robots::car::track::Controller,
+    summary: &serde_json::Value,
+    out: &std::path::Path,
+) {
+    use robots::car::track::Controller;
     say!(
         "{}: {} run(s), {}: max position error median {:.2} mm, p95 {:.2} mm; end error median {:.2} mm",
-        problem.name,
+        name,
         runs,
         match controller {
             Controller::Lq => "LQ",
@@ -408,9 +422,8 @@ fn run_track(a: TrackArgs) -> Result<(), String> {
     }
     say!(
         "wrote {}/{{tracking.csv, tracking.json, tracking_*.svg}}",
-        a.out.display()
+        out.display()
     );
-    Ok(())
 }
 
 /// The `q`-quantile of `values` (sorted in place; nearest rank).
