@@ -134,7 +134,11 @@ fn with_inactive_bounds_the_first_move_is_the_finite_horizon_lq_move() {
 /// the design, started off the reference (pose 5 cm and 0.1 rad off, shape 0.1 off). The
 /// MPC's inputs stay within the bounds (to the QP's primal tolerance, `ε` times the
 /// bounds' scale) at every sample, every QP is solved, and the closed loops of the MPC and
-/// of the LQ tracker clamped to the same bounds are reported side by side.
+/// of the LQ tracker clamped to the same bounds are reported side by side, not compared by
+/// an assertion: neither is optimal for the mismatched plant. Measured (seeds 0–3): the
+/// bounds hold the inputs at 145–189 of the 200 stages for both, and the state cost
+/// `Σ δxᵀQδx` of the MPC is 0.1 %, 0.1 % and 6.9 % below the saturated LQ's for seeds 0–2
+/// and 2.2 % above it for seed 3.
 #[test]
 fn with_active_bounds_the_moves_stay_inside() {
     let horizon = 10;
