@@ -18,7 +18,8 @@
 //!   sparse `LDLᵀ`). The solver knows no mechanics.
 //! - [`toolkit`]: starts from a geometric path, refinement to a finer mesh, mesh sequencing,
 //!   a plan in one call, a replay through the integrator.
-//! - [`tracking`]: a plan tracked in closed loop: its linearisation, LQ gains, a plant run.
+//! - [`tracking`]: a plan tracked in closed loop: its linearisation, LQ gains, the
+//!   constrained MPC on [`qp`], a plant run.
 //! - [`qp`]: a stage-structured convex QP and its interior point, for model predictive
 //!   control (`docs/qp.md`).
 //!

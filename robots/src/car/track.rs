@@ -1,6 +1,7 @@
-//! The car's plan tracked in closed loop by LQ on the framework's pieces
-//! (`dmech_ocp::tracking`): the plan's linearisation along its transcription, the Riccati
-//! gains, and a plant car whose parameters differ from the plan's (`docs/car.md`).
+//! The car's plan tracked in closed loop on the framework's pieces (`dmech_ocp::tracking`):
+//! the plan's linearisation along its transcription, the Riccati gains or the constrained
+//! MPC on the same weights, and a plant car whose parameters differ from the plan's
+//! (`docs/car.md`).
 //!
 //! Full-state feedback: the plant's state is read exactly (no sensors, no observer, no
 //! delay); the inputs saturate at the drive's ±6 V and the steering servo's ±0.1 N m.
@@ -10,7 +11,11 @@ use super::plan::{CarBounds, CarOutcome, CarPlan};
 use super::problems::CarProblem;
 use dmech::Discretisation;
 use dmech_lie::lcg::Lcg;
-use dmech_ocp::tracking::{linearise_along, lq_gains, plant_step, TrackingError};
+use dmech_ocp::qp::QpSettings;
+use dmech_ocp::tracking::{
+    linearise_along, lq_gains, plant_step, Mpc, MpcError, MpcMove, MpcSettings, TrackingError,
+    TrackingWeights,
+};
 use dmech_ocp::transcription::VarIntTranscription;
 use nalgebra::{SMatrix, SVector};
 
@@ -31,6 +36,8 @@ pub struct CarTracking {
     pub actual: Vec<[f64; 3]>,
     /// The applied inputs `(τ_s, u_d)` (after saturation), one per step.
     pub input: Vec<[f64; 2]>,
+    /// The MPC's moves, one per step (empty for the other controllers).
+    pub mpc_moves: Vec<MpcMove<2>>,
 }
 
 impl CarTracking {
@@ -85,58 +92,155 @@ fn weights(bounds: &CarBounds) -> (SMatrix<f64, NX, NX>, SMatrix<f64, 2, 2>) {
     (q, r)
 }
 
-/// Tracks the plan `o` of `problem` (planned on `car` with `discretisation`) on a plant car
-/// with parameters `plant`, started `offset` m to the plan's left; LQ feedback if `lq`,
-/// else the plan's inputs open loop.
-pub fn track(
-    car: &Car,
-    problem: &CarProblem,
-    o: &CarOutcome,
-    discretisation: Discretisation,
-    plant: &CarParams,
-    offset: f64,
-    lq: bool,
-) -> Result<CarTracking, TrackingError> {
-    let bounds = CarBounds::default();
-    let on_mesh = CarPlan::new(problem, bounds, o.h).expect("the plan's own mesh");
-    let tr = VarIntTranscription::new(car, &on_mesh, o.h, discretisation);
-    let (px, pw) = tr.states_of::<{ super::plan::NC }>(&o.trajectory);
-    let gains = if lq {
-        let lin = linearise_along(&tr, &px, &pw)?;
-        let (q, r) = weights(&bounds);
-        Some(lq_gains(&lin, &q, &(q * 10.0), &r)?)
-    } else {
-        None
-    };
-    let plant_car = Car { params: *plant };
-    let plant_tr = VarIntTranscription::new(&plant_car, &on_mesh, o.h, discretisation);
-    let mut x = px[0];
-    let heading = x[2];
-    x[0] -= offset * heading.sin();
-    x[1] += offset * heading.cos();
-    let mut out = CarTracking::default();
-    let pose = |x: &SVector<f64, NX>| [x[0], x[1], x[2]];
-    for k in 0..pw.len() {
-        out.t.push(k as f64 * o.h);
-        out.planned.push(pose(&px[k]));
-        out.actual.push(pose(&x));
-        let u_plan = pw[k].fixed_rows::<2>(3).into_owned();
-        let mut u = match &gains {
-            Some(g) => u_plan - g[k] * (x - px[k]),
-            None => u_plan,
-        };
-        u[0] = u[0].clamp(-STEER_TORQUE_LIMIT, STEER_TORQUE_LIMIT);
-        u[1] = u[1].clamp(-VOLTAGE_LIMIT, VOLTAGE_LIMIT);
-        out.input.push([u[0], u[1]]);
-        let guess = pw[k].fixed_rows::<3>(0).into_owned();
-        x = plant_step::<_, NX, { super::plan::NW }, 3, 2, { super::plan::NC }>(
-            &plant_tr, k, &x, &u, &guess,
-        )?
-        .0;
+/// The feedback along the plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Controller {
+    /// The plan's inputs alone.
+    OpenLoop,
+    /// Time-varying LQ along the plan, saturated at the plant's limits.
+    Lq,
+    /// The constrained MPC (`dmech_ocp::tracking::Mpc`) over `horizon` stages with the
+    /// LQ's weights and the plant's limits as hard input bounds.
+    Mpc {
+        /// Stages in the horizon.
+        horizon: usize,
+    },
+}
+
+impl Controller {
+    /// The name in `tracking.json` and on the command line.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Controller::OpenLoop => "open-loop",
+            Controller::Lq => "lq",
+            Controller::Mpc { .. } => "mpc",
+        }
     }
-    let n = pw.len();
-    out.t.push(n as f64 * o.h);
-    out.planned.push(pose(&px[n]));
-    out.actual.push(pose(&x));
-    Ok(out)
+}
+
+/// Why a plan could not be tracked.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CarTrackError {
+    /// Linearisation, LQ design or the plant's step.
+    #[error(transparent)]
+    Tracking(#[from] TrackingError),
+    /// The MPC's design or a move.
+    #[error(transparent)]
+    Mpc(#[from] MpcError),
+}
+
+/// The control law built once per plan.
+#[derive(Clone, Debug)]
+enum Law {
+    OpenLoop,
+    Lq(Vec<SMatrix<f64, 2, NX>>),
+    Mpc(Box<Mpc<NX, 2>>),
+}
+
+/// A plan made ready for tracking: its states and decisions in the transcription's layout
+/// and the control law along them, reused for every plant ([`TrackingDesign::run`]).
+pub struct TrackingDesign<'a> {
+    h: f64,
+    discretisation: Discretisation,
+    on_mesh: CarPlan<'a>,
+    px: Vec<SVector<f64, NX>>,
+    pw: Vec<SVector<f64, { super::plan::NW }>>,
+    law: Law,
+}
+
+impl<'a> TrackingDesign<'a> {
+    /// The plan `o` of `problem` (planned on `car` with `discretisation`) and the
+    /// `controller` along it.
+    pub fn new(
+        car: &Car,
+        problem: &'a CarProblem,
+        o: &CarOutcome,
+        discretisation: Discretisation,
+        controller: Controller,
+    ) -> Result<Self, CarTrackError> {
+        let bounds = CarBounds::default();
+        let on_mesh = CarPlan::new(problem, bounds, o.h).expect("the plan's own mesh");
+        let tr = VarIntTranscription::new(car, &on_mesh, o.h, discretisation);
+        let (px, pw) = tr.states_of::<{ super::plan::NC }>(&o.trajectory);
+        let (q, r) = weights(&bounds);
+        let law = match controller {
+            Controller::OpenLoop => Law::OpenLoop,
+            Controller::Lq => {
+                let lin = linearise_along(&tr, &px, &pw)?;
+                Law::Lq(lq_gains(&lin, &q, &(q * 10.0), &r)?)
+            }
+            Controller::Mpc { horizon } => {
+                let lin = linearise_along(&tr, &px, &pw)?;
+                let inputs = pw
+                    .iter()
+                    .map(|w| w.fixed_rows::<2>(3).into_owned())
+                    .collect();
+                let weights = TrackingWeights {
+                    state: q,
+                    terminal: q * 10.0,
+                    input: r,
+                };
+                let limit = SVector::<f64, 2>::new(STEER_TORQUE_LIMIT, VOLTAGE_LIMIT);
+                let settings = MpcSettings {
+                    horizon,
+                    lower: -limit,
+                    upper: limit,
+                    qp: QpSettings::default(),
+                };
+                Law::Mpc(Box::new(Mpc::new(lin, inputs, &weights, settings)?))
+            }
+        };
+        Ok(TrackingDesign {
+            h: o.h,
+            discretisation,
+            on_mesh,
+            px,
+            pw,
+            law,
+        })
+    }
+
+    /// A closed-loop run on a plant car with parameters `plant`, started `offset` m to the
+    /// plan's left.
+    pub fn run(&self, plant: &CarParams, offset: f64) -> Result<CarTracking, CarTrackError> {
+        let (px, pw) = (&self.px, &self.pw);
+        let mut law = self.law.clone();
+        let plant_car = Car { params: *plant };
+        let plant_tr =
+            VarIntTranscription::new(&plant_car, &self.on_mesh, self.h, self.discretisation);
+        let mut x = px[0];
+        let heading = x[2];
+        x[0] -= offset * heading.sin();
+        x[1] += offset * heading.cos();
+        let mut out = CarTracking::default();
+        let pose = |x: &SVector<f64, NX>| [x[0], x[1], x[2]];
+        for k in 0..pw.len() {
+            out.t.push(k as f64 * self.h);
+            out.planned.push(pose(&px[k]));
+            out.actual.push(pose(&x));
+            let u_plan = pw[k].fixed_rows::<2>(3).into_owned();
+            let mut u = match &mut law {
+                Law::Lq(g) => u_plan - g[k] * (x - px[k]),
+                Law::OpenLoop => u_plan,
+                Law::Mpc(mpc) => {
+                    let m = mpc.input(k, &(x - px[k]))?;
+                    out.mpc_moves.push(m);
+                    m.input
+                }
+            };
+            u[0] = u[0].clamp(-STEER_TORQUE_LIMIT, STEER_TORQUE_LIMIT);
+            u[1] = u[1].clamp(-VOLTAGE_LIMIT, VOLTAGE_LIMIT);
+            out.input.push([u[0], u[1]]);
+            let guess = pw[k].fixed_rows::<3>(0).into_owned();
+            x = plant_step::<_, NX, { super::plan::NW }, 3, 2, { super::plan::NC }>(
+                &plant_tr, k, &x, &u, &guess,
+            )?
+            .0;
+        }
+        let n = pw.len();
+        out.t.push(n as f64 * self.h);
+        out.planned.push(pose(&px[n]));
+        out.actual.push(pose(&x));
+        Ok(out)
+    }
 }

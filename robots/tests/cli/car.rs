@@ -101,16 +101,7 @@ fn car_simulates_a_straight_start() {
 /// a tenth of the open loop's miss; a Monte Carlo reports its percentiles.
 #[test]
 fn car_tracks_its_plans_in_closed_loop() {
-    let end_error = |args: &[&str], name: &str| {
-        let dir = scratch(name);
-        let out = car().args(args).arg("--out").arg(&dir).output().unwrap();
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        read_json(dir.join("tracking.json"))
-    };
+    let end_error = |args: &[&str], name: &str| run_track(args, name).0;
     for problem in ["parallel-park", "lane-change"] {
         let ideal = end_error(
             &["track", problem, "--ideal"],
@@ -142,4 +133,76 @@ fn car_tracks_its_plans_in_closed_loop() {
         let p95 = mc["end_position_error_m"]["p95"].as_f64().unwrap();
         assert!(p95 < 5e-3, "{problem}: p95 end error {p95:.2e}");
     }
+}
+
+/// `car track --controller mpc`: no failure, every QP solved, the plan's own car on the
+/// plan within 1 mm, the mismatched car's end error far below the open loop's, and the
+/// QPs' figures in tracking.json; a horizon of no stage is a usage error. (The moves
+/// within the bounds: `tests/tests/generic/tracking_mpc.rs`.)
+#[test]
+fn car_tracks_its_plans_by_mpc() {
+    let run = run_track;
+    for (problem, stages) in [("parallel-park", 300), ("lane-change", 250)] {
+        let mpc = ["track", problem, "--controller", "mpc"];
+        let (ideal, _) = run(
+            &[&mpc[..], &["--ideal"]].concat(),
+            &format!("mpc-ideal-{problem}"),
+        );
+        assert_eq!(ideal["controller"], "mpc");
+        assert!(
+            ideal["max_position_error_m"]["worst"].as_f64().unwrap() <= 1e-3,
+            "{ideal}"
+        );
+        let (mc, dir) = run(
+            &[&mpc[..], &["--monte-carlo", "3"]].concat(),
+            &format!("mpc-mc-{problem}"),
+        );
+        let (open, _) = run(
+            &["track", problem, "--controller", "open-loop"],
+            &format!("mpc-open-{problem}"),
+        );
+        assert_eq!(mc["horizon"], 10);
+        assert_eq!(mc["qp"]["samples"], 3 * stages);
+        assert_eq!(mc["qp"]["not_solved"], 0);
+        assert!(mc["qp"]["cpu_s"]["median"].as_f64().unwrap() > 0.0);
+        let (e_mpc, e_open) = (
+            mc["end_position_error_m"]["worst"].as_f64().unwrap(),
+            open["end_position_error_m"]["worst"].as_f64().unwrap(),
+        );
+        assert!(
+            e_mpc < 0.1 * e_open,
+            "{problem}: MPC {e_mpc:.2e} against open loop {e_open:.2e}"
+        );
+        // One row per stage and the end.
+        let r = rows(&std::fs::read_to_string(dir.join("tracking.csv")).unwrap());
+        assert_eq!(r.len(), stages + 1);
+    }
+    let dir = scratch("mpc-horizon-zero");
+    let out = car()
+        .args([
+            "track",
+            "lane-change",
+            "--controller",
+            "mpc",
+            "--horizon",
+            "0",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
+
+/// `car ARGS --out DIR` (DIR a scratch directory named `name`), which must succeed:
+/// tracking.json and DIR.
+fn run_track(args: &[&str], name: &str) -> (serde_json::Value, std::path::PathBuf) {
+    let dir = scratch(name);
+    let out = car().args(args).arg("--out").arg(&dir).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (read_json(dir.join("tracking.json")), dir)
 }

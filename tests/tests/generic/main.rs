@@ -13,6 +13,8 @@
 //! - `steered_car_bounds`: the solver on a steered car with an active torque bound, and a
 //!   sweep of it;
 //! - `tracking`: plans and random systems' references tracked by LQ on mismatched plants;
+//! - `tracking_mpc`: the constrained MPC on random systems' references, bounds inactive
+//!   and active;
 //! - `varint_curvature`: the VI transcription's exact constraint curvature by blocks;
 //! - `varint_reduced_state`: its Jacobians on a state without some shape positions.
 
@@ -24,5 +26,6 @@ mod rk_transcription;
 mod rolling_disk;
 mod steered_car_bounds;
 mod tracking;
+mod tracking_mpc;
 mod varint_curvature;
 mod varint_reduced_state;

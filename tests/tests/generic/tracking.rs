@@ -9,6 +9,8 @@ use dmech::Discretisation;
 use dmech_ocp::solver::{IpOptions, Solver, Status};
 use dmech_ocp::tracking::{linearise_along, lq_gains, plant_step, track};
 use dmech_ocp::transcription::VarIntTranscription;
+use dmech_ocp::transcription::{Condition, PlanningProblem, Stage, StartState};
+use dmech_tests::random_system::RandomSystemSpec;
 use dmech_tests::SteeredCar;
 use nalgebra::{SMatrix, SVector};
 
@@ -154,60 +156,14 @@ fn the_linearisation_is_the_steps_derivative() {
 /// (measured: 3.8 → 2.8 mm for seed 0; the steered car above, 77 → 0.6 mm).
 #[test]
 fn lq_tracks_random_systems_under_model_error() {
-    use dmech_ocp::transcription::{Condition, PlanningProblem, Stage, StartState};
-    use dmech_tests::random_system::{RandomSystem, RandomSystemSpec, Se2Family};
-    /// A horizon and a start, nothing to optimise: the transcription's stage functions.
-    struct Reference(usize);
-    impl PlanningProblem<3, 2, 2, 1> for Reference {
-        fn horizon(&self) -> usize {
-            self.0
-        }
-        fn start(&self) -> StartState<3, 2, 2> {
-            StartState::at_rest(SVector::zeros(), SVector::zeros())
-        }
-        fn cost<T: dmech_lie::Real>(&self, _k: usize, st: &Stage<T, 3, 2, 2>) -> T {
-            st.input.dot(&st.input)
-        }
-        fn constraints<T: dmech_lie::Real>(
-            &self,
-            _k: usize,
-            st: &Stage<T, 3, 2, 2>,
-        ) -> SVector<T, 1> {
-            SVector::<T, 1>::new(st.input[0])
-        }
-        fn bounds(&self, _k: usize) -> (SVector<f64, 1>, SVector<f64, 1>) {
-            (
-                SVector::repeat(f64::NEG_INFINITY),
-                SVector::repeat(f64::INFINITY),
-            )
-        }
-        fn conditions(&self) -> Vec<Condition> {
-            Vec::new()
-        }
-    }
+    use dmech_tests::random_system::{RandomSystem, Se2Family};
     let (n, h) = (200, 0.02);
-    let spec = |shape_dependence, damping| RandomSystemSpec {
-        damping,
-        cyclic_first: false,
-        shape_dependence,
-    };
     for seed in 0..4 {
         let nominal = RandomSystem::<Se2Family, 3, 2>::draw(seed, spec(0.5, 0.2));
         let plant_sys = RandomSystem::<Se2Family, 3, 2>::draw(seed, spec(0.55, 0.3));
         let tr = VarIntTranscription::new(&nominal, Reference(n), h, Discretisation::Midpoint);
         let plant = VarIntTranscription::new(&plant_sys, Reference(n), h, Discretisation::Midpoint);
-        // The reference: the nominal system under smooth inputs from rest.
-        let (mut px, mut pw) = (vec![SVector::<f64, 9>::zeros()], Vec::new());
-        for k in 0..n {
-            let t = k as f64 * h;
-            let u = SVector::<f64, 2>::new(0.5 * t.sin(), 0.3 * (1.3 * t).cos());
-            let guess = pw.last().map_or(SVector::zeros(), |w: &SVector<f64, 4>| {
-                w.fixed_rows::<2>(0).into_owned()
-            });
-            let (next, w) = plant_step::<_, 9, 4, 2, 2, 1>(&tr, k, &px[k], &u, &guess).unwrap();
-            px.push(next);
-            pw.push(w);
-        }
+        let (px, pw) = reference_of(&tr, n, h);
         let lin = linearise_along(&tr, &px, &pw).unwrap();
         let mut q = SMatrix::<f64, 9, 9>::from_diagonal_element(1.0);
         for i in 0..3 {
@@ -234,4 +190,65 @@ fn lq_tracks_random_systems_under_model_error() {
             "seed {seed}: LQ {closed:.2e} against open loop {open:.2e}"
         );
     }
+}
+
+/// A horizon and a start, nothing to optimise: the transcription's stage functions for a
+/// random system's reference.
+pub(crate) struct Reference(pub usize);
+
+impl PlanningProblem<3, 2, 2, 1> for Reference {
+    fn horizon(&self) -> usize {
+        self.0
+    }
+    fn start(&self) -> StartState<3, 2, 2> {
+        StartState::at_rest(SVector::zeros(), SVector::zeros())
+    }
+    fn cost<T: dmech_lie::Real>(&self, _k: usize, st: &Stage<T, 3, 2, 2>) -> T {
+        st.input.dot(&st.input)
+    }
+    fn constraints<T: dmech_lie::Real>(&self, _k: usize, st: &Stage<T, 3, 2, 2>) -> SVector<T, 1> {
+        SVector::<T, 1>::new(st.input[0])
+    }
+    fn bounds(&self, _k: usize) -> (SVector<f64, 1>, SVector<f64, 1>) {
+        (
+            SVector::repeat(f64::NEG_INFINITY),
+            SVector::repeat(f64::INFINITY),
+        )
+    }
+    fn conditions(&self) -> Vec<Condition> {
+        Vec::new()
+    }
+}
+
+/// The random systems' spec with these shape dependence and damping.
+pub(crate) fn spec(shape_dependence: f64, damping: f64) -> RandomSystemSpec {
+    RandomSystemSpec {
+        damping,
+        cyclic_first: false,
+        shape_dependence,
+    }
+}
+
+/// The reference: the transcribed system under the smooth inputs `(0.5 sin t,
+/// 0.3 cos 1.3t)` from rest, `n` steps of `h`: the states and decisions.
+pub(crate) fn reference_of<P>(
+    tr: &P,
+    n: usize,
+    h: f64,
+) -> (Vec<SVector<f64, 9>>, Vec<SVector<f64, 4>>)
+where
+    P: dmech_ocp::nlp::StageProblem<9, 4, 2, 2, 1>,
+{
+    let (mut px, mut pw) = (vec![SVector::<f64, 9>::zeros()], Vec::new());
+    for k in 0..n {
+        let t = k as f64 * h;
+        let u = SVector::<f64, 2>::new(0.5 * t.sin(), 0.3 * (1.3 * t).cos());
+        let guess = pw.last().map_or(SVector::zeros(), |w: &SVector<f64, 4>| {
+            w.fixed_rows::<2>(0).into_owned()
+        });
+        let (next, w) = plant_step::<_, 9, 4, 2, 2, 1>(tr, k, &px[k], &u, &guess).unwrap();
+        px.push(next);
+        pw.push(w);
+    }
+    (px, pw)
 }

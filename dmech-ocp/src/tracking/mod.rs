@@ -1,7 +1,8 @@
 //! Tracking a plan in closed loop, for any transcribed robot: the plan's time-varying
 //! linearisation by the transcription's exact Jacobians, the finite-horizon LQ gains by the
-//! Riccati recursion, and a closed-loop run on a plant (the same robot with other
-//! parameters, transcribed the same way).
+//! Riccati recursion ([`lq`]), the constrained model predictive control on the same
+//! linearisation and weights ([`mpc`]), and a closed-loop run on a plant (the same robot
+//! with other parameters, transcribed the same way).
 //!
 //! A variational transcription's stage decides `w_k = (v_k, u_k)` with the momentum matching
 //! `e(x_k, w_k) = 0` fixing `v_k` for given `u_k`. Eliminating it,
@@ -14,6 +15,12 @@
 //! `u_k = ū_k − K_k (x_k − x̄_k)` with
 //! `K_k = (R + B_kᵀ P_{k+1} B_k)⁻¹ B_kᵀ P_{k+1} A_k`,
 //! `P_k = Q + A_kᵀ P_{k+1} (A_k − B_k K_k)`, `P_N = Q_N`.
+
+pub mod lq;
+pub mod mpc;
+
+pub use lq::{lq_design, lq_gains, LqDesign, TrackingWeights};
+pub use mpc::{Mpc, MpcError, MpcMove, MpcSettings};
 
 use crate::nlp::StageProblem;
 use dmech_lie::linalg::Lu;
@@ -40,6 +47,13 @@ pub enum TrackingError {
     /// The Riccati recursion met a singular `R + BᵀPB`.
     #[error("the LQ recursion is singular at stage {stage}: R + BᵀPB is not invertible")]
     SingularRiccati {
+        /// The stage.
+        stage: usize,
+    },
+    /// The plant's step gave a value that is not finite (a state or input not finite, or
+    /// a step beyond the model's reach).
+    #[error("the plant's step {stage} is not finite")]
+    NotFinite {
         /// The stage.
         stage: usize,
     },
@@ -90,33 +104,9 @@ where
     Ok(LinearisedPlan { a, b })
 }
 
-/// The finite-horizon LQ gains `K_k` along a linearised plan, state weight `q` at every
-/// stage and `q_end` at the last, input weight `r`.
-pub fn lq_gains<const NX: usize, const NF: usize>(
-    plan: &LinearisedPlan<NX, NF>,
-    q: &SMatrix<f64, NX, NX>,
-    q_end: &SMatrix<f64, NX, NX>,
-    r: &SMatrix<f64, NF, NF>,
-) -> Result<Vec<SMatrix<f64, NF, NX>>, TrackingError> {
-    let n = plan.a.len();
-    let mut p = *q_end;
-    let mut gains = vec![SMatrix::<f64, NF, NX>::zeros(); n];
-    for k in (0..n).rev() {
-        let (a, b) = (&plan.a[k], &plan.b[k]);
-        let bp = b.transpose() * p;
-        let lu = Lu::new(&(r + bp * b)).ok_or(TrackingError::SingularRiccati { stage: k })?;
-        let kk = lu.solve_columns(&(bp * a));
-        p = q + a.transpose() * p * (a - b * kk);
-        // Symmetrise against round-off over a long horizon.
-        p = (p + p.transpose()) * 0.5;
-        gains[k] = kk;
-    }
-    Ok(gains)
-}
-
 /// One step of `plant` from `x` with input `u`: the eliminated decisions by Newton on the
 /// stage equality from `guess` (to `1e-12` relative), then the dynamics. Returns `x_{k+1}`
-/// and the decision.
+/// and the decision, or an error if either is not finite.
 pub fn plant_step<
     P,
     const NX: usize,
@@ -156,7 +146,11 @@ where
         return Err(TrackingError::PlantStep { stage: k, residual });
     }
     let w = decision(&v);
-    Ok((plant.dynamics(k, x, &w), w))
+    let next = plant.dynamics(k, x, &w);
+    if !next.iter().chain(w.iter()).all(|z| z.is_finite()) {
+        return Err(TrackingError::NotFinite { stage: k });
+    }
+    Ok((next, w))
 }
 
 /// A closed-loop run of `plant` from `x0` along the plan `(x̄, w̄)` with the gains `K_k`
@@ -179,14 +173,40 @@ pub fn track<
 where
     P: StageProblem<NX, NW, NE, NF, NC>,
 {
+    track_by(plant, x0, plan_w, |k, x| {
+        let u_plan = plan_w[k].fixed_rows::<NF>(NE).into_owned();
+        match gains {
+            Some(g) => u_plan - g[k] * (x - plan_x[k]),
+            None => u_plan,
+        }
+    })
+}
+
+/// A closed-loop run of `plant` from `x0` over the plan's stages, the input at stage `k`
+/// `control(k, x_k)` (e.g. [`Mpc::input`]); the plan's decisions `w̄` start the plant's
+/// Newton on its eliminated decisions. Returns the states `x_0 … x_N`.
+pub fn track_by<
+    P,
+    F,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
+    plant: &P,
+    x0: &SVector<f64, NX>,
+    plan_w: &[SVector<f64, NW>],
+    mut control: F,
+) -> Result<Vec<SVector<f64, NX>>, TrackingError>
+where
+    P: StageProblem<NX, NW, NE, NF, NC>,
+    F: FnMut(usize, &SVector<f64, NX>) -> SVector<f64, NF>,
+{
     let mut xs = vec![*x0];
     for k in 0..plan_w.len() {
         let x = xs[k];
-        let u_plan = plan_w[k].fixed_rows::<NF>(NE).into_owned();
-        let u = match gains {
-            Some(g) => u_plan - g[k] * (x - plan_x[k]),
-            None => u_plan,
-        };
+        let u = control(k, &x);
         let guess = plan_w[k].fixed_rows::<NE>(0).into_owned();
         let (next, _) = plant_step::<P, NX, NW, NE, NF, NC>(plant, k, &x, &u, &guess)?;
         xs.push(next);
