@@ -63,3 +63,28 @@ def snakeboard_plan(
     verbose: bool,
     progress: Progress,
 ) -> Dict[str, Any]: ...
+def wip_track(
+    plan_csv: str,
+    controller: str,
+    seed: int,
+    ideal: bool,
+    params: Optional[str],
+    plant_seed: Optional[int],
+    param_error: float,
+    mean_delay: Optional[float],
+    monte_carlo: Optional[int],
+    threads: int,
+    progress: Progress,
+) -> Dict[str, Any]: ...
+def wip_generate(effect: str, seed: int, duration: float, params: Optional[str]) -> Dict[str, Any]: ...
+def wip_diagnose(
+    log_csv: str,
+    source: str,
+    params: Optional[str],
+    window: float,
+    threads: Optional[int],
+    calibrate: Optional[str],
+    exclude: list,
+    max_effects: int,
+    progress: Progress,
+) -> Dict[str, Any]: ...

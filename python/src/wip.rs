@@ -145,6 +145,7 @@ fn plan_dict<'py>(py: Python<'py>, run: &PlanRun) -> PyResult<Bound<'py, PyDict>
 /// Simulate open loop from `x0` with the voltages of `inputs_csv` (columns `t,uR,uL`).
 #[pyfunction]
 #[pyo3(signature = (x0, inputs_csv, step, integrator, params, max_steps, max_voltage))]
+#[allow(clippy::too_many_arguments)]
 fn wip_simulate<'py>(
     py: Python<'py>,
     x0: Vec<f64>,
