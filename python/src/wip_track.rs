@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use robots::cli::on_solver_stack;
 use robots::wip::track::closed_loop::TrackRun;
-use robots::wip::track::report::{parse_plan, tracking_json};
+use robots::wip::track::report::{parse_plan, tracking_json, tracking_row};
 use robots::wip::track::request::{ControllerKind, TrackRequest};
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -41,26 +41,7 @@ pub const TRACKING_COLUMNS: [&str; 18] = [
 fn tracking_table(run: &TrackRun) -> Table {
     let mut t = Table::new(&TRACKING_COLUMNS);
     for p in &run.samples {
-        t.push([
-            p.t,
-            p.x[0],
-            p.x[1],
-            p.x[2],
-            p.x[3],
-            p.reference[0],
-            p.reference[1],
-            p.reference[2],
-            p.reference[3],
-            p.estimate[0],
-            p.estimate[1],
-            p.estimate[2],
-            p.u_ff[0],
-            p.u_ff[1],
-            p.u_fb[0],
-            p.u_fb[1],
-            p.u[0],
-            p.u[1],
-        ]);
+        t.push(tracking_row(p));
     }
     t
 }

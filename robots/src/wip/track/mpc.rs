@@ -25,6 +25,7 @@ use super::lq::{LqController, Q_Y, SAMPLE};
 use crate::wip::simulate::Trajectory;
 use crate::wip::{Wip, WipParams};
 use dmech_ocp::qp::{QpError, QpSettings, QpSolver, QpStatus, SoftPrice, Stage, StageQp, Terminal};
+use dmech_ocp::tracking::mpc::thread_cpu_seconds;
 use nalgebra::{SMatrix, SVector};
 use std::sync::Mutex;
 use std::thread::ThreadId;
@@ -523,20 +524,6 @@ mod oracle {
             (am.csc(m, NX), b, n_eq)
         }
     }
-}
-
-/// The calling thread's CPU time in seconds (`CLOCK_THREAD_CPUTIME_ID`).
-fn thread_cpu_seconds() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the call only writes it.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return f64::NAN;
-    }
-    ts.tv_sec as f64 + 1e-9 * ts.tv_nsec as f64
 }
 
 #[cfg(test)]

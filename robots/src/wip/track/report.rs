@@ -129,25 +129,8 @@ pub fn tracking_csv(run: &TrackRun) -> String {
          uR_ff,uL_ff,uR_fb,uL_fb,uR,uL\n",
     );
     for p in &run.samples {
-        let vals = [
-            p.x[0],
-            p.x[1],
-            p.x[2],
-            p.x[3],
-            p.reference[0],
-            p.reference[1],
-            p.reference[2],
-            p.reference[3],
-            p.estimate[0],
-            p.estimate[1],
-            p.estimate[2],
-            p.u_ff[0],
-            p.u_ff[1],
-            p.u_fb[0],
-            p.u_fb[1],
-            p.u[0],
-            p.u[1],
-        ];
+        let row = tracking_row(p);
+        let vals = &row[1..];
         let _ = write!(s, "{}", p.t);
         for v in vals {
             let _ = write!(s, ",{v:.9e}");
@@ -155,6 +138,31 @@ pub fn tracking_csv(run: &TrackRun) -> String {
         s.push('\n');
     }
     s
+}
+
+/// One row of `tracking.csv`: `t`, the true pose and tilt, the plan's, the estimated pose,
+/// the feedforward, feedback and applied voltages.
+pub fn tracking_row(p: &super::closed_loop::Sample) -> [f64; 18] {
+    [
+        p.t,
+        p.x[0],
+        p.x[1],
+        p.x[2],
+        p.x[3],
+        p.reference[0],
+        p.reference[1],
+        p.reference[2],
+        p.reference[3],
+        p.estimate[0],
+        p.estimate[1],
+        p.estimate[2],
+        p.u_ff[0],
+        p.u_ff[1],
+        p.u_fb[0],
+        p.u_fb[1],
+        p.u[0],
+        p.u[1],
+    ]
 }
 
 /// `tracking.json`: the figures of the run, the run's identity, and the paper's figures.
