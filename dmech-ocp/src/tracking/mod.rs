@@ -18,9 +18,11 @@
 
 pub mod lq;
 pub mod mpc;
+pub mod observer;
 
 pub use lq::{lq_design, lq_gains, LqDesign, TrackingWeights};
 pub use mpc::{Mpc, MpcError, MpcMove, MpcSettings};
+pub use observer::{Observer, ObserverError, ObserverNoise, PlanView, Readings};
 
 use crate::nlp::StageProblem;
 use dmech_lie::linalg::Lu;

@@ -8,6 +8,7 @@
 //! - `midpoint_rest`: a midpoint plan that ends at rest stays there; its objective's order;
 //! - `momentum_systems`: systems with free group directions (the sleigh, the disk two
 //!   ways, random systems of the class);
+//! - `observer`: the observer with late poses on a random linear system, nonlinear readings;
 //! - `rolling_disk`: both schemes' steps against their closed forms on the rolling disk;
 //! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
 //! - `steered_car_bounds`: the solver on a steered car with an active torque bound, and a
@@ -22,6 +23,7 @@ mod generic_integrator;
 mod midpoint_integrator;
 mod midpoint_rest;
 mod momentum_systems;
+mod observer;
 mod rk_transcription;
 mod rolling_disk;
 mod steered_car_bounds;
