@@ -5,6 +5,7 @@ pub mod model;
 pub mod plan;
 pub mod problems;
 pub mod report;
+pub mod sensors;
 pub mod simulate;
 pub mod track;
 

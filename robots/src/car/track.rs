@@ -3,18 +3,21 @@
 //! MPC on the same weights, and a plant car whose parameters differ from the plan's
 //! (`docs/car.md`).
 //!
-//! Full-state feedback: the plant's state is read exactly (no sensors, no observer, no
-//! delay); the inputs saturate at the drive's ±6 V and the steering servo's ±0.1 N m.
+//! The controller acts on the state read exactly ([`Sensing::Exact`]) or on the estimate of
+//! the framework's observer from the car's sensors ([`Sensing::Sensors`], `super::sensors`);
+//! the inputs saturate at the drive's ±6 V and the steering servo's ±0.1 N m.
 
 use super::model::{Car, CarParams};
 use super::plan::{CarBounds, CarOutcome, CarPlan};
 use super::problems::CarProblem;
+use super::sensors::{start_covariance, CarReadings, CarSensorModel, NP, NY};
 use dmech::Discretisation;
 use dmech_lie::lcg::Lcg;
+use dmech_lie::rng::Rng;
 use dmech_ocp::qp::QpSettings;
 use dmech_ocp::tracking::{
-    linearise_along, lq_gains, plant_step, Mpc, MpcError, MpcMove, MpcSettings, TrackingError,
-    TrackingWeights,
+    linearise_along, lq_gains, plant_step, LinearisedPlan, Mpc, MpcError, MpcMove, MpcSettings,
+    Observer, ObserverError, PlanView, TrackingError, TrackingWeights,
 };
 use dmech_ocp::transcription::VarIntTranscription;
 use nalgebra::{SMatrix, SVector};
@@ -38,6 +41,14 @@ pub struct CarTracking {
     pub input: Vec<[f64; 2]>,
     /// The MPC's moves, one per step (empty for the other controllers).
     pub mpc_moves: Vec<MpcMove<2>>,
+    /// The pose the controller acted on (the observer's estimate, or the plant's pose when
+    /// it is read exactly), one per step.
+    pub estimated: Vec<[f64; 3]>,
+    /// The first sample at which a pose had been fused (none with exact sensing).
+    pub first_pose: Option<usize>,
+    /// Poses fused, and poses that arrived older than the observer's memory (dropped).
+    pub poses_fused: usize,
+    pub poses_dropped: usize,
 }
 
 impl CarTracking {
@@ -57,7 +68,44 @@ impl CarTracking {
     pub fn end_error(&self) -> f64 {
         *self.position_errors().last().expect("at least the start")
     }
+    /// The largest distance between the estimated and the true position from the first
+    /// pose fused on (before it the estimate is the plan's start), m; 0 if none was.
+    pub fn max_estimate_error(&self) -> f64 {
+        let Some(first) = self.first_pose else {
+            return 0.0;
+        };
+        self.estimated
+            .iter()
+            .zip(&self.actual)
+            .skip(first)
+            .map(|(e, a)| (e[0] - a[0]).hypot(e[1] - a[1]))
+            .fold(0.0, f64::max)
+    }
 }
+
+/// What the controller acts on.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Sensing {
+    /// The plant's state, read exactly.
+    Exact,
+    /// The observer's estimate from the car's sensors of this model.
+    Sensors(CarSensorModel),
+}
+
+impl Sensing {
+    /// The name in `tracking.json`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Sensing::Exact => "exact",
+            Sensing::Sensors(s) if *s == CarSensorModel::ideal() => "ideal",
+            Sensing::Sensors(s) if *s == CarSensorModel::paper() => "paper",
+            Sensing::Sensors(_) => "custom",
+        }
+    }
+}
+
+/// How far back (s) a late pose can be fused: 1 s, beyond any delay of the paper's law.
+const MEMORY_S: f64 = 1.0;
 
 /// The parameters with every mass, inertia and motor constant scaled by an independent
 /// factor uniform in `[1 − e, 1 + e]` from `seed` (the geometry kept).
@@ -127,6 +175,9 @@ pub enum CarTrackError {
     /// The MPC's design or a move.
     #[error(transparent)]
     Mpc(#[from] MpcError),
+    /// The observer refused a reading or an input.
+    #[error("the observer: {0}")]
+    Observer(#[from] ObserverError),
 }
 
 /// The control law built once per plan.
@@ -145,6 +196,9 @@ pub struct TrackingDesign<'a> {
     on_mesh: CarPlan<'a>,
     px: Vec<SVector<f64, NX>>,
     pw: Vec<SVector<f64, { super::plan::NW }>>,
+    inputs: Vec<SVector<f64, 2>>,
+    lin: LinearisedPlan<NX, 2>,
+    readings: CarReadings,
     law: Law,
 }
 
@@ -163,18 +217,15 @@ impl<'a> TrackingDesign<'a> {
         let tr = VarIntTranscription::new(car, &on_mesh, o.h, discretisation);
         let (px, pw) = tr.states_of::<{ super::plan::NC }>(&o.trajectory);
         let (q, r) = weights(&bounds);
+        let lin = linearise_along(&tr, &px, &pw)?;
+        let inputs: Vec<SVector<f64, 2>> = pw
+            .iter()
+            .map(|w| w.fixed_rows::<2>(3).into_owned())
+            .collect();
         let law = match controller {
             Controller::OpenLoop => Law::OpenLoop,
-            Controller::Lq => {
-                let lin = linearise_along(&tr, &px, &pw)?;
-                Law::Lq(lq_gains(&lin, &q, &(q * 10.0), &r)?)
-            }
+            Controller::Lq => Law::Lq(lq_gains(&lin, &q, &(q * 10.0), &r)?),
             Controller::Mpc { horizon } => {
-                let lin = linearise_along(&tr, &px, &pw)?;
-                let inputs = pw
-                    .iter()
-                    .map(|w| w.fixed_rows::<2>(3).into_owned())
-                    .collect();
                 let weights = TrackingWeights {
                     state: q,
                     terminal: q * 10.0,
@@ -187,7 +238,12 @@ impl<'a> TrackingDesign<'a> {
                     upper: limit,
                     qp: QpSettings::default(),
                 };
-                Law::Mpc(Box::new(Mpc::new(lin, inputs, &weights, settings)?))
+                Law::Mpc(Box::new(Mpc::new(
+                    lin.clone(),
+                    inputs.clone(),
+                    &weights,
+                    settings,
+                )?))
             }
         };
         Ok(TrackingDesign {
@@ -196,13 +252,23 @@ impl<'a> TrackingDesign<'a> {
             on_mesh,
             px,
             pw,
+            inputs,
+            lin,
+            readings: CarReadings::new(&car.params),
             law,
         })
     }
 
     /// A closed-loop run on a plant car with parameters `plant`, started `offset` m to the
-    /// plan's left.
-    pub fn run(&self, plant: &CarParams, offset: f64) -> Result<CarTracking, CarTrackError> {
+    /// plan's left, acting on what `sensing` gives; `seed` draws the sensors' noise, delays
+    /// and losses.
+    pub fn run(
+        &self,
+        plant: &CarParams,
+        offset: f64,
+        sensing: &Sensing,
+        seed: u64,
+    ) -> Result<CarTracking, CarTrackError> {
         let (px, pw) = (&self.px, &self.pw);
         let mut law = self.law.clone();
         let plant_car = Car { params: *plant };
@@ -213,17 +279,26 @@ impl<'a> TrackingDesign<'a> {
         x[0] -= offset * heading.sin();
         x[1] += offset * heading.cos();
         let mut out = CarTracking::default();
+        let mut sensors = match sensing {
+            Sensing::Exact => None,
+            Sensing::Sensors(model) => Some(self.sensors(model, seed)?),
+        };
         let pose = |x: &SVector<f64, NX>| [x[0], x[1], x[2]];
         for k in 0..pw.len() {
             out.t.push(k as f64 * self.h);
             out.planned.push(pose(&px[k]));
             out.actual.push(pose(&x));
+            let estimate = match &mut sensors {
+                None => x,
+                Some(s) => s.sample(k, &x, &self.readings, &mut out)?,
+            };
+            out.estimated.push(pose(&estimate));
             let u_plan = pw[k].fixed_rows::<2>(3).into_owned();
             let mut u = match &mut law {
-                Law::Lq(g) => u_plan - g[k] * (x - px[k]),
+                Law::Lq(g) => u_plan - g[k] * (estimate - px[k]),
                 Law::OpenLoop => u_plan,
                 Law::Mpc(mpc) => {
-                    let m = mpc.input(k, &(x - px[k]))?;
+                    let m = mpc.input(k, &(estimate - px[k]))?;
                     out.mpc_moves.push(m);
                     m.input
                 }
@@ -231,6 +306,9 @@ impl<'a> TrackingDesign<'a> {
             u[0] = u[0].clamp(-STEER_TORQUE_LIMIT, STEER_TORQUE_LIMIT);
             u[1] = u[1].clamp(-VOLTAGE_LIMIT, VOLTAGE_LIMIT);
             out.input.push([u[0], u[1]]);
+            if let Some(s) = &mut sensors {
+                s.observer.advance(&u)?;
+            }
             let guess = pw[k].fixed_rows::<3>(0).into_owned();
             x = plant_step::<_, NX, { super::plan::NW }, 3, 2, { super::plan::NC }>(
                 &plant_tr, k, &x, &u, &guess,
@@ -242,5 +320,81 @@ impl<'a> TrackingDesign<'a> {
         out.planned.push(pose(&px[n]));
         out.actual.push(pose(&x));
         Ok(out)
+    }
+
+    /// The sensors of one run: the model, its noise's generator, the observer along the
+    /// plan from the plan's start, and the poses in flight.
+    fn sensors(&self, model: &CarSensorModel, seed: u64) -> Result<OnBoard<'_>, CarTrackError> {
+        let plan = PlanView {
+            linearised: &self.lin,
+            states: &self.px,
+            inputs: &self.inputs,
+        };
+        let memory = ((MEMORY_S / self.h).round() as usize).max(1);
+        let observer = Observer::new(
+            self.readings,
+            plan,
+            model.observer_noise(),
+            self.px[0],
+            start_covariance(),
+            memory,
+        )?;
+        Ok(OnBoard {
+            model: model.clone(),
+            rng: Rng::new(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x5E45),
+            observer,
+            pose_every: model.pose_every(self.h),
+            h: self.h,
+            in_flight: Vec::new(),
+        })
+    }
+}
+
+/// The sensors and the observer during a run.
+struct OnBoard<'a> {
+    model: CarSensorModel,
+    rng: Rng,
+    observer: Observer<'a, CarReadings, NX, 2, NY, NP>,
+    pose_every: usize,
+    h: f64,
+    /// Poses in flight: (arrival sample, measured at, reading).
+    in_flight: Vec<(usize, usize, SVector<f64, NP>)>,
+}
+
+impl OnBoard<'_> {
+    /// Sample `k` of the true state `x`: the on-board readings, a pose sent off if it is
+    /// a pose sample and not lost, the poses that have arrived fused; the estimate.
+    fn sample(
+        &mut self,
+        k: usize,
+        x: &SVector<f64, NX>,
+        readings: &CarReadings,
+        out: &mut CarTracking,
+    ) -> Result<SVector<f64, NX>, CarTrackError> {
+        let y = self.model.on_board(readings, x, &mut self.rng);
+        self.observer.read(&y)?;
+        if k.is_multiple_of(self.pose_every) && self.rng.uniform() >= self.model.loss {
+            let delay = self.model.draw_delay(&mut self.rng);
+            let arrive = k + (delay / self.h).ceil() as usize;
+            let p = self.model.pose(x, &mut self.rng);
+            self.in_flight.push((arrive, k, p));
+        }
+        let mut result = Ok(());
+        self.in_flight.retain(|(arrive, m, p)| {
+            if *arrive > k || result.is_err() {
+                return true;
+            }
+            match self.observer.pose(*m, p) {
+                Ok(true) => {
+                    out.poses_fused += 1;
+                    out.first_pose.get_or_insert(k);
+                }
+                Ok(false) => out.poses_dropped += 1,
+                Err(e) => result = Err(e),
+            }
+            false
+        });
+        result?;
+        Ok(self.observer.estimate())
     }
 }

@@ -1,6 +1,8 @@
 //! `car`: plan and simulate the front-wheel-steered, rear-driven car (`docs/car.md`). The
 //! second robot's tool: everything it plans with comes from `dmech` and `dmech-ocp`.
 
+mod track;
+
 use clap::{Parser, Subcommand};
 use dmech::Integrator;
 use dmech_ocp::solver::{IpOptions, Status};
@@ -31,11 +33,11 @@ struct Cli {
 enum Command {
     Plan(PlanArgs),
     Simulate(SimulateArgs),
-    Track(TrackArgs),
+    Track(track::TrackArgs),
 }
 
 /// The schemes `car plan` offers: the variational ones.
-const PLAN_INTEGRATORS: &[Integrator] = &[Integrator::FirstOrder, Integrator::Midpoint];
+pub(crate) const PLAN_INTEGRATORS: &[Integrator] = &[Integrator::FirstOrder, Integrator::Midpoint];
 
 /// Plan a rest-to-rest manoeuvre: a built-in problem (parallel-park, lane-change) or a
 /// pose file.
@@ -94,73 +96,6 @@ struct SimulateArgs {
     /// Largest |tau_s| accepted in the inputs file, in N m (the plans' bound is 0.05 N m)
     #[arg(long, value_name = "NM", default_value_t = 1.0, value_parser = positive)]
     max_torque: f64,
-}
-
-/// Plan a built-in problem or a pose file, then track the plan in closed loop by LQ or MPC
-/// on a plant car whose masses, inertias and motor constants differ from the plan's
-/// (docs/car.md, "Tracking"). Full-state feedback; inputs saturate at ±6 V and ±0.1 N m
-/// (the MPC's hard bounds).
-#[derive(clap::Args)]
-struct TrackArgs {
-    /// `parallel-park`, `lane-change`, or a JSON pose file
-    problem: String,
-    /// Time step in seconds, in (0, 0.1]
-    #[arg(long, default_value_t = 0.02, value_parser = step)]
-    step: f64,
-    /// Transcription of the plan and the plant's integrator
-    #[arg(long, default_value = "first-order", value_parser = integrator_parser(PLAN_INTEGRATORS))]
-    integrator: Integrator,
-    /// The controller: LQ feedback along the plan, the constrained MPC, or the plan's inputs
-    /// alone
-    #[arg(long, value_enum, default_value_t = ControllerArg::Lq)]
-    controller: ControllerArg,
-    /// The MPC's horizon in stages (with --controller mpc)
-    #[arg(long, value_name = "N", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=1000))]
-    horizon: u64,
-    /// The plant is the plan's car, started on the plan (error zero to round-off)
-    #[arg(long)]
-    ideal: bool,
-    /// Relative error of every mass, inertia and motor constant of the plant, uniform in
-    /// ±REL, in [0, 1)
-    #[arg(long, value_name = "REL", default_value_t = 0.1, value_parser = unit_interval)]
-    param_error: f64,
-    /// The plant's start, this far to the left of the plan's, m
-    #[arg(long, value_name = "M", default_value_t = 0.02, value_parser = finite)]
-    offset: f64,
-    /// Seed of the plant's parameters
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Run this many plants (seeds SEED, SEED+1, …) and report the errors' median and 95th
-    /// percentile
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=10_000))]
-    monte_carlo: Option<u64>,
-    /// Output directory
-    #[arg(long, default_value = "out")]
-    out: PathBuf,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum ControllerArg {
-    /// Time-varying LQ along the plan (dmech_ocp::tracking)
-    Lq,
-    /// Constrained MPC along the plan: a QP per stage (dmech_ocp::tracking::Mpc)
-    Mpc,
-    /// The plan's inputs, open loop
-    OpenLoop,
-}
-
-fn unit_interval(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if (0.0..1.0).contains(&v) => Ok(v),
-        _ => Err(format!("must be in [0, 1), got {s}")),
-    }
-}
-
-fn finite(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v.abs() <= 1.0 => Ok(v),
-        _ => Err(format!("'{s}' is not a finite number of metres within ±1")),
-    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -309,160 +244,6 @@ fn run_simulate(a: SimulateArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn run_track(a: TrackArgs) -> Result<(), String> {
-    use robots::car::track::{mismatched, Controller, TrackingDesign};
-    let problem = CarProblem::load(&a.problem).map_err(|e| e.to_string())?;
-    let disc = a
-        .integrator
-        .variational()
-        .expect("the parser offers the variational schemes");
-    let bounds = CarBounds::default();
-    CarPlan::new(&problem, bounds, a.step).map_err(|e| e.to_string())?;
-    let mut files = OutputSet::create(&a.out).map_err(|e| e.to_string())?;
-    let car = Car::default();
-    let opts = IpOptions {
-        verbose: false,
-        ..IpOptions::default()
-    };
-    let o = plan(&car, &problem, bounds, a.step, disc, opts).map_err(|e| e.to_string())?;
-    if o.status != Status::Solved {
-        return Err(format!("the plan was not solved: {}", o.status.code()));
-    }
-    let controller = match a.controller {
-        ControllerArg::Lq => Controller::Lq,
-        ControllerArg::OpenLoop => Controller::OpenLoop,
-        ControllerArg::Mpc => Controller::Mpc {
-            horizon: a.horizon as usize,
-        },
-    };
-    let design =
-        TrackingDesign::new(&car, &problem, &o, disc, controller).map_err(|e| e.to_string())?;
-    let (error, offset) = if a.ideal {
-        (0.0, 0.0)
-    } else {
-        (a.param_error, a.offset)
-    };
-    let runs = a.monte_carlo.unwrap_or(1);
-    let mut results = Vec::new();
-    let mut first = None;
-    let mut moves = Vec::new();
-    for i in 0..runs {
-        let seed = a.seed.wrapping_add(i);
-        let params = mismatched(&car.params, error, seed);
-        let t = design
-            .run(&params, offset)
-            .map_err(|e| format!("seed {seed}: {e}"))?;
-        results.push((seed, t.max_error(), t.end_error()));
-        moves.extend_from_slice(&t.mpc_moves);
-        first.get_or_insert(t);
-    }
-    let t = first.expect("at least one run");
-    let mut max_errors: Vec<f64> = results.iter().map(|r| r.1).collect();
-    let mut end_errors: Vec<f64> = results.iter().map(|r| r.2).collect();
-    let mut summary = serde_json::json!({
-        "problem": problem.name,
-        "integrator": a.integrator.name(),
-        "controller": controller.name(),
-        "ideal": a.ideal,
-        "param_error": error,
-        "offset_m": offset,
-        "runs": runs,
-        "max_position_error_m": spread(&mut max_errors),
-        "end_position_error_m": spread(&mut end_errors),
-        "seeds": results.iter().map(|(s, m, e)| serde_json::json!({"seed": s, "max_position_error_m": m, "end_position_error_m": e})).collect::<Vec<_>>(),
-    });
-    if let Controller::Mpc { horizon } = controller {
-        summary["horizon"] = horizon.into();
-        summary["qp"] = qp_figures(&moves);
-    }
-    let csv = robots::car::report::tracking_csv(&t).map_err(|e| e.to_string())?;
-    let put = |e: robots::io::OutputError| e.to_string();
-    files.write("tracking.csv", csv.as_bytes()).map_err(put)?;
-    let json = serde_json::to_string_pretty(&summary).expect("a JSON value serialises") + "\n";
-    files.write("tracking.json", json.as_bytes()).map_err(put)?;
-    for (name, svg) in robots::car::report::tracking_plots(&t) {
-        files.write(&name, svg.as_bytes()).map_err(put)?;
-    }
-    files.commit().map_err(put)?;
-    say_tracked(&problem.name, runs, controller, &summary, &a.out);
-    Ok(())
-}
-
-/// The one-line result of `car track` (and the QPs' figures for the MPC), and where the
-/// files are.
-fn say_tracked(
-    name: &str,
-    runs: u64,
-    controller: robots::car::track::Controller,
-    summary: &serde_json::Value,
-    out: &std::path::Path,
-) {
-    use robots::car::track::Controller;
-    say!(
-        "{}: {} run(s), {}: max position error median {:.2} mm, p95 {:.2} mm; end error median {:.2} mm",
-        name,
-        runs,
-        match controller {
-            Controller::Lq => "LQ",
-            Controller::Mpc { .. } => "MPC",
-            Controller::OpenLoop => "open loop",
-        },
-        1e3 * summary["max_position_error_m"]["median"].as_f64().unwrap_or(f64::NAN),
-        1e3 * summary["max_position_error_m"]["p95"].as_f64().unwrap_or(f64::NAN),
-        1e3 * summary["end_position_error_m"]["median"].as_f64().unwrap_or(f64::NAN)
-    );
-    if let Some(qp) = summary.get("qp") {
-        say!(
-            "{} QPs: CPU per sample median {:.3} ms, max {:.3} ms; {} not solved (LQ move)",
-            qp["samples"],
-            1e3 * qp["cpu_s"]["median"].as_f64().unwrap_or(f64::NAN),
-            1e3 * qp["cpu_s"]["max"].as_f64().unwrap_or(f64::NAN),
-            qp["not_solved"]
-        );
-    }
-    say!(
-        "wrote {}/{{tracking.csv, tracking.json, tracking_*.svg}}",
-        out.display()
-    );
-}
-
-/// The `q`-quantile of `values` (sorted in place; nearest rank).
-fn percentile(values: &mut [f64], q: f64) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values[((values.len() - 1) as f64 * q).round() as usize]
-}
-
-/// `{median, p95, worst}` of a nonempty list.
-fn spread(values: &mut [f64]) -> serde_json::Value {
-    serde_json::json!({
-        "median": percentile(values, 0.5),
-        "p95": percentile(values, 0.95),
-        "worst": percentile(values, 1.0),
-    })
-}
-
-/// The MPC's QPs over every run: how many, how many not solved, their iterations and the
-/// CPU time per sample (the calling thread's: set-up and solve), median and max.
-fn qp_figures(moves: &[dmech_ocp::tracking::MpcMove<2>]) -> serde_json::Value {
-    if moves.is_empty() {
-        return serde_json::json!({ "samples": 0 });
-    }
-    let mut cpu: Vec<f64> = moves.iter().map(|m| m.cpu_s).collect();
-    let mut iterations: Vec<f64> = moves.iter().map(|m| m.iterations as f64).collect();
-    serde_json::json!({
-        "samples": moves.len(),
-        "not_solved": moves.iter().filter(|m| !m.solved()).count(),
-        "iterations": {
-            "median": percentile(&mut iterations, 0.5),
-            "max": percentile(&mut iterations, 1.0),
-        },
-        "cpu_s": {
-            "median": percentile(&mut cpu, 0.5),
-            "max": percentile(&mut cpu, 1.0),
-        },
-    })
-}
-
 fn main() -> ExitCode {
     // First, before any thread starts: SIGINT and SIGTERM remove the staging directories.
     robots::io::clean_up_on_signals();
@@ -481,7 +262,7 @@ fn run_command() -> ExitCode {
     let result = match cli.command {
         Command::Plan(a) => run_plan(a),
         Command::Simulate(a) => run_simulate(a),
-        Command::Track(a) => run_track(a),
+        Command::Track(a) => track::run_track(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
