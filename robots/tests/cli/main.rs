@@ -3,7 +3,8 @@
 //! helpers (`common`) and the generic library code they call directly (the closed loop of
 //! `track`) once, and link once.
 //!
-//! - `car`: `car plan` and `car simulate`;
+//! - `car`: `car plan`, `car simulate` and `car track`;
+//! - `car_sensors`: `car track` on the car's sensors through the observer, the delay sweep;
 //! - `diagnose`: `wip generate` and `wip diagnose`;
 //! - `hostile`: both tools under hostile use, second round (issue 57);
 //! - `plan`: `wip plan`;
@@ -18,6 +19,7 @@
 mod common;
 
 mod car;
+mod car_sensors;
 mod diagnose;
 mod hostile;
 mod plan;
