@@ -22,7 +22,7 @@ pub mod observer;
 
 pub use lq::{lq_design, lq_gains, LqDesign, TrackingWeights};
 pub use mpc::{Mpc, MpcError, MpcMove, MpcSettings};
-pub use observer::{Observer, ObserverError, ObserverNoise, PlanView, Readings};
+pub use observer::{DelayLaw, Observer, ObserverError, ObserverNoise, PlanView, Readings};
 
 use crate::nlp::StageProblem;
 use dmech_lie::linalg::Lu;

@@ -10,7 +10,7 @@ use super::model::CarParams;
 use super::plan::NX;
 use dmech_lie::rng::Rng;
 use dmech_lie::Real;
-use dmech_ocp::tracking::{ObserverNoise, Readings};
+use dmech_ocp::tracking::{DelayLaw, ObserverNoise, Readings};
 use nalgebra::{SMatrix, SVector};
 use std::f64::consts::PI;
 
@@ -33,10 +33,8 @@ pub struct CarSensorModel {
     /// Standard deviations of a pose's position (m) and heading (rad).
     pub sigma_position: f64,
     pub sigma_heading: f64,
-    /// Delay of a pose: `delay_min + Exp(mean delay_scale)`, redrawn beyond `delay_max` (s).
-    pub delay_min: f64,
-    pub delay_scale: f64,
-    pub delay_max: f64,
+    /// Delay of a pose.
+    pub delay: DelayLaw,
     /// Probability that a pose is lost.
     pub loss: f64,
 }
@@ -53,9 +51,11 @@ impl CarSensorModel {
             pose_period: 0.02,
             sigma_position: 5e-4,
             sigma_heading: 5e-3,
-            delay_min: 0.013,
-            delay_scale: 0.084,
-            delay_max: 0.148,
+            delay: DelayLaw {
+                min: 0.013,
+                scale: 0.084,
+                max: 0.148,
+            },
             loss: 0.02,
         }
     }
@@ -68,9 +68,7 @@ impl CarSensorModel {
             sigma_gyro: 0.0,
             sigma_position: 0.0,
             sigma_heading: 0.0,
-            delay_min: 0.0,
-            delay_scale: 0.0,
-            delay_max: 0.0,
+            delay: DelayLaw::NONE,
             loss: 0.0,
             ..Self::paper()
         }
@@ -80,25 +78,9 @@ impl CarSensorModel {
     /// mean delay is `mean` s (the paper's 63 ms at factor 1), as `wip track`'s sweep.
     pub fn with_mean_delay(mean: f64) -> Self {
         let s = Self::paper();
-        let f = mean / 0.063;
         CarSensorModel {
-            delay_min: s.delay_min * f,
-            delay_scale: s.delay_scale * f,
-            delay_max: s.delay_max * f,
+            delay: s.delay.scaled(mean / 0.063),
             ..s
-        }
-    }
-
-    /// A pose delay (s).
-    pub fn draw_delay(&self, rng: &mut Rng) -> f64 {
-        if self.delay_scale == 0.0 {
-            return self.delay_min;
-        }
-        loop {
-            let d = self.delay_min - self.delay_scale * (1.0 - rng.uniform()).ln();
-            if d <= self.delay_max {
-                return d;
-            }
         }
     }
 
@@ -222,22 +204,6 @@ impl Readings<NX, NY, NP> for CarReadings {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The delay law has the paper's mean of 63 ms and its range; the tolerance is 4
-    /// standard errors of the mean of 20 000 draws (σ ≈ 35 ms).
-    #[test]
-    fn delay_law_has_the_papers_mean_and_range() {
-        let s = CarSensorModel::paper();
-        let mut rng = Rng::new(7);
-        let n = 20_000;
-        let draws: Vec<f64> = (0..n).map(|_| s.draw_delay(&mut rng)).collect();
-        let mean = draws.iter().sum::<f64>() / n as f64;
-        assert!(draws.iter().all(|&d| (0.013..=0.148).contains(&d)));
-        assert!(
-            (mean - 0.063).abs() < 4.0 * 0.035 / (n as f64).sqrt(),
-            "{mean}"
-        );
-    }
 
     /// Quantisation counts down to whole counts: within one count below, exact at a count.
     #[test]

@@ -16,8 +16,8 @@ use dmech_lie::lcg::Lcg;
 use dmech_lie::rng::Rng;
 use dmech_ocp::qp::QpSettings;
 use dmech_ocp::tracking::{
-    linearise_along, lq_gains, plant_step, LinearisedPlan, Mpc, MpcError, MpcMove, MpcSettings,
-    Observer, ObserverError, PlanView, TrackingError, TrackingWeights,
+    linearise_along, lq_gains, plant_step, DelayLaw, LinearisedPlan, Mpc, MpcError, MpcMove,
+    MpcSettings, Observer, ObserverError, PlanView, TrackingError, TrackingWeights,
 };
 use dmech_ocp::transcription::VarIntTranscription;
 use nalgebra::{SMatrix, SVector};
@@ -374,8 +374,8 @@ impl OnBoard<'_> {
         let y = self.model.on_board(readings, x, &mut self.rng);
         self.observer.read(&y)?;
         if k.is_multiple_of(self.pose_every) && self.rng.uniform() >= self.model.loss {
-            let delay = self.model.draw_delay(&mut self.rng);
-            let arrive = k + (delay / self.h).ceil() as usize;
+            let delay = self.model.delay.draw(&mut self.rng);
+            let arrive = k + DelayLaw::samples_late(delay, self.h);
             let p = self.model.pose(x, &mut self.rng);
             self.in_flight.push((arrive, k, p));
         }

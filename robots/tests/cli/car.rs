@@ -196,7 +196,13 @@ fn car_tracks_its_plans_by_mpc() {
 
 /// `car ARGS --out DIR` (DIR a scratch directory named `name`), which must succeed:
 /// tracking.json and DIR.
-fn run_track(args: &[&str], name: &str) -> (serde_json::Value, std::path::PathBuf) {
+pub(crate) fn run_track(args: &[&str], name: &str) -> (serde_json::Value, std::path::PathBuf) {
+    let dir = run_car(args, name);
+    (read_json(dir.join("tracking.json")), dir)
+}
+
+/// `car ARGS --out DIR` (DIR a scratch directory named `name`), which must succeed: DIR.
+pub(crate) fn run_car(args: &[&str], name: &str) -> std::path::PathBuf {
     let dir = scratch(name);
     let out = car().args(args).arg("--out").arg(&dir).output().unwrap();
     assert!(
@@ -204,5 +210,5 @@ fn run_track(args: &[&str], name: &str) -> (serde_json::Value, std::path::PathBu
         "{args:?}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    (read_json(dir.join("tracking.json")), dir)
+    dir
 }

@@ -3,6 +3,7 @@
 //! bounds set by the sensors' accuracy, the ideal sensors on the plan's own car, the delay
 //! sweep's file, and the options' usage errors.
 
+use crate::car::{run_car, run_track as run};
 use crate::common::{car, read_json, rows, scratch};
 
 /// The paper's pose noise, σ of a position reading, m.
@@ -34,7 +35,10 @@ fn car_tracks_on_its_sensors() {
             let fused = json["poses"]["fused"].as_u64().unwrap();
             assert_eq!(json["poses"]["dropped"], 0);
             // 50-Hz poses over 20-ms samples, 2 % lost, the last few still in flight.
-            assert!(fused as usize > 3 * stages * 9 / 10, "{name}: {fused} poses fused");
+            assert!(
+                fused as usize > 3 * stages * 9 / 10,
+                "{name}: {fused} poses fused"
+            );
             let estimate = json["max_estimate_error_m"]["worst"].as_f64().unwrap();
             assert!(
                 estimate < 6.0 * SIGMA_POSITION,
@@ -80,23 +84,15 @@ fn ideal_car_tracks_within_a_millimetre() {
 /// its runs and finite error figures.
 #[test]
 fn car_delay_sweep_writes_its_table() {
-    let dir = scratch("car-delay-sweep");
-    let out = car()
-        .args([
+    let dir = run_car(
+        &[
             "track",
             "lane-change",
             "--delay-sweep",
             "--monte-carlo",
             "2",
-        ])
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        ],
+        "car-delay-sweep",
     );
     let json = read_json(dir.join("delay_sweep.json"));
     let sweep = json["sweep"].as_array().unwrap();
@@ -128,17 +124,4 @@ fn car_sensor_options_are_checked() {
         let out = car().args(args).arg("--out").arg(&dir).output().unwrap();
         assert_eq!(out.status.code(), Some(2), "{args:?}");
     }
-}
-
-/// `car ARGS --out DIR` (DIR a scratch directory named `name`), which must succeed:
-/// tracking.json and DIR.
-fn run(args: &[&str], name: &str) -> (serde_json::Value, std::path::PathBuf) {
-    let dir = scratch(name);
-    let out = car().args(args).arg("--out").arg(&dir).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (read_json(dir.join("tracking.json")), dir)
 }
