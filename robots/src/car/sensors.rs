@@ -116,12 +116,13 @@ impl CarSensorModel {
 
     /// The covariances the observer assumes (for the paper's sensors, also when the
     /// readings are ideal): an encoder's quantisation as uniform over one count
-    /// (`q²/12`), the gyro's and the pose's variances; the process noise [`process_noise`].
-    pub fn observer_noise(&self) -> ObserverNoise<NX, NY, NP> {
+    /// (`q²/12`), the gyro's and the pose's variances; the process noise
+    /// [`process_noise`] over samples of `h` s.
+    pub fn observer_noise(&self, h: f64) -> ObserverNoise<NX, NY, NP> {
         let p = Self::paper();
         let count = |n: u32| (2.0 * PI / n as f64).powi(2) / 12.0;
         ObserverNoise {
-            process: process_noise(),
+            process: process_noise(h),
             on_board: SMatrix::<f64, NY, NY>::from_diagonal(&SVector::<f64, NY>::new(
                 count(p.steer_counts),
                 count(p.wheel_counts),
@@ -145,17 +146,35 @@ fn quantise(a: f64, counts: u32) -> f64 {
     (a / q).floor() * q
 }
 
-/// What the model may be wrong by per 20-ms sample, as standard deviations: ±10 % on the
-/// parameters changes the accelerations by about a tenth of the plans' (wheel rate
-/// 40 rad/s², steering 25 rad/s²), i.e. 0.1 rad/s and 0.05 rad/s per sample, and the
-/// current by a tenth of its 1 A; positions by those rates over a sample
-/// (0.05 m × 0.1 rad/s × 0.02 s = 0.1 mm, heading 1 mrad). The previous inputs are known.
-pub fn process_noise() -> SMatrix<f64, NX, NX> {
+/// A tenth of the built-in plans' largest accelerations (`car plan`, 20 ms: the wheel
+/// 28.5 rad/s², lane-change; the steering 2.35 rad/s², parallel-park) and current (1.59 A,
+/// lane-change): what ±10 % on the parameters may change them by.
+const WHEEL_ACCELERATION_ERROR: f64 = 2.85;
+/// See [`WHEEL_ACCELERATION_ERROR`].
+const STEER_ACCELERATION_ERROR: f64 = 0.235;
+/// See [`WHEEL_ACCELERATION_ERROR`].
+const CURRENT_ERROR: f64 = 0.16;
+
+/// What the model may be wrong by over a sample of `h` s, as standard deviations: the rates
+/// by the acceleration errors over the sample, the current by its error, the angles by
+/// those rates over the sample, the position by the wheel rate's (`r`) and the heading by
+/// the yaw rate's at the steering bound (`r tan 0.6 / L`); the previous inputs are known.
+pub fn process_noise(h: f64) -> SMatrix<f64, NX, NX> {
+    let p = CarParams::default();
+    let (wheel_rate, steer_rate) = (WHEEL_ACCELERATION_ERROR * h, STEER_ACCELERATION_ERROR * h);
+    let yaw_rate = wheel_rate * p.r * 0.6_f64.tan() / p.L;
     let sigma = [
-        1e-4, 1e-4, 1e-3, // x, y, θ
-        1e-3, 2e-3, 2e-3, // φ, ψ, q
-        5e-2, 1e-1, 1e-1, // φ̇, ψ̇, i
-        0.0, 0.0, // τ_s, u_d of the sample before
+        wheel_rate * p.r * h,
+        wheel_rate * p.r * h,
+        yaw_rate * h,
+        steer_rate * h,
+        wheel_rate * h,
+        CURRENT_ERROR * h,
+        steer_rate,
+        wheel_rate,
+        CURRENT_ERROR,
+        0.0,
+        0.0,
     ];
     SMatrix::<f64, NX, NX>::from_diagonal(&SVector::<f64, NX>::from_fn(|i, _| sigma[i] * sigma[i]))
 }

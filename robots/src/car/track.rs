@@ -334,7 +334,7 @@ impl<'a> TrackingDesign<'a> {
         let observer = Observer::new(
             self.readings,
             plan,
-            model.observer_noise(),
+            model.observer_noise(self.h),
             self.px[0],
             start_covariance(),
             memory,
