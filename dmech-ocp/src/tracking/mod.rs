@@ -18,9 +18,11 @@
 
 pub mod lq;
 pub mod mpc;
+pub mod nmpc;
 
 pub use lq::{lq_design, lq_gains, LqDesign, TrackingWeights};
 pub use mpc::{Mpc, MpcError, MpcMove, MpcSettings};
+pub use nmpc::{Nmpc, NmpcError, NmpcMemory, NmpcMove, NmpcSettings, SoftRow};
 
 use crate::nlp::StageProblem;
 use dmech_lie::linalg::Lu;

@@ -8,6 +8,8 @@
 //! - `midpoint_rest`: a midpoint plan that ends at rest stays there; its objective's order;
 //! - `momentum_systems`: systems with free group directions (the sleigh, the disk two
 //!   ways, random systems of the class);
+//! - `nmpc`: the nonlinear MPC on random systems' references, bounds inactive (first
+//!   order equal to the LQ tracker) and active;
 //! - `rolling_disk`: both schemes' steps against their closed forms on the rolling disk;
 //! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
 //! - `steered_car_bounds`: the solver on a steered car with an active torque bound, and a
@@ -22,6 +24,7 @@ mod generic_integrator;
 mod midpoint_integrator;
 mod midpoint_rest;
 mod momentum_systems;
+mod nmpc;
 mod rk_transcription;
 mod rolling_disk;
 mod steered_car_bounds;
