@@ -154,6 +154,47 @@ impl<const NX: usize, const NW: usize, const NC: usize> NmpcMemory<NX, NW, NC> {
     }
 }
 
+/// The stationary cost-to-go of the LQ tracker at the stage `(x, w)` held for ever (the
+/// Riccati recursion iterated from `weights.terminal` on that stage's linearisation until
+/// `P` changes by at most `1e-10 ‖P‖`, at most `max_steps` times): the terminal weight for
+/// a plan that ends at rest and is held there, as the horizons past its end hold it.
+/// `None` if it does not settle within `max_steps` (the held stage not stabilisable) or
+/// the recursion is singular.
+pub fn stationary_cost_to_go<
+    P,
+    const NX: usize,
+    const NW: usize,
+    const NE: usize,
+    const NF: usize,
+    const NC: usize,
+>(
+    problem: &P,
+    x: &SVector<f64, NX>,
+    w: &SVector<f64, NW>,
+    weights: &TrackingWeights<NX, NF>,
+    max_steps: usize,
+) -> Option<SMatrix<f64, NX, NX>>
+where
+    P: StageProblem<NX, NW, NE, NF, NC>,
+{
+    let lin = linearise_along(problem, &[*x, *x], &[*w]).ok()?;
+    let (a, b) = (&lin.a[0], &lin.b[0]);
+    let (q, r) = (&weights.state, &weights.input);
+    let mut p = weights.terminal;
+    for _ in 0..max_steps {
+        let bp = b.transpose() * p;
+        let k = dmech_lie::linalg::Lu::new(&(r + bp * b))?.solve_columns(&(bp * a));
+        let mut next = q + a.transpose() * p * (a - b * k);
+        next = (next + next.transpose()) * 0.5;
+        let change = (next - p).amax();
+        p = next;
+        if change <= 1e-10 * p.amax() {
+            return Some(p);
+        }
+    }
+    None
+}
+
 /// The NMPC along one plan: the plan, the weights, and the LQ tracker along it (its gains
 /// start the new last stage of a shifted iterate; its cost-to-go is the terminal weight).
 #[derive(Clone, Debug)]
