@@ -138,9 +138,10 @@ def track(
     progress: Optional[Callable[[float], Any]] = None,
 ) -> Union[Tracking, MonteCarlo]:
     """Track a plan in closed loop (``wip track``): the plan's voltages as feedforward, the
-    feedback (``controller``: ``"lq"``, the paper's LQ, or ``"mpc"``, a QP per sample) on
-    the observer's errors, saturated at ±5 V, applied to the nonlinear model with the
-    sensors' rates, delays and noise (drawn from ``seed``).
+    feedback (``controller``: ``"lq"``, the paper's LQ, ``"mpc"``, a QP per sample, or
+    ``"nmpc"``, the nonlinear MPC on the plan's transcription) on the observer's errors,
+    saturated at ±5 V, applied to the nonlinear model with the sensors' rates, delays and
+    noise (drawn from ``seed``).
 
     ``plan``: a :class:`~dmech.wip.Plan` or :class:`~dmech.wip.Trajectory`, or a
     ``trajectory.csv`` path or its directory. ``params``: the nominal robot (the design's);

@@ -76,6 +76,8 @@ fn request(
         mean_delay,
         plant_seed,
         param_error,
+        // The NMPC ("nmpc") with the command line's defaults.
+        ..TrackRequest::default()
     })
 }
 

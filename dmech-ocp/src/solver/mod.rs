@@ -241,7 +241,10 @@ impl<'a, const NX: usize, const NW: usize, const NE: usize, const NF: usize, con
     /// Solve from `start`. A problem whose cost per stage at the start is below one is
     /// solved with its cost scaled up (`scaling.rs`); the result is in the problem's units.
     pub fn solve(&self, start: Iterate<NX, NW, NC>) -> SolveResult<NX, NW, NC> {
-        let c = scaling::objective_scale(self.p, &start)
+        let c = self
+            .opts
+            .objective_scale
+            .or_else(|| scaling::objective_scale(self.p, &start))
             .or_else(|| {
                 let probe = self.variant(
                     self.p,

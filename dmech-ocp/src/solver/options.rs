@@ -41,6 +41,12 @@ pub struct IpOptions {
     /// Called after every iteration with its measures (progress of a long solve), whether
     /// or not the table is printed. `None`: nothing is called.
     pub observer: Option<IterationObserver>,
+    /// The objective's scale `c` (the solver works on `c ℓ`): `None`, the rule of
+    /// `docs/solver.md`, "Objective scaling" (`1/s` for a mean stage cost `s < 1` at the
+    /// start, a probe step when it is zero); `Some(c)`, that scale whatever the start. For
+    /// a sequence of solves of one problem family whose scale must not change from solve
+    /// to solve (the receding horizons of [`crate::tracking::nmpc`]).
+    pub objective_scale: Option<f64>,
 }
 
 /// What an iteration reports to an [`IterationObserver`]: the iteration table's row.
@@ -126,6 +132,7 @@ impl Default for IpOptions {
             kkt: KktMethod::Riccati,
             final_barrier: None,
             observer: None,
+            objective_scale: None,
         }
     }
 }

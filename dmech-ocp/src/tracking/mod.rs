@@ -18,10 +18,12 @@
 
 pub mod lq;
 pub mod mpc;
+pub mod nmpc;
 pub mod observer;
 
 pub use lq::{lq_design, lq_gains, LqDesign, TrackingWeights};
 pub use mpc::{Mpc, MpcError, MpcMove, MpcSettings};
+pub use nmpc::{Nmpc, NmpcError, NmpcMemory, NmpcMove, NmpcSettings, SoftRow};
 pub use observer::{DelayLaw, Observer, ObserverError, ObserverNoise, PlanView, Readings};
 
 use crate::nlp::StageProblem;

@@ -11,7 +11,8 @@
 //! - `reliability`: every subcommand under careless or hostile use (issue 24);
 //! - `simulate`: `wip simulate`;
 //! - `snakeboard`: `snakeboard plan` and `snakeboard simulate`;
-//! - `track`: `wip track` and the closed loop.
+//! - `track`: `wip track` and the closed loop;
+//! - `track_nmpc`: `wip track --controller nmpc` on the eight and the zigzag.
 //!
 //! One module's tests: `cargo test -p robots --test cli -- plan::`.
 
@@ -27,3 +28,4 @@ mod reliability;
 mod simulate;
 mod snakeboard;
 mod track;
+mod track_nmpc;

@@ -8,6 +8,8 @@
 //! - `midpoint_rest`: a midpoint plan that ends at rest stays there; its objective's order;
 //! - `momentum_systems`: systems with free group directions (the sleigh, the disk two
 //!   ways, random systems of the class);
+//! - `nmpc`: the nonlinear MPC on random systems' references, bounds inactive (first
+//!   order equal to the LQ tracker) and active;
 //! - `observer`: the observer with late poses on a random linear system, nonlinear readings;
 //! - `rolling_disk`: both schemes' steps against their closed forms on the rolling disk;
 //! - `rk_transcription`: the RK transcription's structured dynamics Jacobian;
@@ -23,6 +25,7 @@ mod generic_integrator;
 mod midpoint_integrator;
 mod midpoint_rest;
 mod momentum_systems;
+mod nmpc;
 mod observer;
 mod rk_transcription;
 mod rolling_disk;

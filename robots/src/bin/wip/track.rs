@@ -8,6 +8,7 @@ use robots::wip::simulate::Trajectory;
 use robots::wip::track::closed_loop::{Controller, TrackConfig};
 use robots::wip::track::lq::SAMPLE;
 use robots::wip::track::monte_carlo::{monte_carlo, quantile, with_mean_delay, McRun};
+use robots::wip::track::nmpc::{NmpcOptions, BUDGET_S, HORIZON, NEWTON_STEPS};
 use robots::wip::track::report::{plan_path, plots, read_plan, tracking_csv, tracking_json};
 use robots::wip::track::request::{ControllerKind, PreparedTrack, TrackRequest};
 use std::path::PathBuf;
@@ -53,6 +54,17 @@ pub struct TrackArgs {
     /// (default 20) with the nominal plant; reports the largest delay without a fall
     #[arg(long, conflicts_with = "plant_seed")]
     delay_sweep: bool,
+    /// The NMPC's horizon in 5-ms samples
+    #[arg(long, value_name = "N", default_value_t = HORIZON, value_parser = crate::common::positive_count)]
+    horizon: usize,
+    /// The NMPC's Newton steps per sample (real-time iteration)
+    #[arg(long, value_name = "N", default_value_t = NEWTON_STEPS, value_parser = crate::common::positive_count)]
+    newton_steps: usize,
+    /// The NMPC's wall-clock budget per sample (s); a solve past it falls back to the LQ
+    /// move. Default: none (the Newton steps bound the compute, and the moves do not depend
+    /// on the machine's load)
+    #[arg(long, value_name = "SECONDS", value_parser = crate::common::positive_number)]
+    budget: Option<f64>,
     /// Threads of a Monte Carlo run
     #[arg(long, value_name = "N", default_value = "2", value_parser = crate::common::positive_count)]
     threads: usize,
@@ -74,6 +86,11 @@ pub enum ControllerArg {
     /// hard, rate and tilt bounds soft), solved by the stage-structured interior point
     /// `dmech_ocp::qp`.
     Mpc,
+    /// The nonlinear MPC on the plan's own transcription (the first-order variational
+    /// integrator of the full model, the plan's bounds; the voltage rate soft), a few
+    /// Newton steps per sample from the previous solution (--horizon, --newton-steps,
+    /// --budget); the LQ move when a sample's solve fails or runs out of its budget.
+    Nmpc,
 }
 
 pub fn run(a: TrackArgs) -> Result<(), Failure> {
@@ -91,6 +108,7 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         controller: match a.controller {
             ControllerArg::Lq => ControllerKind::Lq,
             ControllerArg::Mpc => ControllerKind::Mpc,
+            ControllerArg::Nmpc => ControllerKind::Nmpc,
         },
         params,
         seed: a.seed,
@@ -98,6 +116,11 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         mean_delay: a.mean_delay,
         plant_seed: a.plant_seed,
         param_error: a.param_error,
+        nmpc: NmpcOptions {
+            horizon: a.horizon,
+            newton_steps: a.newton_steps,
+            budget_s: a.budget.unwrap_or(BUDGET_S),
+        },
     };
     let prepared = request
         .prepare(&plan)
@@ -158,15 +181,22 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
         run.fell_at
             .map_or(String::new(), |t| format!("; FELL at t = {t:.2} s"))
     );
-    if let (Some(med), Some(max), Some(wall)) = (
+    if let (Some(med), Some(p99), Some(max), Some(wall_med), Some(wall_p99), Some(wall)) = (
         fig.qp_solve_ms_median,
+        fig.qp_solve_ms_p99,
         fig.qp_solve_ms_max,
+        fig.qp_wall_ms_median,
+        fig.qp_wall_ms_p99,
         fig.qp_wall_ms_max,
     ) {
+        let what = match controller {
+            Controller::Nmpc(_) => "NMPC: solve",
+            _ => "MPC: QP solve",
+        };
         say!(
-            "MPC: QP solve time per sample (CPU) median {med:.3} ms, largest {max:.3} ms \
-             (wall-clock largest {wall:.3} ms; the sample is 5 ms); {} samples fell back to \
-             the LQ move",
+            "{what} time per sample (CPU) median {med:.3} ms, p99 {p99:.3} ms, largest \
+             {max:.3} ms (wall-clock {wall_med:.3} / {wall_p99:.3} / {wall:.3} ms; the \
+             sample is 5 ms); {} samples fell back to the LQ move",
             fig.qp_fallbacks
         );
     }

@@ -5,6 +5,7 @@
 use super::guidance;
 use super::lq::{LqController, SAMPLE};
 use super::mpc::MpcController;
+use super::nmpc::NmpcController;
 use super::observer::{Estimate, Observer, OnBoard, PoseMeasurement, SensorModel};
 use super::simulated_robot::{check_physical, substeps, Divergence, Plant};
 use crate::check::CheckError;
@@ -50,11 +51,13 @@ pub struct TrackRun {
     pub diverged: Option<(f64, Divergence)>,
     /// RK4 substeps per sample of the plant ([`super::simulated_robot::substeps`]).
     pub substeps: usize,
-    /// The MPC's QP solve time per sample (s, the thread's CPU time); empty for LQ.
+    /// The MPC's QP (or the NMPC's) solve time per sample (s, the thread's CPU time); empty
+    /// for LQ.
     pub qp_solve_s: Vec<f64>,
     /// The same as wall-clock time (s).
     pub qp_wall_s: Vec<f64>,
-    /// Samples where the QP was not solved and the LQ move was applied instead.
+    /// Samples where the QP (or the NMPC's solve) gave no move and the LQ move was applied
+    /// instead.
     pub qp_fallbacks: usize,
 }
 
@@ -65,6 +68,8 @@ pub enum Controller<'a> {
     Lq(&'a LqController),
     /// The constrained MPC along the plan (`mpc.rs`).
     Mpc(&'a MpcController),
+    /// The nonlinear MPC on the plan's transcription (`nmpc.rs`).
+    Nmpc(&'a NmpcController),
 }
 
 impl<'a> From<&'a LqController> for Controller<'a> {
@@ -79,12 +84,19 @@ impl<'a> From<&'a MpcController> for Controller<'a> {
     }
 }
 
+impl<'a> From<&'a NmpcController> for Controller<'a> {
+    fn from(nmpc: &'a NmpcController) -> Self {
+        Controller::Nmpc(nmpc)
+    }
+}
+
 impl Controller<'_> {
     /// The name used in outputs.
     pub fn name(&self) -> &'static str {
         match self {
             Controller::Lq(_) => "lq",
             Controller::Mpc(_) => "mpc",
+            Controller::Nmpc(_) => "nmpc",
         }
     }
 }
@@ -126,10 +138,13 @@ pub struct TrackFigures {
     /// `"completed"`, `"fell"` (|α| > 45°) or `"diverged"` (the plant's simulation, not the
     /// robot, failed: its figures are not a result).
     pub outcome: &'static str,
-    /// The MPC's QP solve time per sample as CPU time, median and largest (ms), and the
-    /// largest wall-clock time (ms); `null` for LQ.
+    /// The MPC's QP (or the NMPC's solve) time per sample as CPU time, median, 99th
+    /// percentile and largest (ms), and the same as wall-clock time; `null` for LQ.
     pub qp_solve_ms_median: Option<f64>,
+    pub qp_solve_ms_p99: Option<f64>,
     pub qp_solve_ms_max: Option<f64>,
+    pub qp_wall_ms_median: Option<f64>,
+    pub qp_wall_ms_p99: Option<f64>,
     pub qp_wall_ms_max: Option<f64>,
     pub qp_fallbacks: usize,
 }
@@ -157,7 +172,10 @@ impl TrackRun {
             fell: self.fell_at.is_some(),
             outcome: self.outcome(),
             qp_solve_ms_median: ms_quantile(&self.qp_solve_s, 0.5),
+            qp_solve_ms_p99: ms_quantile(&self.qp_solve_s, 0.99),
             qp_solve_ms_max: ms_quantile(&self.qp_solve_s, 1.0),
+            qp_wall_ms_median: ms_quantile(&self.qp_wall_s, 0.5),
+            qp_wall_ms_p99: ms_quantile(&self.qp_wall_s, 0.99),
             qp_wall_ms_max: ms_quantile(&self.qp_wall_s, 1.0),
             qp_fallbacks: self.qp_fallbacks,
         };
@@ -335,6 +353,13 @@ pub fn track_with_substeps<'a>(
             Controller::Lq(lq) => lq.feedback(&e),
             Controller::Mpc(mpc) => {
                 let m = mpc.feedback(k, &e, u_prev);
+                run.qp_solve_s.push(m.solve_s);
+                run.qp_wall_s.push(m.solve_wall_s);
+                run.qp_fallbacks += usize::from(!m.solved);
+                m.u_fb
+            }
+            Controller::Nmpc(nmpc) => {
+                let m = nmpc.feedback(k, &est, &e, u_ff, u_prev);
                 run.qp_solve_s.push(m.solve_s);
                 run.qp_wall_s.push(m.solve_wall_s);
                 run.qp_fallbacks += usize::from(!m.solved);

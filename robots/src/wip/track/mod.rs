@@ -8,6 +8,7 @@ pub mod linear;
 pub mod lq;
 pub mod monte_carlo;
 pub mod mpc;
+pub mod nmpc;
 pub mod observer;
 pub mod report;
 pub mod request;

@@ -7,6 +7,7 @@ use super::dare::DareError;
 use super::lq::{LqController, SAMPLE};
 use super::monte_carlo::{monte_carlo, perturbed, with_mean_delay, McRun};
 use super::mpc::{MpcController, MpcDesignError};
+use super::nmpc::{NmpcController, NmpcDesignError, NmpcOptions};
 use super::observer::SensorModel;
 use super::simulated_robot::substeps;
 use crate::wip::simulate::Trajectory;
@@ -20,6 +21,8 @@ pub enum ControllerKind {
     Lq,
     /// A QP per sample along the plan (`dmech_ocp::qp`).
     Mpc,
+    /// The nonlinear MPC on the plan's transcription (`dmech_ocp::tracking::nmpc`).
+    Nmpc,
 }
 
 impl std::str::FromStr for ControllerKind {
@@ -28,7 +31,10 @@ impl std::str::FromStr for ControllerKind {
         match s {
             "lq" => Ok(ControllerKind::Lq),
             "mpc" => Ok(ControllerKind::Mpc),
-            _ => Err(format!("unknown controller '{s}' (expected lq or mpc)")),
+            "nmpc" => Ok(ControllerKind::Nmpc),
+            _ => Err(format!(
+                "unknown controller '{s}' (expected lq, mpc or nmpc)"
+            )),
         }
     }
 }
@@ -50,6 +56,8 @@ pub struct TrackRequest {
     pub plant_seed: Option<u64>,
     /// Relative error of every mass, inertia and motor parameter of a perturbed plant.
     pub param_error: f64,
+    /// The NMPC's horizon, Newton steps and budget.
+    pub nmpc: NmpcOptions,
 }
 
 impl Default for TrackRequest {
@@ -62,6 +70,7 @@ impl Default for TrackRequest {
             mean_delay: None,
             plant_seed: None,
             param_error: 0.1,
+            nmpc: NmpcOptions::default(),
         }
     }
 }
@@ -75,6 +84,8 @@ pub enum TrackSetupError {
     Lq(DareError),
     #[error(transparent)]
     Mpc(#[from] MpcDesignError),
+    #[error(transparent)]
+    Nmpc(#[from] NmpcDesignError),
 }
 
 /// A closed loop ready to run along its plan: the plant checked, the controllers designed.
@@ -82,6 +93,7 @@ pub struct PreparedTrack<'p> {
     plan: &'p Trajectory,
     lq: LqController,
     mpc: Option<MpcController>,
+    nmpc: Option<NmpcController>,
     /// The plant, the nominal model, the sensors and the seed.
     pub config: TrackConfig,
     /// RK4 substeps per sample of the plant.
@@ -113,13 +125,18 @@ impl TrackRequest {
         })?;
         let lq = LqController::design(&self.params).map_err(TrackSetupError::Lq)?;
         let mpc = match self.controller {
-            ControllerKind::Lq => None,
             ControllerKind::Mpc => Some(MpcController::design(&self.params, plan)?),
+            _ => None,
+        };
+        let nmpc = match self.controller {
+            ControllerKind::Nmpc => Some(NmpcController::design(&self.params, plan, self.nmpc)?),
+            _ => None,
         };
         Ok(PreparedTrack {
             plan,
             lq,
             mpc,
+            nmpc,
             config: TrackConfig {
                 plant,
                 nominal: self.params,
@@ -134,9 +151,11 @@ impl TrackRequest {
 impl PreparedTrack<'_> {
     /// The feedback law.
     pub fn controller(&self) -> Controller<'_> {
-        self.mpc
-            .as_ref()
-            .map_or(Controller::Lq(&self.lq), Controller::Mpc)
+        match (&self.mpc, &self.nmpc) {
+            (Some(mpc), _) => Controller::Mpc(mpc),
+            (None, Some(nmpc)) => Controller::Nmpc(nmpc),
+            (None, None) => Controller::Lq(&self.lq),
+        }
     }
 
     /// The plan being tracked.
