@@ -135,7 +135,7 @@ impl Clone for NmpcController {
     fn clone(&self) -> Self {
         NmpcController {
             lq: self.lq.clone(),
-            model: self.model.clone(),
+            model: self.model,
             problem: self.problem.clone(),
             nmpc: self.nmpc.clone(),
             workspaces: Mutex::new(Vec::new()),
