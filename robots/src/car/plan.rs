@@ -19,6 +19,10 @@ use dmech_ocp::transcription::{
 };
 use nalgebra::SVector;
 
+/// The stage state: the pose `(x, y, θ)`, the shape `(φ, ψ, q)`, its velocity
+/// `(φ̇, ψ̇, i)` and the previous inputs.
+pub const LAYOUT: Layout = Layout::new(3, NS, NU);
+
 /// Path constraints per stage: τ_s, u_d, u̇_d, i, φ, φ̇.
 pub const NC: usize = 6;
 /// The solver's state size: pose 3 + 2 NS + NU.
@@ -325,7 +329,7 @@ impl<'p> SequencedPlan<NX, NW, NS, NU, NC> for CarSequence<'p> {
             })
     }
     fn layout(&self) -> Layout {
-        Layout::new(3, NS, NU)
+        LAYOUT
     }
 }
 

@@ -6,11 +6,13 @@
 //! The readings are functions of the transcription's state
 //! `x_k = (x, y, θ, φ, ψ, q, φ̇_{k−1}, ψ̇_{k−1}, i_{k−1}, τ_s,k−1, u_d,k−1)` ([`CarReadings`]).
 
-use super::model::CarParams;
-use super::plan::NX;
+use super::model::{CarParams, NS};
+use super::plan::{LAYOUT, NX};
+use crate::wip::track::observer::PAPER_POSE_DELAY;
 use dmech_lie::rng::Rng;
 use dmech_lie::Real;
 use dmech_ocp::tracking::{DelayLaw, ObserverNoise, Readings};
+use dmech_ocp::transcription::layout::segment;
 use nalgebra::{SMatrix, SVector};
 use std::f64::consts::PI;
 
@@ -51,11 +53,7 @@ impl CarSensorModel {
             pose_period: 0.02,
             sigma_position: 5e-4,
             sigma_heading: 5e-3,
-            delay: DelayLaw {
-                min: 0.013,
-                scale: 0.084,
-                max: 0.148,
-            },
+            delay: PAPER_POSE_DELAY,
             loss: 0.02,
         }
     }
@@ -212,11 +210,14 @@ impl CarReadings {
 
 impl Readings<NX, NY, NP> for CarReadings {
     fn on_board<T: Real>(&self, x: &SVector<T, NX>) -> SVector<T, NY> {
-        let yaw_rate = x[7] * x[3].tan() * (self.r / self.wheelbase);
-        SVector::<T, NY>::new(x[3], x[4], yaw_rate)
+        let s: SVector<T, NS> = LAYOUT.shape(x);
+        let v: SVector<T, NS> = segment(x, LAYOUT.v_at());
+        let (steer, wheel, wheel_rate) = (s[0], s[1], v[1]);
+        let yaw_rate = wheel_rate * steer.tan() * (self.r / self.wheelbase);
+        SVector::<T, NY>::new(steer, wheel, yaw_rate)
     }
     fn pose<T: Real>(&self, x: &SVector<T, NX>) -> SVector<T, NP> {
-        SVector::<T, NP>::new(x[0], x[1], x[2])
+        segment(x, 0)
     }
 }
 

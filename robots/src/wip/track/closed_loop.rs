@@ -12,6 +12,7 @@ use crate::check::CheckError;
 use crate::wip::simulate::Trajectory;
 use crate::wip::{ReducedState, WipParams};
 use dmech_lie::rng::Rng;
+use dmech_ocp::tracking::DelayLaw;
 use nalgebra::SVector;
 
 /// Motor voltage limit (V).
@@ -328,8 +329,8 @@ pub fn track_with_substeps<'a>(
             };
             obs.on_board(&onb, u_prev);
             if k % sens.pose_every == 0 && rng.uniform() >= sens.loss {
-                let delay = sens.draw_delay(&mut rng);
-                let arrive = k + (delay / SAMPLE).ceil() as usize;
+                let delay = sens.delay.draw(&mut rng);
+                let arrive = k + DelayLaw::samples_late(delay, SAMPLE);
                 let pose = [
                     x[0] + sens.sigma_position * rng.normal(),
                     x[1] + sens.sigma_position * rng.normal(),

@@ -35,11 +35,8 @@ pub fn perturbed(nominal: &WipParams, rel: f64, seed: u64) -> WipParams {
 /// mean delay is `mean` seconds (the paper's 63 ms at factor 1).
 pub fn with_mean_delay(mean: f64) -> SensorModel {
     let s = SensorModel::paper();
-    let f = mean / 0.063;
     SensorModel {
-        delay_min: s.delay_min * f,
-        delay_scale: s.delay_scale * f,
-        delay_max: s.delay_max * f,
+        delay: s.delay.scaled(mean / 0.063),
         ..s
     }
 }

@@ -3,8 +3,16 @@
 //! the measurement's time with the odometry stored since (docs/tracking.md).
 
 use crate::wip::WipParams;
-use dmech_lie::rng::Rng;
+use dmech_ocp::tracking::DelayLaw;
 use std::collections::VecDeque;
+
+/// The paper's delay of an external pose: 13–148 ms with a mean of 63 ms (`scale` chosen
+/// so that the truncated exponential has that mean; a test measures it).
+pub const PAPER_POSE_DELAY: DelayLaw = DelayLaw {
+    min: 0.013,
+    scale: 0.084,
+    max: 0.148,
+};
 
 /// The sensor model. `ideal()` is exact and immediate.
 #[derive(Clone, Debug, PartialEq)]
@@ -19,10 +27,8 @@ pub struct SensorModel {
     pub pose_every: usize,
     pub sigma_position: f64,
     pub sigma_heading: f64,
-    /// Delay of a pose: `delay_min + Exp(mean delay_scale)`, redrawn beyond `delay_max` (s).
-    pub delay_min: f64,
-    pub delay_scale: f64,
-    pub delay_max: f64,
+    /// Delay of a pose: `min + Exp(mean scale)`, redrawn beyond `max` (s).
+    pub delay: DelayLaw,
     /// Probability that a pose is lost.
     pub loss: f64,
     /// Weight of an arriving pose against the predicted one (1: replace).
@@ -30,8 +36,7 @@ pub struct SensorModel {
 }
 
 impl SensorModel {
-    /// The paper's rates and delays (13–148 ms, mean 63 ms: `delay_scale` is chosen so
-    /// that the truncated exponential has that mean; a test measures it) and our noise
+    /// The paper's rates and delays ([`PAPER_POSE_DELAY`]) and our noise
     /// assumptions (the paper gives no noise figures).
     pub fn paper() -> Self {
         SensorModel {
@@ -41,9 +46,7 @@ impl SensorModel {
             pose_every: 4,
             sigma_position: 5e-4,
             sigma_heading: 5e-3,
-            delay_min: 0.013,
-            delay_scale: 0.084,
-            delay_max: 0.148,
+            delay: PAPER_POSE_DELAY,
             loss: 0.02,
             pose_gain: 0.5,
         }
@@ -57,23 +60,9 @@ impl SensorModel {
             pose_every: 1,
             sigma_position: 0.0,
             sigma_heading: 0.0,
-            delay_min: 0.0,
-            delay_scale: 0.0,
-            delay_max: 0.0,
+            delay: DelayLaw::NONE,
             loss: 0.0,
             pose_gain: 1.0,
-        }
-    }
-    /// A pose delay (s).
-    pub fn draw_delay(&self, rng: &mut Rng) -> f64 {
-        if self.delay_scale == 0.0 {
-            return self.delay_min;
-        }
-        loop {
-            let d = self.delay_min - self.delay_scale * (1.0 - rng.uniform()).ln();
-            if d <= self.delay_max {
-                return d;
-            }
         }
     }
 }
@@ -232,6 +221,7 @@ impl Observer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dmech_lie::rng::Rng;
 
     /// The default delay law has the paper's mean of 63 ms and range 13–148 ms; the
     /// tolerance is 4 standard errors of the mean of 20 000 draws (σ ≈ 35 ms).
@@ -240,7 +230,7 @@ mod tests {
         let s = SensorModel::paper();
         let mut rng = Rng::new(7);
         let n = 20_000;
-        let draws: Vec<f64> = (0..n).map(|_| s.draw_delay(&mut rng)).collect();
+        let draws: Vec<f64> = (0..n).map(|_| s.delay.draw(&mut rng)).collect();
         let mean = draws.iter().sum::<f64>() / n as f64;
         assert!(draws.iter().all(|&d| (0.013..=0.148).contains(&d)));
         assert!(
