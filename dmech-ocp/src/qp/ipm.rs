@@ -188,21 +188,23 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
         let tol = self.settings.tol;
         let pairs: usize = self.sides.iter().map(StageSides::pairs).sum();
         let mut iterations = 0;
-        let status = loop {
+        // Every stop comes before a step: the residuals at the top of the last pass are
+        // those of the returned iterate.
+        let (status, m) = loop {
             let m = residuals(qp, &self.sides, &self.it, &mut self.res);
             if !(m.stationarity.is_finite() && m.primal.is_finite() && m.mu.is_finite()) {
-                break QpStatus::NumericalError;
+                break (QpStatus::NumericalError, m);
             }
             if converged(&m, &scales, pairs, tol) {
-                break QpStatus::Solved;
+                break (QpStatus::Solved, m);
             }
             if iterations == self.settings.max_iter {
-                break self.diagnose(qp, QpStatus::MaxIterations);
+                break (self.diagnose(qp, QpStatus::MaxIterations), m);
             }
             if self.hard_multiplier_max() > 1e8 * scales.dual
                 && primal_infeasible(qp, &self.sides, &self.it, self.settings.certificate_tol)
             {
-                break QpStatus::PrimalInfeasible;
+                break (QpStatus::PrimalInfeasible, m);
             }
             iterations += 1;
             if factor(
@@ -214,7 +216,7 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
             )
             .is_err()
             {
-                break QpStatus::NumericalError;
+                break (QpStatus::NumericalError, m);
             }
             let (it, res, sides) = (&self.it, &self.res, &self.sides);
             solve(
@@ -248,16 +250,15 @@ impl<const NX: usize, const NU: usize, const NC: usize> QpSolver<NX, NU, NC> {
             if dy_norm > 1e8 * y_norm.max(scales.primal)
                 && dual_infeasible(qp, &self.sides, &self.dir, self.settings.certificate_tol)
             {
-                break QpStatus::DualInfeasible;
+                break (QpStatus::DualInfeasible, m);
             }
             if alpha.is_nan() || alpha <= 1e-12 {
-                break self.diagnose(qp, QpStatus::NumericalError);
+                break (self.diagnose(qp, QpStatus::NumericalError), m);
             }
             for (ik, dk) in self.it.iter_mut().zip(&self.dir) {
                 ik.step(alpha, dk);
             }
         };
-        let m = residuals(qp, &self.sides, &self.it, &mut self.res);
         self.solution(qp, status, m, iterations, start, warm)
     }
 
