@@ -25,9 +25,10 @@ fn qps() -> Vec<MpcQp> {
 
 fn bench(c: &mut Criterion) {
     let qps = qps();
-    // The MPC's settings (robots' `mpc::qp_settings`): the default tolerance, the cold
+    // The MPC's settings (robots' `mpc::qp_settings`): a gap tolerance of 1e-6, the cold
     // start centred at μ0 = 0.1.
     let settings = QpSettings::builder()
+        .tol(1e-6)
         .start_mu(0.1)
         .build()
         .expect("valid settings");
