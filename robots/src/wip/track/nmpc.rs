@@ -1,8 +1,8 @@
 //! The nonlinear MPC of the WIP (`--controller nmpc`): [`dmech_ocp::tracking::nmpc`] on the
 //! plan's own transcription, the first-order variational integrator of the full model
 //! (currents as states, the nonlinear friction) at the 5-ms sample, with the plan's
-//! inequalities (voltage ±5 V, current ±3 A, tilt ±15°, heading rate hard; the voltage
-//! rate soft), its first state the observer's estimate.
+//! inequalities (voltage ±5 V, current ±3 A, tilt ±15° hard; the voltage rate soft; the
+//! heading rate free), its first state the observer's estimate.
 //!
 //! The state is the transcription's, `x = (x, y, θ, α, v_α, φ̇R, φ̇L, iR, iL, u_prev)` (the
 //! velocities those of the interval before the sample). The weights are the LQ design's
@@ -13,7 +13,10 @@
 //! linearisation with those weights. The voltage rate's rows are held by a quadratic
 //! penalty on their excess weighed like the input (`R = 1` per V² of excess per sample):
 //! a closed loop under the sensor noise changes its voltage by far more than the plan's
-//! 0.01 V per sample (docs/tracking.md, "Why the rate bound is soft").
+//! 0.01 V per sample (docs/tracking.md, "Why the rate bound is soft"). The heading rate's
+//! 120°/s is the plan's choice, not a limit of the robot: held in the loop, it made the
+//! NMPC hold one wheel back at the voltage bound on a mismatched plant, and the robot fall
+//! (docs/tracking.md, "NMPC").
 //!
 //! When a sample's solve fails or runs out of its budget, the move is the LQ controller's
 //! (counted as the MPC's `qp_fallbacks` are).
@@ -41,6 +44,8 @@ use std::thread::ThreadId;
 pub const NW: usize = NS + NU;
 /// The inequality rows of the voltage rate (`docs/problems.md`), held softly.
 pub const RATE_ROWS: [usize; 2] = [2, 3];
+/// The inequality row of the heading rate, left free (a soft row of no weight).
+pub const HEADING_RATE_ROW: usize = 7;
 /// Riccati steps at most for the cost-to-go at the plan's end (a minute of samples).
 const END_STEPS: usize = 12_000;
 /// Where the state's velocities start (after the pose and the tilt).
@@ -235,6 +240,10 @@ impl NmpcController {
                     // The rows are rates (V/s): an excess of δ V per sample is δ/h of it.
                     weight: SAMPLE * SAMPLE,
                 })
+                .chain([SoftRow {
+                    row: HEADING_RATE_ROW,
+                    weight: 0.0,
+                }])
                 .collect(),
         };
         let nmpc = {
