@@ -2,7 +2,7 @@
 //! feedforward reproduces a trajectory of the plant exactly, the noisy loop along a short
 //! plan stays up, and bad inputs fail with one line.
 
-use crate::common::{fails_with_one_line, read_json, scratch, wip};
+use crate::common::{fails_with_one_line, read_json, scratch, succeeds, wip};
 use robots::wip::simulate::Trajectory;
 use robots::wip::track::closed_loop::{track, TrackConfig};
 use robots::wip::track::lq::{LqController, SAMPLE};
@@ -58,6 +58,7 @@ fn feedforward_reproduces_a_plant_trajectory() {
         nominal: p,
         sensors: SensorModel::ideal(),
         seed: 0,
+        push: None,
     };
     let run = track(&plan, &lq, &cfg, |_| {}).unwrap();
     let f = run.figures();
@@ -88,17 +89,12 @@ fn noisy_loop_tracks_a_short_plan() {
         ("nmpc", "1"),
     ] {
         let out_dir = dir.join(format!("{controller}-{seed}"));
-        let out = wip()
-            .arg("track")
-            .arg(hook_plan())
-            .args(["--controller", controller, "--seed", seed, "--out"])
-            .arg(&out_dir)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        succeeds(
+            wip()
+                .arg("track")
+                .arg(hook_plan())
+                .args(["--controller", controller, "--seed", seed, "--out"])
+                .arg(&out_dir),
         );
         let j = read_json(out_dir.join("tracking.json"));
         assert_eq!(j["fell"], false);
@@ -130,24 +126,19 @@ fn delay_sweep_reports_each_delay() {
     let dir = scratch("track-sweep");
     for controller in ["lq", "mpc"] {
         let out_dir = dir.join(controller);
-        let out = wip()
-            .arg("track")
-            .arg(hook_plan())
-            .args([
-                "--controller",
-                controller,
-                "--delay-sweep",
-                "--monte-carlo",
-                "2",
-            ])
-            .arg("--out")
-            .arg(&out_dir)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        succeeds(
+            wip()
+                .arg("track")
+                .arg(hook_plan())
+                .args([
+                    "--controller",
+                    controller,
+                    "--delay-sweep",
+                    "--monte-carlo",
+                    "2",
+                ])
+                .arg("--out")
+                .arg(&out_dir),
         );
         let j: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(out_dir.join("delay_sweep.json")).unwrap(),

@@ -3,7 +3,7 @@
 //! errors (docs/tracking.md, "Results": 0.61 mm on the eight, 0.46 mm on the zigzag), every
 //! sample with its own move (no LQ fallback), its solve times reported.
 
-use crate::common::{read_json, scratch, wip};
+use crate::common::{read_json, scratch, succeeds, wip};
 
 #[test]
 fn nmpc_tracks_the_plans_within_the_lq_errors() {
@@ -11,28 +11,14 @@ fn nmpc_tracks_the_plans_within_the_lq_errors() {
     // The LQ's largest position error with ideal sensors, documented per plan.
     for (problem, lq_bound) in [("eight", 0.61e-3), ("zigzag", 0.46e-3)] {
         let plan = dir.join(format!("plan-{problem}"));
-        let out = wip()
-            .args(["plan", problem, "--out"])
-            .arg(&plan)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        succeeds(wip().args(["plan", problem, "--out"]).arg(&plan));
         let track = dir.join(format!("track-{problem}"));
-        let out = wip()
-            .arg("track")
-            .arg(&plan)
-            .args(["--ideal", "--controller", "nmpc", "--out"])
-            .arg(&track)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        succeeds(
+            wip()
+                .arg("track")
+                .arg(&plan)
+                .args(["--ideal", "--controller", "nmpc", "--out"])
+                .arg(&track),
         );
         let j = read_json(track.join("tracking.json"));
         assert_eq!(j["outcome"], "completed", "{j}");

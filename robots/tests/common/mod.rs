@@ -53,3 +53,15 @@ pub fn rows(csv: &str) -> Vec<Vec<f64>> {
         .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
         .collect()
 }
+
+/// Run a tool that must succeed; its stderr is the failure message otherwise.
+#[track_caller]
+pub fn succeeds(cmd: &mut Command) -> std::process::Output {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
