@@ -59,6 +59,7 @@ fn bench(c: &mut Criterion) {
         nominal,
         sensors: SensorModel::paper(),
         seed: 1,
+        push: None,
     };
     let run = track(&traj, &lq, &cfg, |_| {}).expect("the loop runs");
     assert!(run.fell_at.is_none(), "the benchmark's loop fell");

@@ -52,6 +52,7 @@ fn dump(args: &[String]) {
         nominal: p,
         sensors: SensorModel::paper(),
         seed: seed as u64,
+        push: None,
     };
     let run = track(&plan, &mpc, &cfg, |_| {}).expect("a closed loop");
     let mut text = String::new();

@@ -196,6 +196,7 @@ fn a_plant_that_blows_up_is_diverged_not_fallen() {
         nominal: p,
         sensors: SensorModel::ideal(),
         seed: 1,
+        push: None,
     };
     let run = track_with_substeps(&plan, &lq, &cfg, 1, |_| {});
     assert_eq!(run.outcome(), "diverged");

@@ -12,7 +12,8 @@
 //! - `simulate`: `wip simulate`;
 //! - `snakeboard`: `snakeboard plan` and `snakeboard simulate`;
 //! - `track`: `wip track` and the closed loop;
-//! - `track_nmpc`: `wip track --controller nmpc` on the eight and the zigzag.
+//! - `track_nmpc`: `wip track --controller nmpc` on the eight and the zigzag;
+//! - `track_push`: `wip track --push-at T --push W`.
 //!
 //! One module's tests: `cargo test -p robots --test cli -- plan::`.
 
@@ -29,3 +30,4 @@ mod simulate;
 mod snakeboard;
 mod track;
 mod track_nmpc;
+mod track_push;

@@ -5,7 +5,7 @@ use robots::check::check_size;
 use robots::io::OutputSet;
 use robots::say;
 use robots::wip::simulate::Trajectory;
-use robots::wip::track::closed_loop::{Controller, TrackConfig};
+use robots::wip::track::closed_loop::{Controller, Push, TrackConfig};
 use robots::wip::track::lq::SAMPLE;
 use robots::wip::track::monte_carlo::{monte_carlo, quantile, with_mean_delay, McRun};
 use robots::wip::track::nmpc::{NmpcOptions, BUDGET_S, HORIZON, NEWTON_STEPS};
@@ -65,6 +65,17 @@ pub struct TrackArgs {
     /// on the machine's load)
     #[arg(long, value_name = "SECONDS", value_parser = crate::common::positive_number)]
     budget: Option<f64>,
+    /// Push the robot at this time (s): its tilt rate changed at once by --push
+    #[arg(long, value_name = "SECONDS", requires = "push", conflicts_with_all = ["monte_carlo", "delay_sweep"])]
+    push_at: Option<f64>,
+    /// The push's change of the tilt rate (rad/s; the sign says which way)
+    #[arg(
+        long,
+        value_name = "RAD_PER_S",
+        requires = "push_at",
+        allow_negative_numbers = true
+    )]
+    push: Option<f64>,
     /// Threads of a Monte Carlo run
     #[arg(long, value_name = "N", default_value = "2", value_parser = crate::common::positive_count)]
     threads: usize,
@@ -121,6 +132,10 @@ pub fn run(a: TrackArgs) -> Result<(), Failure> {
             newton_steps: a.newton_steps,
             budget_s: a.budget.unwrap_or(BUDGET_S),
         },
+        push: a
+            .push_at
+            .zip(a.push)
+            .map(|(at_s, tilt_rate)| Push { at_s, tilt_rate }),
     };
     let prepared = request
         .prepare(&plan)

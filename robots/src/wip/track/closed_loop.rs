@@ -28,6 +28,31 @@ pub struct TrackConfig {
     pub nominal: WipParams,
     pub sensors: SensorModel,
     pub seed: u64,
+    /// A push on the robot during the run, if any.
+    pub push: Option<Push>,
+}
+
+/// A push: the body's tilt rate `v_α` changed at once by `tilt_rate` (rad/s) at the first
+/// sample at or after `at_s` (s), before that sample's sensors read the plant (`wip track
+/// --push-at T --push W`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Push {
+    pub at_s: f64,
+    pub tilt_rate: f64,
+}
+
+impl Push {
+    /// The sample the push acts at: the first at or after `at_s` (a time within 1e-6 of a
+    /// sample's is that sample's).
+    pub fn sample(&self) -> usize {
+        let k = self.at_s / SAMPLE;
+        let k = if (k - k.round()).abs() < 1e-6 {
+            k.round()
+        } else {
+            k.ceil()
+        };
+        k.max(0.0) as usize
+    }
 }
 
 /// One controller sample of the closed loop.
@@ -60,6 +85,8 @@ pub struct TrackRun {
     /// Samples where the QP (or the NMPC's solve) gave no move and the LQ move was applied
     /// instead.
     pub qp_fallbacks: usize,
+    /// The push the run had, if any.
+    pub push: Option<Push>,
 }
 
 /// The feedback law of the loop.
@@ -148,6 +175,8 @@ pub struct TrackFigures {
     pub qp_wall_ms_p99: Option<f64>,
     pub qp_wall_ms_max: Option<f64>,
     pub qp_fallbacks: usize,
+    /// The push the run had, if any.
+    pub push: Option<Push>,
 }
 
 impl TrackRun {
@@ -179,6 +208,7 @@ impl TrackRun {
             qp_wall_ms_p99: ms_quantile(&self.qp_wall_s, 0.99),
             qp_wall_ms_max: ms_quantile(&self.qp_wall_s, 1.0),
             qp_fallbacks: self.qp_fallbacks,
+            push: self.push,
         };
         let (mut sp, mut sh, mut su) = (0.0, 0.0, 0.0);
         for s in &self.samples {
@@ -288,12 +318,19 @@ pub fn track_with_substeps<'a>(
     let mut in_flight: Vec<(usize, PoseMeasurement)> = Vec::new();
     let mut run = TrackRun {
         substeps,
+        push: cfg.push,
         ..TrackRun::default()
     };
     let mut u_prev = plan.u[0];
     let every = (n / 20).max(1);
+    let push_at = cfg.push.map(|p| (p.sample(), p.tilt_rate));
     for k in 0..=n {
         let t = k as f64 * SAMPLE;
+        if let Some((at, dv)) = push_at {
+            if at == k {
+                plant.push_tilt_rate(dv);
+            }
+        }
         let x = plant.reduced();
         if let Err(d) = check_physical(&x) {
             run.diverged = Some((t, d));

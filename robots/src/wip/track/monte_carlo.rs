@@ -88,6 +88,7 @@ pub fn monte_carlo(
                     nominal: *nominal,
                     sensors: sensors.clone(),
                     seed,
+                    push: None,
                 };
                 let run = track_with_substeps(plan, controller, &cfg, k, |_| {});
                 let r = McRun {

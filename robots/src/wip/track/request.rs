@@ -2,7 +2,9 @@
 //! `dmech.wip.track` share (the plant of a seed, the sensors, the controller's design), so
 //! that both give the same run.
 
-use super::closed_loop::{track_with_substeps, Controller, TrackConfig, TrackError, TrackRun};
+use super::closed_loop::{
+    track_with_substeps, Controller, Push, TrackConfig, TrackError, TrackRun,
+};
 use super::dare::DareError;
 use super::lq::{LqController, SAMPLE};
 use super::monte_carlo::{monte_carlo, perturbed, with_mean_delay, McRun};
@@ -58,6 +60,8 @@ pub struct TrackRequest {
     pub param_error: f64,
     /// The NMPC's horizon, Newton steps and budget.
     pub nmpc: NmpcOptions,
+    /// A push on the robot during the run (a single run; a Monte Carlo run has none).
+    pub push: Option<Push>,
 }
 
 impl Default for TrackRequest {
@@ -71,6 +75,7 @@ impl Default for TrackRequest {
             plant_seed: None,
             param_error: 0.1,
             nmpc: NmpcOptions::default(),
+            push: None,
         }
     }
 }
@@ -86,6 +91,13 @@ pub enum TrackSetupError {
     Mpc(#[from] MpcDesignError),
     #[error(transparent)]
     Nmpc(#[from] NmpcDesignError),
+    /// A push outside the plan's time, or of a tilt rate that is not finite.
+    #[error("a push of {tilt_rate} rad/s at t = {at_s} s: it must be finite and within the plan's 0–{end_s} s")]
+    Push {
+        at_s: f64,
+        tilt_rate: f64,
+        end_s: f64,
+    },
 }
 
 /// A closed loop ready to run along its plan: the plant checked, the controllers designed.
@@ -113,6 +125,16 @@ impl TrackRequest {
     /// Check the plant (a plant that cannot be simulated is refused at once) and design the
     /// controllers along `plan`.
     pub fn prepare<'p>(&self, plan: &'p Trajectory) -> Result<PreparedTrack<'p>, TrackSetupError> {
+        if let Some(p) = self.push {
+            let end_s = plan.t.last().copied().unwrap_or(0.0);
+            if !(p.tilt_rate.is_finite() && p.at_s >= 0.0 && p.at_s <= end_s) {
+                return Err(TrackSetupError::Push {
+                    at_s: p.at_s,
+                    tilt_rate: p.tilt_rate,
+                    end_s,
+                });
+            }
+        }
         let plant = self.plant_seed.map_or(self.params, |n| {
             perturbed(&self.params, self.param_error, n)
         });
@@ -142,6 +164,7 @@ impl TrackRequest {
                 nominal: self.params,
                 sensors: self.sensors(),
                 seed: self.seed,
+                push: self.push,
             },
             substeps,
         })

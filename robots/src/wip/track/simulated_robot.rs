@@ -131,6 +131,12 @@ impl Plant {
         [self.z[9] - self.z[3], self.z[10] - self.z[3]]
     }
 
+    /// A push: the tilt rate `v_α` changed at once by `dv` (rad/s), every other state
+    /// (the wheels' rates, the currents) as it was.
+    pub fn push_tilt_rate(&mut self, dv: f64) {
+        self.z[4] += dv;
+    }
+
     fn rate(&self, z: &PlantVector, u: &SVector<f64, 2>) -> Result<PlantVector, Divergence> {
         let x = z.fixed_rows::<9>(0).into_owned();
         let xd = closed_form::state_derivative(&self.params, &x, u).ok_or(Divergence::Singular)?;
