@@ -12,7 +12,7 @@ pub use super::error::DiagnoseError;
 use super::fit::{FitSetup, Fitter, Screened};
 use super::log::MeasuredLog;
 use super::model::Candidate;
-use super::noise::{raw_noise, residual_noise};
+use super::noise::{normalised_error, raw_noise, residual_noise};
 use super::session::{calibrate, joint_refit, screened_only, References, Scored, Session};
 use super::verdict::{conclude, finite_outputs, informative};
 use super::Plant;
@@ -339,8 +339,15 @@ fn single_effects<P: Plant>(
 
 /// Forward selection: while the chosen effects leave the error above
 /// [`DiagnoseOptions::explained`] and fewer than `max_effects` are chosen, every remaining
-/// effect of `open` is fitted together with them and the best by the criterion kept if it
-/// beats the current choice and may be named; each addition is re-weighed.
+/// effect of `open` is fitted together with them. The contenders that beat the current
+/// choice by the criterion and may be named are taken in the criterion's order: each is
+/// re-weighed, and kept if it lowers the error the verdict reports (each model against the
+/// noise re-estimated from its own residuals, [`reported_error`]); otherwise the weights go
+/// back and the next is tried. The additions exist to bring that error down (the loop runs
+/// while it is above `explained`), and the criterion compares the contenders under the
+/// current model's weights, which the re-weighing after a choice moves: an addition that
+/// raises the reported error has not paid for itself in the measure the verdict uses
+/// (docs/diagnose.md §5).
 fn add_effects<P: Plant>(
     ss: &mut Session<P>,
     log: &MeasuredLog,
@@ -360,6 +367,7 @@ fn add_effects<P: Plant>(
         ));
         let current = chosen.clone();
         let mut best_rss = current.fit.rss;
+        let mut contenders: Vec<Scored> = Vec::new();
         for &e in open {
             if current.fit.candidate.effects.contains(&e) {
                 continue;
@@ -370,14 +378,41 @@ fn add_effects<P: Plant>(
             let start = cand.start_from(cat, &current.fit.theta);
             let s = ss.fit(cand, &start, &current.fit.z0, Some(best_rss));
             best_rss = best_rss.min(s.fit.rss);
-            if s.score < chosen.score && s.nameable() {
-                *chosen = s.clone();
+            if s.score < current.score && s.nameable() {
+                contenders.push(s.clone());
             }
             candidates.push(s);
         }
-        if chosen.fit.candidate == current.fit.candidate {
+        contenders.sort_by(|a, b| a.score.total_cmp(&b.score));
+        let before = reported_error(ss, log, &current);
+        let mut added = false;
+        for mut trial in contenders {
+            let (sigma, saved) = (ss.fitter.setup.sigma.clone(), refs.clone());
+            refs.reweigh(ss, log, &mut trial);
+            let after = reported_error(ss, log, &trial);
+            if after < before && trial.nameable() {
+                *chosen = trial;
+                added = true;
+                break;
+            }
+            (ss.progress)(&format!(
+                "  {} leaves the reported error at {after:.3} against {before:.3} without it{}: not added",
+                trial.fit.candidate.name(cat),
+                if trial.nameable() { "" } else { " (or is not nameable after re-weighing)" }
+            ));
+            ss.fitter.setup.sigma = sigma;
+            *refs = saved;
+        }
+        if !added {
             break;
         }
-        refs.reweigh(ss, log, chosen);
     }
+}
+
+/// The error the verdict reports for a model ([`super::verdict`]): its residuals against
+/// the noise re-estimated from them.
+fn reported_error<P: Plant>(ss: &Session<P>, log: &MeasuredLog, s: &Scored) -> f64 {
+    let res = ss.fitter.residuals(&s.fit);
+    let sigma = residual_noise(log, &res, &ss.fitter.windows);
+    normalised_error(&res, &sigma).1
 }

@@ -522,6 +522,7 @@ pub(super) fn joint_refit<P: Plant>(
 
 /// The models a choice is measured against: the nominal model, and the base the effects
 /// are built on (the calibrated model after a calibration, else the nominal one).
+#[derive(Clone)]
 pub(super) struct References {
     pub nominal: Scored,
     pub base: Scored,

@@ -15,6 +15,7 @@ use robots::diagnose::Plant;
 use robots::wip::diagnose::effects::{Effect, Layout};
 use robots::wip::diagnose::generate::{draw_effect, generate, Rng, RunSettings};
 use robots::wip::diagnose::{Channel, WipPlant};
+use robots::wip::diagnose::prediction::MAX_SUBSTEP;
 use robots::wip::WipParams;
 
 #[test]
@@ -151,3 +152,106 @@ fn windows_with_equal_lockout_keys_predict_alike() {
     assert!(shared > 0, "no window shares a key between grid values");
     assert!(split > 0, "no window tells grid values apart");
 }
+
+/// The prediction's derivative with respect to the input delay, in dual numbers, against
+/// one-sided finite differences, at delays of 0, 1 and 3 whole samples (where the step's
+/// split at the driver's switch leaves a piece of no length, which must still carry the
+/// derivative) and at 2.4 samples. Per reading of each window, from the true states of a
+/// log with a 12-ms delay, the forward difference `D(δ) = (y(τ + δ) − y(τ))/δ` differs from
+/// the derivative by `y''δ/2 + O(δ²)`, and `D(2δ) − D(δ) = y''δ/2 + O(δ²)` too: the
+/// tolerance is twice that estimate (for the `O(δ²)` terms) plus the rounding of the
+/// differences, `4 ε n max(|y|, 1)/δ` with `n` the Runge–Kutta steps from the window's start
+/// (each rounds at `ε`, accumulated linearly). `δ = 0.1 µs`: the gear friction's
+/// `tanh(d_0 w)` bends the prediction in the delay on the scale of microseconds wherever a
+/// wheel's relative speed crosses zero, so at 5 µs `D(2δ) − D(δ)` is not yet the
+/// truncation error (it underestimated it 50-fold); from 1 µs down `D(δ)` approaches the
+/// dual derivative linearly in `δ`, as it should. The old prediction, which skipped the
+/// piece of no length, missed the derivative by the rate times one (`O(1)` relative); its
+/// error was `10²–10⁴` tolerances.
+#[test]
+fn delay_derivative_matches_finite_differences() {
+    use num_dual::DualSVec64;
+    let p = WipParams::default();
+    let plant = WipPlant::new(p);
+    let cat = plant.catalogue();
+    let layout = Layout::new(cat, &p);
+    let settings = RunSettings {
+        duration: 3.0,
+        ..Default::default()
+    };
+    let truth = vec![(Effect::InputDelay, vec![0.012])];
+    let g = generate(&p, &truth, 7, &settings).expect("the robot stays up");
+    let h = g.log.h;
+    let delay = cat
+        .params
+        .iter()
+        .position(|s| s.name == "delay_s")
+        .expect("the catalogue has the delay");
+    let window = (0.5 / h).round() as usize;
+    let delta = 1e-7;
+    let mut failures = Vec::new();
+    for samples in [0.0, 1.0, 3.0, 2.4] {
+        let tau = samples * h;
+        let theta_at = |d: f64| {
+            let mut th = layout.theta_with(cat, &truth);
+            th[delay] = d;
+            th
+        };
+        let (mut worst, mut worst_at) = (0.0f64, String::new());
+        let mut start = plant.history(h);
+        while start + window <= g.log.len() {
+            let z = &g.states[start];
+            let y = |d: f64| {
+                plant
+                    .predict(&g.log, start, window, z, &theta_at(d))
+                    .expect("predicts")
+            };
+            let (y0, y1, y2) = (y(tau), y(tau + delta), y(tau + 2.0 * delta));
+            let zd: Vec<DualSVec64<1>> = z.iter().map(|&v| DualSVec64::from(v)).collect();
+            let thd: Vec<DualSVec64<1>> = theta_at(tau)
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| {
+                    let d = DualSVec64::from(v);
+                    if i == delay {
+                        d.derivative(0)
+                    } else {
+                        d
+                    }
+                })
+                .collect();
+            let yd = plant
+                .predict(&g.log, start, window, &zd, &thd)
+                .expect("predicts");
+            for (i, (&a, &b)) in y0.iter().zip(&y1).enumerate() {
+                let c = y2[i];
+                if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+                    continue;
+                }
+                let d1 = (b - a) / delta;
+                let d2 = (c - a) / (2.0 * delta);
+                let dual = yd[i]
+                    .eps
+                    .unwrap_generic(nalgebra::Const::<1>, nalgebra::Const::<1>)[0];
+                let err = (dual - d1).abs();
+                let steps = ((i / 9 + 1) as f64 / MAX_SUBSTEP).ceil() + 2.0;
+                let tol = 2.0 * (d2 - d1).abs()
+                    + 4.0 * f64::EPSILON * steps * a.abs().max(1.0) / delta;
+                if err / tol > worst {
+                    (worst, worst_at) = (err / tol, format!("reading {} of row {}: dual {dual:.6e}, D(δ) {d1:.6e}, D(2δ) {d2:.6e}", i % 9, start + i / 9));
+                }
+                if err > tol {
+                    failures.push(format!(
+                        "delay {samples} samples, reading {} of row {}: dual {dual:.6e}, D(δ) {d1:.6e}, D(2δ) {d2:.6e}",
+                        i % 9,
+                        start + i / 9
+                    ));
+                }
+            }
+            start += window;
+        }
+        println!("delay {samples} samples: worst |dual − D(δ)| / tolerance {worst:.3} ({worst_at})");
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+

@@ -8,8 +8,9 @@
 //! below; set it to redraw every case). The magnitudes' ranges are those of
 //! `generate::draw_effect` (docs/diagnose.md says how they were found).
 //!
-//! The default matrix is one run per effect and one without (13 diagnoses, the cost the
-//! test suite can carry); the full matrix of five per effect is ignored by default:
+//! The default matrix is one run per effect and one without, and two input delays of a
+//! whole number of samples (15 diagnoses, the cost the test suite can carry); the full
+//! matrix of five per effect is ignored by default:
 //!
 //! ```sh
 //! cargo test --release -p robots --test diagnose -- recovery:: --ignored --nocapture
@@ -20,11 +21,15 @@
 use robots::diagnose::{diagnose, DiagnoseOptions, Diagnosis, Plant};
 use robots::wip::diagnose::effects::Effect;
 use robots::wip::diagnose::generate::{draw_effect, generate, GeneratedLog, Rng, RunSettings};
+use robots::wip::diagnose::request::{check_magnitudes, parse_effects, EffectListError};
 use robots::wip::diagnose::{Channel, WipPlant};
 use robots::wip::WipParams;
 
 /// Log length of the generated cases (s).
 const DURATION: f64 = 10.0;
+/// Whole-sample input delays of both matrices (2 and 3 samples of the generated logs'
+/// 5 ms), as `wip generate --effect` would set them.
+const WHOLE_SAMPLE_DELAYS: [&str; 2] = ["input_delay=0.010", "input_delay=0.015"];
 /// Cases per effect (and for "none") in the default matrix and in the full one.
 const SEEDS: usize = 1;
 const SEEDS_FULL: usize = 5;
@@ -195,6 +200,22 @@ fn recovery_matrix(seeds: usize) {
             }
         }
     }
+    // Delays of a whole number of samples (2 and 3 at 5 ms), where the prediction's step
+    // has a piece of no length at the driver's switch: set, not drawn (`wip generate
+    // --effect input_delay=V`), with their run seeds from a stream of their own so that the
+    // drawn cases stay as they were.
+    let mut whole = Rng::new(master_seed() ^ 0xde1a);
+    for spec in WHOLE_SAMPLE_DELAYS {
+        let seed = whole.next_u64();
+        let hidden: Vec<(Effect, Vec<f64>)> = parse_effects(spec)
+            .expect("a valid --effect")
+            .into_iter()
+            .map(|r| (r.effect, r.values.expect("given")))
+            .collect();
+        if selected(Some(Effect::InputDelay)) {
+            cases.push((hidden, seed));
+        }
+    }
     println!(
         "master seed {} ({} cases of {DURATION} s)",
         master_seed(),
@@ -333,4 +354,50 @@ fn an_effect_outside_the_catalogue_is_unexplained() {
     let cat = plant.catalogue();
     let implausible = d.chosen.fit.candidate.implausible(cat, &d.chosen.fit.theta);
     assert!(implausible.is_empty(), "{implausible:?}");
+}
+
+/// `--effect NAME=V[,V]` as `wip generate` and the recovery matrix read it: magnitudes in the
+/// order of the effect's parameters, and a clear refusal of an unknown name, a wrong count,
+/// a value that is not a finite number and one outside the plausible range.
+#[test]
+fn effect_magnitudes_parse() {
+    let p = WipParams::default();
+    let r = parse_effects("input_delay=0.015").unwrap();
+    assert_eq!(r.len(), 1);
+    assert_eq!(r[0].effect, Effect::InputDelay);
+    assert_eq!(r[0].values, Some(vec![0.015]));
+    let r = parse_effects("payload + friction= 0.001 , 0.02").unwrap();
+    assert_eq!((r[0].effect, r[0].values.clone()), (Effect::Payload, None));
+    assert_eq!(r[1].effect, Effect::Friction);
+    assert_eq!(r[1].values, Some(vec![0.001, 0.02]));
+    assert!(parse_effects("none").unwrap().is_empty());
+    assert!(check_magnitudes(&parse_effects("floor_slope=0.3,-0.3").unwrap(), &p).is_ok());
+    assert!(matches!(
+        parse_effects("input_delay=0.01+input_delay"),
+        Err(EffectListError::Repeated(_))
+    ));
+    assert!(matches!(
+        parse_effects("delay=0.01"),
+        Err(EffectListError::Unknown { .. })
+    ));
+    assert!(matches!(
+        parse_effects("floor_slope=0.01"),
+        Err(EffectListError::Count { expected: 2, count: 1, .. })
+    ));
+    assert!(matches!(
+        parse_effects("input_delay=0.01,0.02"),
+        Err(EffectListError::Count { expected: 1, count: 2, .. })
+    ));
+    for bad in ["input_delay=", "input_delay=abc", "input_delay=NaN", "input_delay=-inf"] {
+        assert!(
+            matches!(parse_effects(bad), Err(EffectListError::NotANumber { .. })),
+            "{bad}"
+        );
+    }
+    for bad in ["input_delay=0.2", "input_delay=-1e-3", "tilt_filter=1.5"] {
+        let r = parse_effects(bad).unwrap();
+        let e = check_magnitudes(&r, &p).unwrap_err();
+        assert!(matches!(e, EffectListError::OutOfRange { .. }), "{bad}");
+        assert!(e.to_string().contains("plausible range"), "{e}");
+    }
 }

@@ -3,7 +3,7 @@
 use crate::common::{load_params, usage_error, Failure};
 use robots::io::OutputSet;
 use robots::say;
-use robots::wip::diagnose::request::{generate_run, parse_effects};
+use robots::wip::diagnose::request::{check_magnitudes, generate_run, parse_effects};
 use robots::wip::diagnose::WipPlant;
 use std::path::PathBuf;
 
@@ -14,11 +14,13 @@ use std::path::PathBuf;
 /// rate 0.02 rad/s, encoders 3600 counts/rev, currents 0.02 A, pose 1 mm / 0.005 rad at 50
 /// Hz), and writes it as a measured log DIR/log.csv that `wip diagnose` reads, and the
 /// hidden truth as DIR/truth.json. The effects' magnitudes are drawn from the seed in the
-/// ranges of docs/diagnose.md.
+/// ranges of docs/diagnose.md, or given as NAME=V[,V].
 #[derive(clap::Args)]
 pub struct GenerateArgs {
-    /// An effect of the catalogue, two different ones joined by '+', or none
-    #[arg(long, value_name = "NAME[+NAME]", default_value = "none")]
+    /// An effect of the catalogue, two different ones joined by '+', or none; NAME=V[,V]
+    /// sets the effect's parameters (in the order of truth.json, within their plausible
+    /// ranges) instead of drawing them, e.g. input_delay=0.015
+    #[arg(long, value_name = "NAME[=V[,V]][+NAME[=V[,V]]]", default_value = "none")]
     effect: String,
     /// Random seed
     #[arg(long, value_name = "N", default_value = "1")]
@@ -46,6 +48,7 @@ fn duration(s: &str) -> Result<f64, String> {
 pub fn run(a: GenerateArgs) -> Result<(), Failure> {
     let names = parse_effects(&a.effect).map_err(|e| usage_error("generate", e))?;
     let p = load_params(a.params.as_deref())?;
+    check_magnitudes(&names, &p).map_err(|e| usage_error("generate", e))?;
     let mut files = OutputSet::create(&a.out)?;
     let g = generate_run(&p, &names, a.seed, a.duration)?;
     let plant = WipPlant::new(p);

@@ -248,6 +248,22 @@ impl<T: FitScalar> Predictor<T> {
         let mut state = (*z, [T::zero(); 2]);
         for lag in pieces {
             if lag.len.re() <= 1e-12 * h {
+                // A piece of no real length (the delay a whole number of samples, or 0)
+                // still moves with the delay: its length's derivative is the switch's, and
+                // the state's derivative gains the rate there times it. One Runge–Kutta
+                // step of the derivative part alone carries that and leaves the values as
+                // they are; in `f64` (no derivative) the piece is skipped.
+                let d = lag.len - T::from(lag.len.re());
+                if !d.vanishes() {
+                    let m = *modes;
+                    state = if self.ext.sticks() {
+                        self.rk4(&state.0, d, &|y, s| {
+                            self.rate_hybrid(y, lag.at(s), m).map(|r| r.0)
+                        })?
+                    } else {
+                        self.rk4(&state.0, d, &|y, s| self.rate(y, lag.at(s)))?
+                    };
+                }
                 continue;
             }
             let n = (lag.len.re() / (MAX_SUBSTEP * h)).ceil().max(1.0) as usize;
@@ -566,8 +582,13 @@ const MAX_SWITCHES: usize = 6;
 /// (`tests/diagnose/prediction.rs`, which requires below 0.5).
 pub const MAX_SUBSTEP: f64 = 0.125;
 
-/// `τ = m h + f` with `0 ≤ f < h` (on the real part; `f` keeps the derivative).
+/// `τ = m h + f` with `0 ≤ f < h` (on the real part; `f` keeps the derivative). A delay
+/// within rounding (`10⁻⁹` of a sample) of a whole number of samples is that number, with
+/// `f = 0` in value: `3 × 0.005` is `2.9999999999999996` samples in `f64`, and the step
+/// would otherwise be split as `2 h + (h − 10⁻¹⁸)`, the side of the switch below it.
 fn split_delay<T: FitScalar>(tau: T, h: f64) -> (isize, T) {
-    let m = (tau.re() / h).floor().max(0.0);
-    (m as isize, tau - T::from(m * h))
+    let m = (tau.re() / h + 1e-9).floor().max(0.0);
+    let f = tau - T::from(m * h);
+    let f = if f.re() < 0.0 { f - T::from(f.re()) } else { f };
+    (m as isize, f)
 }

@@ -2,7 +2,7 @@
 //! package (`dmech.wip.generate`, `dmech.wip.diagnose`) share, so that both give the same
 //! log from the same seed and the same verdict on the same log.
 
-use super::effects::{Effect, CALIBRATED};
+use super::effects::{wip_catalogue, Effect, CALIBRATED};
 use super::generate::{draw_effect, generate, truth_substeps, GenerateError, Rng, RunSettings};
 use super::refit::refit_params;
 use super::WipPlant;
@@ -11,32 +11,114 @@ use crate::diagnose::{diagnose, DiagnoseError, DiagnoseOptions, Diagnosis, Measu
 use crate::wip::WipParams;
 
 /// A refused `--effect` list.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EffectListError {
     #[error("unknown effect '{name}' (expected one of: {known})")]
     Unknown { name: String, known: String },
     #[error("--effect names '{0}' twice: each effect is applied once")]
     Repeated(String),
+    #[error("--effect {effect}={given}: {effect} has {expected} parameter(s) ({names}), got {count}")]
+    Count {
+        effect: String,
+        given: String,
+        expected: usize,
+        names: String,
+        count: usize,
+    },
+    #[error("--effect {effect}: '{value}' is not a finite number")]
+    NotANumber { effect: String, value: String },
+    #[error("--effect {effect}: {param} = {value} is outside its physically plausible range [{lo}, {hi}]")]
+    OutOfRange {
+        effect: String,
+        param: String,
+        value: f64,
+        lo: f64,
+        hi: f64,
+    },
+}
+
+/// An effect of an `--effect` list, with its magnitudes if given (`NAME=V[,V]`), else
+/// drawn from the seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectRequest {
+    pub effect: Effect,
+    /// The effect's parameters in the order of [`Effect::parameter_names`].
+    pub values: Option<Vec<f64>>,
 }
 
 /// The effects named by an `--effect` list: `none`, or known names joined by `+`, none
-/// repeated.
-pub fn parse_effects(spec: &str) -> Result<Vec<Effect>, EffectListError> {
+/// repeated, each with its parameters after `=` (comma-separated, as many as the effect
+/// has, finite) or without (drawn).
+pub fn parse_effects(spec: &str) -> Result<Vec<EffectRequest>, EffectListError> {
     if spec == "none" {
         return Ok(Vec::new());
     }
-    let mut effects: Vec<Effect> = Vec::new();
-    for name in spec.split('+').map(str::trim) {
+    let mut effects: Vec<EffectRequest> = Vec::new();
+    for item in spec.split('+').map(str::trim) {
+        let (name, given) = match item.split_once('=') {
+            Some((n, v)) => (n.trim(), Some(v.trim())),
+            None => (item, None),
+        };
         let e = Effect::from_name(name).ok_or_else(|| EffectListError::Unknown {
             name: name.to_string(),
             known: Effect::ALL.map(|e| e.name()).join(", "),
         })?;
-        if effects.contains(&e) {
+        if effects.iter().any(|r| r.effect == e) {
             return Err(EffectListError::Repeated(name.to_string()));
         }
-        effects.push(e);
+        let values = given
+            .map(|g| {
+                let parts: Vec<&str> = g.split(',').map(str::trim).collect();
+                if parts.len() != e.n_params() {
+                    return Err(EffectListError::Count {
+                        effect: name.to_string(),
+                        given: g.to_string(),
+                        expected: e.n_params(),
+                        names: e.parameter_names().join(", "),
+                        count: parts.len(),
+                    });
+                }
+                parts
+                    .into_iter()
+                    .map(|v| {
+                        v.parse::<f64>()
+                            .ok()
+                            .filter(|x| x.is_finite())
+                            .ok_or_else(|| EffectListError::NotANumber {
+                                effect: name.to_string(),
+                                value: v.to_string(),
+                            })
+                    })
+                    .collect::<Result<Vec<f64>, _>>()
+            })
+            .transpose()?;
+        effects.push(EffectRequest { effect: e, values });
     }
     Ok(effects)
+}
+
+/// Each given magnitude within its parameter's physically plausible range in the catalogue
+/// of the robot `p` (docs/diagnose.md §3): a log with an effect the diagnosis could never
+/// name is refused.
+pub fn check_magnitudes(requests: &[EffectRequest], p: &WipParams) -> Result<(), EffectListError> {
+    let cat = wip_catalogue(p);
+    for r in requests {
+        let Some(values) = &r.values else { continue };
+        for (name, &v) in r.effect.parameter_names().iter().zip(values) {
+            let spec = &cat.params[cat.param_index(name).expect("the effect's parameter")];
+            let (lo, hi) = spec.plausible;
+            if !(lo..=hi).contains(&v) {
+                return Err(EffectListError::OutOfRange {
+                    effect: r.effect.name().to_string(),
+                    param: (*name).to_string(),
+                    value: v,
+                    lo,
+                    hi,
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A generated log with its hidden truth.
@@ -83,22 +165,30 @@ pub enum GenerateRunError {
     Model(#[from] crate::check::CheckError),
     #[error(transparent)]
     Run(#[from] GenerateError),
+    #[error(transparent)]
+    Effect(#[from] EffectListError),
 }
 
 /// A closed-loop log of `duration` seconds of the robot `p` with the hidden `effects`, their
-/// magnitudes drawn from `seed` in the ranges of docs/diagnose.md (`wip generate`).
+/// magnitudes as given or drawn from `seed` in the ranges of docs/diagnose.md (`wip
+/// generate`).
 pub fn generate_run(
     p: &WipParams,
-    effects: &[Effect],
+    effects: &[EffectRequest],
     seed: u64,
     duration: f64,
 ) -> Result<GeneratedRun, GenerateRunError> {
+    check_magnitudes(effects, p)?;
     // The magnitudes come from their own stream so that the run (reference, noise) does not
-    // change with the effect.
+    // change with the effect. A given magnitude still takes its draw, so that the other
+    // effects' magnitudes do not change with it.
     let mut rng = Rng::new(seed.wrapping_add(1000));
     let effects: Vec<(Effect, Vec<f64>)> = effects
         .iter()
-        .map(|&e| (e, draw_effect(e, p, &mut rng)))
+        .map(|r| {
+            let drawn = draw_effect(r.effect, p, &mut rng);
+            (r.effect, r.values.clone().unwrap_or(drawn))
+        })
         .collect();
     let mut settings = RunSettings {
         duration,
