@@ -465,7 +465,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
         let chans = self.plant.channels();
         let parts = self.map_windows(|wi| {
             let (start, len) = self.windows[wi];
-            self.plant.predict(self.log, start, len, &z0[wi], theta)
+            self.predict(start, len, &z0[wi], theta)
         });
         for (&(start, len), y) in self.windows.iter().zip(parts) {
             let Some(y) = y else { continue };
