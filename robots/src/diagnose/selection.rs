@@ -180,9 +180,20 @@ pub fn diagnose<P: Plant>(
         .filter(|&e| cat.effects[e].reading.is_none_or(|c| log.present[c]))
         .collect();
     single_effects(&ss, &open, &base, opts, &mut candidates)?;
+    // A single effect is named only if it pays over the base model (`Session::pays`).
+    let unpaid: Vec<String> = candidates
+        .iter()
+        .filter(|c| c.fitted && c.nameable() && c.fit.candidate.effects.len() == 1)
+        .filter(|c| c.score < base.score && !ss.pays(c, &base))
+        .map(|c| unpaid_line(&ss, c, &base))
+        .collect();
+    for line in &unpaid {
+        progress(line);
+    }
     let mut chosen = candidates
         .iter()
         .filter(|c| c.fitted && c.nameable())
+        .filter(|c| c.fit.candidate.effects.is_empty() || ss.pays(c, &base))
         .filter(|c| c.fit.candidate.effects.len() <= 1)
         .filter(|c| {
             calibration.is_none()
@@ -343,6 +354,18 @@ fn single_effects<P: Plant>(
     Ok(())
 }
 
+/// The progress line of a candidate that the criterion prefers but whose gain over
+/// `without` does not pay once the window clustering is accounted for.
+fn unpaid_line<P: Plant>(ss: &Session<P>, c: &Scored, without: &Scored) -> String {
+    let cat = ss.fitter.catalogue();
+    let (lr, price) = ss.gain_statistic(c, without).unwrap_or((0.0, 0.0));
+    format!(
+        "  {} not named: its gain over {} does not pay (Λ/δ = {lr:.1} ≤ {price:.1})",
+        c.fit.candidate.name(cat),
+        without.fit.candidate.name(cat)
+    )
+}
+
 /// Whether effect `e` is a generic reading hypothesis (`super::readings`).
 fn is_reading(cat: &super::model::Catalogue, e: usize) -> bool {
     cat.effects[e].reading.is_some()
@@ -422,7 +445,11 @@ fn add_effects<P: Plant>(
             let s = ss.fit(cand, &start, &current.fit.z0, Some(best_rss));
             best_rss = best_rss.min(s.fit.rss);
             if s.score < chosen.score && s.nameable() {
-                *chosen = s.clone();
+                if ss.pays(&s, &current) {
+                    *chosen = s.clone();
+                } else {
+                    (ss.progress)(&unpaid_line(ss, &s, &current));
+                }
             }
             candidates.push(s);
         }
