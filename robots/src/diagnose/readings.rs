@@ -155,14 +155,8 @@ impl ReadingHypotheses {
                 continue;
             }
             for row in y.chunks_mut(n_channels) {
-                let mut v = row[c];
-                if let Some(s) = s {
-                    v = v * s;
-                }
-                if let Some(b) = b {
-                    v = v + b;
-                }
-                row[c] = v;
+                let scaled = s.map_or(row[c], |s| row[c] * s);
+                row[c] = b.map_or(scaled, |b| scaled + b);
             }
         }
     }
