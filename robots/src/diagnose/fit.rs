@@ -10,7 +10,7 @@ use super::model::{from_internal, to_internal, Candidate, Catalogue, Direction};
 use super::noise::Residuals;
 use super::normal_equations::{damped, WindowLin};
 use super::normal_equations::{
-    direction_scale, param_std, parameter_cov, predicted_reduction, step,
+    design_effects, direction_scale, param_std, parameter_cov, predicted_reduction, step,
 };
 use super::window_memo::WindowMemo;
 use super::Plant;
@@ -58,6 +58,9 @@ pub struct Fit {
     pub std: Vec<f64>,
     /// Covariance of the free coordinates `β`.
     pub cov: DMatrix<f64>,
+    /// Per free coordinate, the design effect of the window clustering (robust over
+    /// classical variance, at least 1; `normal_equations::design_effects`).
+    pub design: Vec<f64>,
     pub z0: Vec<Vec<f64>>,
     /// Weighted residual sum of squares and number of residuals.
     pub rss: f64,
@@ -282,6 +285,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
         let mut lambda = 1e-3;
         let (mut iterations, mut converged, mut abandoned) = (0, false, false);
         let mut cov = DMatrix::from_element(k, k, f64::INFINITY);
+        let mut design = vec![f64::INFINITY; k];
         'outer: for it in 0..max_iterations {
             iterations = it + 1;
             let Some(lins) = self.linearise(&theta, &dirs, &z) else {
@@ -291,6 +295,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             // The covariance of the candidates' table comes from the last linearisation;
             // the chosen model's is recomputed at its final point (`final_std`).
             cov = parameter_cov(&lins, k);
+            design = design_effects(&lins, k);
             progress(&format!(
                 "  {:<28} it {:>2}  cost {:>12.3}",
                 cand.name(cat),
@@ -352,6 +357,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             theta,
             std,
             cov,
+            design,
             z0: z,
             rss,
             m,
@@ -370,9 +376,15 @@ impl<'a, P: Plant> Fitter<'a, P> {
         if dirs.is_empty() {
             return;
         }
-        fit.cov = match self.linearise(&fit.theta, &dirs, &fit.z0) {
-            Some(l) => parameter_cov(&l, dirs.len()),
-            None => DMatrix::from_element(dirs.len(), dirs.len(), f64::INFINITY),
+        (fit.cov, fit.design) = match self.linearise(&fit.theta, &dirs, &fit.z0) {
+            Some(l) => (
+                parameter_cov(&l, dirs.len()),
+                design_effects(&l, dirs.len()),
+            ),
+            None => (
+                DMatrix::from_element(dirs.len(), dirs.len(), f64::INFINITY),
+                vec![f64::INFINITY; dirs.len()],
+            ),
         };
         fit.std = param_std(cat, &dirs, &fit.theta, &fit.cov, self.log.h);
     }
@@ -465,7 +477,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
         let chans = self.plant.channels();
         let parts = self.map_windows(|wi| {
             let (start, len) = self.windows[wi];
-            self.plant.predict(self.log, start, len, &z0[wi], theta)
+            self.predict(start, len, &z0[wi], theta)
         });
         for (&(start, len), y) in self.windows.iter().zip(parts) {
             let Some(y) = y else { continue };

@@ -14,6 +14,10 @@ pub struct ChannelSpec {
     pub range: f64,
     /// An angle that wraps: residuals are taken modulo 2π.
     pub wraps: bool,
+    /// The largest zero-point offset a working sensor of this channel can have, in its
+    /// unit: the plausible range of the generic `reading_offset` hypothesis
+    /// (`super::readings`); 0 declares none.
+    pub offset_limit: f64,
 }
 
 impl ChannelSpec {
@@ -23,6 +27,7 @@ impl ChannelSpec {
             unit: unit.into(),
             range,
             wraps: false,
+            offset_limit: 0.0,
         }
     }
     /// Reading minus prediction residual (prediction − reading), wrapped for an angle.

@@ -16,7 +16,8 @@
 //! Gauss–Newton blocks, step and covariance),
 //! [`restart`] (restarts of a fit's outlying windows), [`noise`] (noise levels and the
 //! error measure), [`adequacy`] (is anything left), [`conditions`] (where the model
-//! fails), [`identify`] (which parameter combinations a log determines), [`session`] (a
+//! fails), [`identify`] (which parameter combinations a log determines), [`readings`] (the
+//! generic offset and scale hypotheses of every reading), [`session`] (a
 //! candidate fitted and scored, re-weighting, calibration), [`selection`] (the order of the
 //! diagnosis), [`verdict`] (its conclusion), [`report`] (the output files).
 
@@ -30,6 +31,7 @@ pub mod log;
 pub mod model;
 pub mod noise;
 pub mod normal_equations;
+pub mod readings;
 pub mod report;
 pub mod restart;
 pub mod selection;
@@ -41,6 +43,7 @@ pub use diagnosis::{DiagnoseOptions, Diagnosis};
 pub use error::DiagnoseError;
 pub use log::{ChannelSpec, MeasuredLog};
 pub use model::{Candidate, Catalogue, EffectSpec, ParamSpec};
+pub use readings::{ReadingFamily, ReadingHypotheses};
 pub use selection::diagnose;
 
 use dmech::Lift;
@@ -133,4 +136,10 @@ pub trait Plant: Sync {
     }
     /// Operating conditions the residual may follow (the diagnosis adds a trend in time).
     fn conditions(&self, log: &MeasuredLog) -> Vec<Indicator>;
+    /// The generic hypotheses on the readings (offset and scale per channel) that the
+    /// plant declared into its catalogue with [`ReadingHypotheses::declare`]; the fit
+    /// applies them on top of [`Plant::predict`]. `None`: the plant declares none.
+    fn readings(&self) -> Option<&ReadingHypotheses> {
+        None
+    }
 }

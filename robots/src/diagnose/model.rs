@@ -104,6 +104,10 @@ pub struct EffectSpec {
     pub name: String,
     /// Indices into [`Catalogue::params`].
     pub params: Vec<usize>,
+    /// The channel a reading hypothesis acts on (`super::readings`); `None` for the
+    /// plant's own effects. A reading hypothesis on a channel the log does not carry is
+    /// left out of the candidates.
+    pub reading: Option<usize>,
 }
 
 /// Everything a diagnosis may free.
@@ -128,8 +132,15 @@ impl Catalogue {
         self.effects.push(EffectSpec {
             name: name.into(),
             params,
+            reading: None,
         });
         self.effects.len() - 1
+    }
+    /// Add a reading hypothesis on channel `channel`; returns its index.
+    pub fn effect_at_reading(&mut self, name: &str, params: Vec<usize>, channel: usize) -> usize {
+        let e = self.effect(name, params);
+        self.effects[e].reading = Some(channel);
+        e
     }
     pub fn effect_index(&self, name: &str) -> Option<usize> {
         self.effects.iter().position(|e| e.name == name)

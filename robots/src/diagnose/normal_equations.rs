@@ -145,7 +145,51 @@ pub(crate) fn parameter_cov(lins: &[WindowLin], k: usize) -> DMatrix<f64> {
         b += &gw * gw.transpose();
     }
     let robust = &inv * b * &inv * (g / (g - 1.0).max(1.0));
-    // Per coordinate the larger variance; correlations from the matrix that gives it.
+    larger_of(&classical, &robust)
+}
+
+/// Per free coordinate, the design effect of the window clustering: the cluster-robust
+/// variance over the classical one (of [`parameter_cov`]), at least 1. Within-window
+/// correlation of the residuals inflates a likelihood-ratio statistic by about this factor
+/// (Rao & Scott's first-order correction divides by their mean); with white residuals it
+/// is 1. Infinite where the information matrix is singular.
+pub(crate) fn design_effects(lins: &[WindowLin], k: usize) -> Vec<f64> {
+    if k == 0 {
+        return Vec::new();
+    }
+    let Some(inv) = schur(lins, k).try_inverse() else {
+        return vec![f64::INFINITY; k];
+    };
+    let g = lins.len() as f64;
+    let rss: f64 = lins.iter().map(|l| l.rss).sum();
+    let m: usize = lins.iter().map(|l| l.m).sum();
+    let nz = lins.first().map_or(0, |l| l.a.nrows());
+    let dof = (m as f64 - (nz * lins.len() + k) as f64).max(1.0);
+    let mut b = DMatrix::<f64>::zeros(k, k);
+    for l in lins {
+        let mut gw = l.gp.clone();
+        if let Some(ch) = damped(&l.a, 0.0).cholesky() {
+            gw -= l.w.transpose() * ch.solve(&l.gz);
+        }
+        b += &gw * gw.transpose();
+    }
+    let robust = &inv * b * &inv * (g / (g - 1.0).max(1.0));
+    (0..k)
+        .map(|i| {
+            let c = inv[(i, i)] * rss / dof;
+            if c > 0.0 && robust[(i, i)].is_finite() {
+                (robust[(i, i)] / c).max(1.0)
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}
+
+/// Per coordinate the larger variance of the two covariances; correlations from the matrix
+/// that gives it.
+fn larger_of(classical: &DMatrix<f64>, robust: &DMatrix<f64>) -> DMatrix<f64> {
+    let k = classical.nrows();
     let mut out = classical.clone();
     for i in 0..k {
         for j in 0..k {

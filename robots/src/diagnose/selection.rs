@@ -174,13 +174,26 @@ pub fn diagnose<P: Plant>(
         candidates.push(c.fit.clone());
     }
 
+    // A reading hypothesis on a channel the log does not carry has nothing to fit.
     let open: Vec<usize> = (0..cat.effects.len())
         .filter(|&e| !excluded.contains(&e) && !cat.is_calibration_effect(e, &calibrated))
+        .filter(|&e| cat.effects[e].reading.is_none_or(|c| log.present[c]))
         .collect();
     single_effects(&ss, &open, &base, opts, &mut candidates)?;
+    // A single effect is named only if it pays over the base model (`Session::pays`).
+    let unpaid: Vec<String> = candidates
+        .iter()
+        .filter(|c| c.fitted && c.nameable() && c.fit.candidate.effects.len() == 1)
+        .filter(|c| c.score < base.score && !ss.pays(c, &base))
+        .map(|c| unpaid_line(&ss, c, &base))
+        .collect();
+    for line in &unpaid {
+        progress(line);
+    }
     let mut chosen = candidates
         .iter()
         .filter(|c| c.fitted && c.nameable())
+        .filter(|c| c.fit.candidate.effects.is_empty() || ss.pays(c, &base))
         .filter(|c| c.fit.candidate.effects.len() <= 1)
         .filter(|c| {
             calibration.is_none()
@@ -316,6 +329,10 @@ fn single_effects<P: Plant>(
     let mut order: Vec<&Screened> = screened.iter().collect();
     let net = |s: &Screened| s.reduction - cat.effects[s.effect].params.len() as f64 * m.ln();
     order.sort_by(|a, b| net(b).total_cmp(&net(a)));
+    // A reading hypothesis is linear in its parameter (an offset exactly, a scale given
+    // the states), so the screen's Gauss–Newton step from the base model predicts its fit:
+    // one whose predicted reduction does not pay for its parameter is not fitted.
+    let pays = |sc: &Screened| net(sc) > 0.0;
     let mut best_rss = base.fit.rss;
     for (rank, sc) in order.iter().enumerate() {
         (ss.progress)(&format!(
@@ -325,7 +342,7 @@ fn single_effects<P: Plant>(
             m.ln()
         ));
         let cand = Candidate::of(vec![sc.effect]);
-        if rank < opts.max_full_fits {
+        if rank < opts.max_full_fits && (!is_reading(cat, sc.effect) || pays(sc)) {
             let start = cand.start_from(cat, &base.fit.theta);
             let s = ss.fit(cand, &start, &base.fit.z0, Some(best_rss));
             best_rss = best_rss.min(s.fit.rss);
@@ -335,6 +352,62 @@ fn single_effects<P: Plant>(
         }
     }
     Ok(())
+}
+
+/// The progress line of a candidate that the criterion prefers but whose gain over
+/// `without` does not pay once the window clustering is accounted for.
+fn unpaid_line<P: Plant>(ss: &Session<P>, c: &Scored, without: &Scored) -> String {
+    let cat = ss.fitter.catalogue();
+    let (lr, price) = ss.gain_statistic(c, without).unwrap_or((0.0, 0.0));
+    format!(
+        "  {} not named: its gain over {} does not pay (Λ/δ = {lr:.1} ≤ {price:.1})",
+        c.fit.candidate.name(cat),
+        without.fit.candidate.name(cat)
+    )
+}
+
+/// Whether effect `e` is a generic reading hypothesis (`super::readings`).
+fn is_reading(cat: &super::model::Catalogue, e: usize) -> bool {
+    cat.effects[e].reading.is_some()
+}
+
+/// The reading hypotheses of `open` (not in `current`) whose screened reduction at
+/// `current` does not pay for their parameters: not fitted in this round of the forward
+/// selection (as in [`single_effects`]; they are linear in their parameters, so the
+/// screen predicts their fit). Progress lines say which.
+fn unpaid_readings<P: Plant>(ss: &Session<P>, open: &[usize], current: &Scored) -> Vec<usize> {
+    let cat = ss.fitter.catalogue();
+    let readings: Vec<usize> = open
+        .iter()
+        .copied()
+        .filter(|&e| is_reading(cat, e) && !current.fit.candidate.effects.contains(&e))
+        .collect();
+    if readings.is_empty() {
+        return Vec::new();
+    }
+    let m = current.fit.m.max(1) as f64;
+    let Some(screened) = ss.fitter.screen(
+        &readings,
+        &current.fit.theta,
+        &current.fit.z0,
+        current.fit.rss,
+        current.fit.m,
+    ) else {
+        return Vec::new();
+    };
+    let skip: Vec<usize> = screened
+        .iter()
+        .filter(|s| s.reduction <= cat.effects[s.effect].params.len() as f64 * m.ln())
+        .map(|s| s.effect)
+        .collect();
+    if !skip.is_empty() {
+        (ss.progress)(&format!(
+            "  screen: {} of {} reading hypotheses cannot pay for their parameters here: not fitted",
+            skip.len(),
+            readings.len()
+        ));
+    }
+    skip
 }
 
 /// Forward selection: while the chosen effects leave the error above
@@ -368,8 +441,9 @@ fn add_effects<P: Plant>(
         let current = chosen.clone();
         let mut best_rss = current.fit.rss;
         let mut contenders: Vec<Scored> = Vec::new();
+        let skip = unpaid_readings(ss, open, &current);
         for &e in open {
-            if current.fit.candidate.effects.contains(&e) {
+            if current.fit.candidate.effects.contains(&e) || skip.contains(&e) {
                 continue;
             }
             let mut effects = current.fit.candidate.effects.clone();
@@ -379,7 +453,11 @@ fn add_effects<P: Plant>(
             let s = ss.fit(cand, &start, &current.fit.z0, Some(best_rss));
             best_rss = best_rss.min(s.fit.rss);
             if s.score < current.score && s.nameable() {
-                contenders.push(s.clone());
+                if ss.pays(&s, &current) {
+                    contenders.push(s.clone());
+                } else {
+                    (ss.progress)(&unpaid_line(ss, &s, &current));
+                }
             }
             candidates.push(s);
         }

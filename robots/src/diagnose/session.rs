@@ -172,6 +172,44 @@ impl<P: Plant> Session<'_, P> {
         }
     }
 
+    /// Whether `with`, which adds effects to `without` (fitted under the same weights),
+    /// pays for them: the likelihood-ratio statistic of the nested fits,
+    /// `Λ = m ln(RSS_without / RSS_with)` over the `m` weighted residuals, divided by the
+    /// design effect `δ` of the window clustering (the mean over the added coordinates of
+    /// the robust over the classical variance, [`Fit::design`]; Rao & Scott's first-order
+    /// correction: residuals correlated within a window make `Λ` about `δ` times what
+    /// white ones would), must exceed the information criterion's price `k ln m` of the
+    /// `k` added parameters. With white residuals (`δ = 1`) this is the criterion itself.
+    pub(super) fn pays(&self, with: &Scored, without: &Scored) -> bool {
+        self.gain_statistic(with, without)
+            .is_some_and(|(lr, price)| lr > price)
+    }
+
+    /// `(Λ/δ, k ln m)` of [`Session::pays`]; `None` when `with` adds nothing.
+    pub(super) fn gain_statistic(&self, with: &Scored, without: &Scored) -> Option<(f64, f64)> {
+        let cat = self.fitter.catalogue();
+        let mut coord = 0;
+        let mut added = Vec::new();
+        for &e in &with.fit.candidate.effects {
+            let n = cat.effects[e].params.len();
+            if !without.fit.candidate.effects.contains(&e) {
+                added.extend(coord..coord + n);
+            }
+            coord += n;
+        }
+        if added.is_empty() {
+            return None;
+        }
+        let m = with.fit.m.max(1) as f64;
+        let lr = m * (without.fit.rss / with.fit.rss).ln();
+        let delta = added
+            .iter()
+            .map(|&q| with.fit.design.get(q).copied().unwrap_or(1.0))
+            .sum::<f64>()
+            / added.len() as f64;
+        Some((lr / delta.max(1.0), added.len() as f64 * m.ln()))
+    }
+
     /// One candidate's progress line; one that may not be named says why (a better score
     /// passed over is otherwise a puzzle in the log).
     pub(super) fn say(&self, name: &str, s: &Scored) {
@@ -596,6 +634,7 @@ pub(super) fn screened_only<P: Plant>(
     let k = cand.n_free(cat) + ss.base_free;
     let fit = Fit {
         cov: nalgebra::DMatrix::zeros(k, k),
+        design: vec![1.0; k],
         candidate: cand,
         theta,
         std,

@@ -6,6 +6,8 @@
 //! - `prediction`: the model's prediction from the true state follows the truth;
 //! - `recovery`: hidden effects named and their parameters recovered (`WIP_DIAGNOSE_SEED`,
 //!   `WIP_DIAGNOSE_EFFECTS`; the full matrix is ignored by default);
+//! - `readings`: a gyro offset and an encoder scale named by the generic reading
+//!   hypotheses, with their parameters;
 //! - `restart`: a fit's window in the wrong basin is restarted to the truth;
 //! - `toy`: the machinery on a driven pendulum that knows nothing of the WIP.
 //!
@@ -13,6 +15,7 @@
 
 mod hidden;
 mod prediction;
+mod readings;
 mod recovery;
 mod restart;
 mod toy;

@@ -34,7 +34,7 @@ const WHOLE_SAMPLE_DELAYS: [&str; 2] = ["input_delay=0.010", "input_delay=0.015"
 const SEEDS: usize = 1;
 const SEEDS_FULL: usize = 5;
 
-fn master_seed() -> u64 {
+pub(crate) fn master_seed() -> u64 {
     std::env::var("WIP_DIAGNOSE_SEED")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -68,17 +68,17 @@ fn noise_floor(g: &GeneratedLog, d: &Diagnosis) -> f64 {
     (sum / n as f64).sqrt()
 }
 
-struct Outcome {
-    truth: Option<Effect>,
-    named: String,
-    effects: Vec<Effect>,
-    z_max: f64,
+pub(crate) struct Outcome {
+    pub(crate) truth: Option<Effect>,
+    pub(crate) named: String,
+    pub(crate) effects: Vec<Effect>,
+    pub(crate) z_max: f64,
     /// Named parameters outside their physical range, in words.
-    implausible: Vec<String>,
-    error_after: f64,
-    floor: f64,
-    elapsed: f64,
-    line: String,
+    pub(crate) implausible: Vec<String>,
+    pub(crate) error_after: f64,
+    pub(crate) floor: f64,
+    pub(crate) elapsed: f64,
+    pub(crate) line: String,
 }
 
 fn run_case(p: &WipParams, truth: &[(Effect, Vec<f64>)], seed: u64, threads: usize) -> Outcome {
@@ -104,7 +104,11 @@ fn run_case(p: &WipParams, truth: &[(Effect, Vec<f64>)], seed: u64, threads: usi
         d.error_after,
         floor
     );
-    let effects: Vec<Effect> = d.effects.iter().map(|&e| Effect::ALL[e]).collect();
+    let effects: Vec<Effect> = d
+        .effects
+        .iter()
+        .map(|&e| Effect::at(e).expect("an effect of the WIP's plant"))
+        .collect();
     let implausible = d.chosen.fit.candidate.implausible(cat, &d.chosen.fit.theta);
     for e in &effects {
         if let Some((_, th)) = truth.iter().find(|(t, _)| t == e) {
@@ -138,9 +142,9 @@ fn run_case(p: &WipParams, truth: &[(Effect, Vec<f64>)], seed: u64, threads: usi
 
 /// Runs `cases` on two worker threads (one diagnosis thread each).
 /// A case: the hidden effects with their true parameters, and the run's seed.
-type Case = (Vec<(Effect, Vec<f64>)>, u64);
+pub(crate) type Case = (Vec<(Effect, Vec<f64>)>, u64);
 
-fn run_all(p: &WipParams, cases: Vec<Case>) -> Vec<Outcome> {
+pub(crate) fn run_all(p: &WipParams, cases: Vec<Case>) -> Vec<Outcome> {
     let cases = std::sync::Mutex::new(cases.into_iter().enumerate().collect::<Vec<_>>());
     let results = std::sync::Mutex::new(Vec::new());
     std::thread::scope(|sc| {
@@ -160,7 +164,7 @@ fn run_all(p: &WipParams, cases: Vec<Case>) -> Vec<Outcome> {
     r.into_iter().map(|(_, o)| o).collect()
 }
 
-fn label(e: Option<Effect>) -> &'static str {
+pub(crate) fn label(e: Option<Effect>) -> &'static str {
     e.map_or("none", |e| e.name())
 }
 
@@ -250,34 +254,7 @@ fn recovery_matrix(seeds: usize) {
     let mut failures = Vec::new();
     for o in &outcomes {
         println!("{:<24} {}  ({:.1} s)", label(o.truth), o.line, o.elapsed);
-        if o.named != label(o.truth) {
-            failures.push(format!("{}: named {}", label(o.truth), o.named));
-        }
-        if !o.implausible.is_empty() {
-            failures.push(format!(
-                "{}: named outside the physical range: {}",
-                label(o.truth),
-                o.implausible.join("; ")
-            ));
-        }
-        if o.z_max > 3.0 {
-            failures.push(format!(
-                "{}: a parameter {:.1}σ off",
-                label(o.truth),
-                o.z_max
-            ));
-        }
-        if o.error_after > 1.2 * o.floor {
-            failures.push(format!(
-                "{}: error after {:.3} > 1.2 × floor {:.3}",
-                label(o.truth),
-                o.error_after,
-                o.floor
-            ));
-        }
-        if o.truth.is_some() && o.effects.len() > 1 {
-            failures.push(format!("{}: named a pair {:?}", label(o.truth), o.effects));
-        }
+        failures.extend(failures_of(o));
     }
     let worst = outcomes
         .iter()
@@ -285,6 +262,42 @@ fn recovery_matrix(seeds: usize) {
         .fold(0.0, f64::max);
     println!("worst error_after / floor: {worst:.3}");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// What a recovered case gets wrong: the cause not named (or a pair named for one
+/// effect), a named parameter outside its physical range or more than 3σ off the truth,
+/// the error above 1.2 × the noise floor.
+pub(crate) fn failures_of(o: &Outcome) -> Vec<String> {
+    let mut failures = Vec::new();
+    if o.named != label(o.truth) {
+        failures.push(format!("{}: named {}", label(o.truth), o.named));
+    }
+    if !o.implausible.is_empty() {
+        failures.push(format!(
+            "{}: named outside the physical range: {}",
+            label(o.truth),
+            o.implausible.join("; ")
+        ));
+    }
+    if o.z_max > 3.0 {
+        failures.push(format!(
+            "{}: a parameter {:.1}σ off",
+            label(o.truth),
+            o.z_max
+        ));
+    }
+    if o.error_after > 1.2 * o.floor {
+        failures.push(format!(
+            "{}: error after {:.3} > 1.2 × floor {:.3}",
+            label(o.truth),
+            o.error_after,
+            o.floor
+        ));
+    }
+    if o.truth.is_some() && o.effects.len() > 1 {
+        failures.push(format!("{}: named a pair {:?}", label(o.truth), o.effects));
+    }
+    failures
 }
 
 /// Two effects at once (a floor slope and an input delay): the report names both, or names
@@ -322,9 +335,13 @@ fn two_effects_at_once() {
     }
 }
 
-/// An effect outside the catalogue (the rate gyro reads 0.1 rad/s high: five times its
-/// noise, and in contradiction with the tilt's own derivative) is not forced onto a
-/// catalogue effect: the verdict is "unexplained", and the error stays above the noise.
+/// An effect outside the catalogue (the rate gyro drifts: its reading is high by 0 at the
+/// log's start to 0.4 rad/s, twenty times its noise, at its end, unseen by the controller)
+/// is not forced onto a catalogue effect: the verdict is "unexplained", and the error
+/// stays above the noise. (A constant offset is a reading hypothesis, `readings.rs`: the
+/// best constant leaves a ramp of ±0.2 rad/s. A drift to 0.2 rad/s was named
+/// `reading_offset:v_alpha` with E 1.184, within the 1.2 that names a cause, the residual
+/// tests failing on the tilt and the rate: the verdict then says a further effect remains.)
 #[test]
 fn an_effect_outside_the_catalogue_is_unexplained() {
     let p = WipParams::default();
@@ -335,8 +352,9 @@ fn an_effect_outside_the_catalogue_is_unexplained() {
         ..Default::default()
     };
     let mut g = generate(&p, &[], seed, &settings).expect("the nominal LQR keeps the robot up");
-    for k in 0..g.log.len() {
-        g.log.row_mut(k)[Channel::VAlpha.index()] += 0.1;
+    let n = g.log.len();
+    for k in 0..n {
+        g.log.row_mut(k)[Channel::VAlpha.index()] += 0.4 * k as f64 / (n - 1) as f64;
     }
     let plant = WipPlant::new(p);
     let d = diagnose(&plant, &g.log, &DiagnoseOptions::default(), &|_| {}).unwrap();

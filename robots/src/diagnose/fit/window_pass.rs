@@ -10,6 +10,22 @@ use nalgebra::{DMatrix, DVector};
 use num_dual::DualSVec64;
 
 impl<P: Plant> Fitter<'_, P> {
+    /// The plant's prediction of a window with the reading hypotheses of `theta` applied
+    /// on top ([`Plant::readings`]).
+    pub(crate) fn predict<T: crate::diagnose::FitScalar>(
+        &self,
+        start: usize,
+        len: usize,
+        z0: &[T],
+        theta: &[T],
+    ) -> Option<Vec<T>> {
+        let mut y = self.plant.predict(self.log, start, len, z0, theta)?;
+        if let Some(r) = self.plant.readings() {
+            r.apply(&mut y, self.plant.channels().len(), theta);
+        }
+        Some(y)
+    }
+
     /// Weighted residual sum of squares and count of one window (f64 pass).
     pub(crate) fn window_cost(
         &self,
@@ -17,7 +33,7 @@ impl<P: Plant> Fitter<'_, P> {
         (start, len): (usize, usize),
         z0: &[f64],
     ) -> Option<(f64, usize)> {
-        let y = self.plant.predict(self.log, start, len, z0, theta)?;
+        let y = self.predict(start, len, z0, theta)?;
         let chans = self.plant.channels();
         let (mut rss, mut m) = (0.0, 0);
         for (i, c, wgt, meas) in self.weighted_readings(start, len) {
@@ -81,9 +97,16 @@ impl<P: Plant> Fitter<'_, P> {
         for (d, &i) in self.dual_states.iter().enumerate() {
             zd[i] = Dn::<N>::from(z0[i]).derivative(d);
         }
-        let y = self.plant.predict(self.log, start, len, &zd, &theta)?;
+        let y = self.predict(start, len, &zd, &theta)?;
         let chans = self.plant.channels();
         let additive = self.plant.additive();
+        // An additive state enters its reading with the reading's scale (1 without one).
+        let theta_re: Vec<f64> = theta.iter().map(|t| t.re).collect();
+        let coefficient = |c: usize| {
+            self.plant
+                .readings()
+                .map_or(1.0, |r| r.additive_coefficient(c, &theta_re))
+        };
         let mut a = vec![0.0; nz * nz];
         let mut w = vec![0.0; nz * k];
         let mut v = vec![0.0; k * k];
@@ -104,7 +127,7 @@ impl<P: Plant> Fitter<'_, P> {
             }
             for &(s, ch) in additive {
                 if ch == c {
-                    jz[s] += wgt;
+                    jz[s] += wgt * coefficient(c);
                 }
             }
             for q in 0..k {

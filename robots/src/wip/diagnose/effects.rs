@@ -9,7 +9,9 @@
 
 use super::super::params::WipParams;
 use super::super::Wip;
+use super::plant::Channel;
 use crate::diagnose::model::{Catalogue, ParamSpec};
+use crate::diagnose::ReadingFamily;
 use dmech_lie::Real;
 use nalgebra::SVector;
 
@@ -28,6 +30,69 @@ pub enum Effect {
     TiltFilter,
     GearBacklash,
     ReversalLockout,
+    /// A generic hypothesis on a reading (`crate::diagnose::readings`): an offset or a
+    /// scale of the channel's reading.
+    Reading(ReadingFamily, Channel),
+}
+
+/// `reading_offset:<channel>` and `reading_scale:<channel>`, by channel (as
+/// [`ReadingFamily::effect_name`] builds them; a unit test checks the two agree).
+const READING_NAMES: [[&str; 9]; 2] = [
+    [
+        "reading_offset:x",
+        "reading_offset:y",
+        "reading_offset:theta",
+        "reading_offset:alpha",
+        "reading_offset:v_alpha",
+        "reading_offset:phiR_rel",
+        "reading_offset:phiL_rel",
+        "reading_offset:iR",
+        "reading_offset:iL",
+    ],
+    [
+        "reading_scale:x",
+        "reading_scale:y",
+        "reading_scale:theta",
+        "reading_scale:alpha",
+        "reading_scale:v_alpha",
+        "reading_scale:phiR_rel",
+        "reading_scale:phiL_rel",
+        "reading_scale:iR",
+        "reading_scale:iL",
+    ],
+];
+
+/// Their parameters' names (as [`ReadingFamily::param_name`] builds them).
+const READING_PARAMS: [[&[&str]; 9]; 2] = [
+    [
+        &["x_offset"],
+        &["y_offset"],
+        &["theta_offset"],
+        &["alpha_offset"],
+        &["v_alpha_offset"],
+        &["phiR_rel_offset"],
+        &["phiL_rel_offset"],
+        &["iR_offset"],
+        &["iL_offset"],
+    ],
+    [
+        &["x_scale"],
+        &["y_scale"],
+        &["theta_scale"],
+        &["alpha_scale"],
+        &["v_alpha_scale"],
+        &["phiR_rel_scale"],
+        &["phiL_rel_scale"],
+        &["iR_scale"],
+        &["iL_scale"],
+    ],
+];
+
+fn family_row(f: ReadingFamily) -> usize {
+    match f {
+        ReadingFamily::Offset => 0,
+        ReadingFamily::Scale => 1,
+    }
 }
 
 impl Effect {
@@ -46,9 +111,45 @@ impl Effect {
         Effect::ReversalLockout,
     ];
 
+    /// The generic reading hypotheses the WIP's plant declares
+    /// ([`super::plant::declare_readings`]), in the catalogue's order after [`Effect::ALL`]:
+    /// a scale on every channel, an offset on the heading, the tilt rate and the currents
+    /// (none on the positions and wheel angles, which a window's state absorbs, nor on the
+    /// tilt, whose offset is `tilt_offset`).
+    pub const READINGS: [Effect; 13] = {
+        use Channel::*;
+        use ReadingFamily::{Offset, Scale};
+        [
+            Effect::Reading(Scale, X),
+            Effect::Reading(Scale, Y),
+            Effect::Reading(Offset, Theta),
+            Effect::Reading(Scale, Theta),
+            Effect::Reading(Scale, Alpha),
+            Effect::Reading(Offset, VAlpha),
+            Effect::Reading(Scale, VAlpha),
+            Effect::Reading(Scale, PhiRRel),
+            Effect::Reading(Scale, PhiLRel),
+            Effect::Reading(Offset, IR),
+            Effect::Reading(Scale, IR),
+            Effect::Reading(Offset, IL),
+            Effect::Reading(Scale, IL),
+        ]
+    };
+
+    /// Every effect of the WIP's plant: the catalogue's, then the reading hypotheses.
+    pub fn all() -> impl Iterator<Item = Effect> {
+        Effect::ALL.into_iter().chain(Effect::READINGS)
+    }
+
+    /// The effect at index `e` of the WIP plant's catalogue.
+    pub fn at(e: usize) -> Option<Effect> {
+        Effect::all().nth(e)
+    }
+
     /// The name used in `diagnosis.json` and by `wip generate --effect`.
     pub fn name(self) -> &'static str {
         match self {
+            Effect::Reading(f, c) => READING_NAMES[family_row(f)][c.index()],
             Effect::TiltOffset => "tilt_offset",
             Effect::FloorSlope => "floor_slope",
             Effect::InputDelay => "input_delay",
@@ -65,12 +166,13 @@ impl Effect {
     }
 
     pub fn from_name(name: &str) -> Option<Effect> {
-        Effect::ALL.into_iter().find(|e| e.name() == name)
+        Effect::all().find(|e| e.name() == name)
     }
 
     /// Parameter names (the keys of `diagnosis.json`), in the catalogue's order.
     pub fn parameter_names(self) -> &'static [&'static str] {
         match self {
+            Effect::Reading(f, c) => READING_PARAMS[family_row(f)][c.index()],
             Effect::TiltOffset => &["b_rad"],
             Effect::FloorSlope => &["slope_x_rad", "slope_y_rad"],
             Effect::InputDelay => &["delay_s"],
@@ -90,9 +192,12 @@ impl Effect {
         self.parameter_names().len()
     }
 
-    /// The effect's index in the catalogue of [`wip_catalogue`].
+    /// The effect's index in the catalogue of the WIP's plant ([`wip_catalogue`], then
+    /// [`Effect::READINGS`]).
     pub fn index(self) -> usize {
-        Effect::ALL.iter().position(|&e| e == self).expect("in ALL")
+        Effect::all()
+            .position(|e| e == self)
+            .expect("in ALL or READINGS")
     }
 }
 
@@ -239,6 +344,7 @@ pub fn wip_catalogue(p: &WipParams) -> Catalogue {
                 s.bounds = (0.0, 1.0);
                 vec![s]
             }
+            Effect::Reading(..) => unreachable!("not in Effect::ALL"),
         };
         add(&mut cat, e, specs);
     }
@@ -510,5 +616,37 @@ impl<T: Real> ModelExtension<T> {
         let mut f = a.transpose() * grad_body;
         f[0] -= g * mbl * (lever * ca - (cz - T::one()) * sa);
         f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::Plant;
+
+    /// The WIP plant's catalogue lists [`Effect::all`] in order, with their parameter
+    /// names, and the reading hypotheses' static names are those the generic machinery
+    /// builds.
+    #[test]
+    fn effect_names_and_indices_match_the_catalogue() {
+        let plant = super::super::WipPlant::new(WipParams::default());
+        let cat = plant.catalogue();
+        let all: Vec<Effect> = Effect::all().collect();
+        assert_eq!(cat.effects.len(), all.len());
+        for (i, e) in all.iter().enumerate() {
+            assert_eq!(cat.effects[i].name, e.name());
+            assert_eq!(e.index(), i);
+            assert_eq!(Effect::from_name(e.name()), Some(*e));
+            let names: Vec<&str> = cat.effects[i]
+                .params
+                .iter()
+                .map(|&p| cat.params[p].name.as_str())
+                .collect();
+            assert_eq!(names, e.parameter_names());
+            if let Effect::Reading(f, c) = e {
+                assert_eq!(e.name(), f.effect_name(c.name()));
+                assert_eq!(cat.effects[i].reading, Some(c.index()));
+            }
+        }
     }
 }

@@ -3,11 +3,11 @@
 //! NOMINAL model, and realistic sensor noise (issue: tilt 0.003 rad, rate 0.02 rad/s,
 //! encoders quantised at 3600 counts/rev, currents 0.02 A, pose 1 mm / 0.005 rad at 50 Hz).
 
-use super::effects::{wip_catalogue, Effect, Layout, ModelExtension};
+use super::effects::{Effect, ModelExtension};
 use super::plant::{Channel, WipPlant};
 use super::prediction::Predictor;
 use super::reversal_lockout::ReversalLockout;
-use crate::diagnose::MeasuredLog;
+use crate::diagnose::{MeasuredLog, Plant, ReadingFamily};
 use crate::wip::{Wip, WipParams};
 use dmech::continuous::{acceleration_with_force, ContinuousModel, ContinuousState, RungeKutta};
 pub use dmech_lie::rng::Rng;
@@ -92,6 +92,17 @@ pub fn draw_effect(effect: Effect, p: &WipParams, rng: &mut Rng) -> Vec<f64> {
         Effect::TiltFilter => vec![rng.range(0.02, 0.2)],
         Effect::GearBacklash => vec![rng.range(0.01, 0.04)],
         Effect::ReversalLockout => vec![rng.range(0.03, 0.08)],
+        // A reading's offset of 1–3 times the channel's noise (the generator's
+        // [`SensorNoise`]): at 1σ the mean of a 10-s log's 2,000 readings moves 45 standard
+        // errors, and at 3σ the sensor is still one a controller balances on. A scale off
+        // by 2–5 %, a sensitivity tolerance or an encoder's counts per revolution off by
+        // a few.
+        Effect::Reading(ReadingFamily::Offset, c) => {
+            vec![rng.sign() * rng.range(1.0, 3.0) * SensorNoise::default().sigma(c)]
+        }
+        Effect::Reading(ReadingFamily::Scale, _) => {
+            vec![1.0 + rng.sign() * rng.range(0.02, 0.05)]
+        }
     }
 }
 
@@ -132,9 +143,7 @@ pub fn truth_substeps(
     settings: &RunSettings,
 ) -> Result<usize, crate::check::CheckError> {
     let what = "generate: the model";
-    let cat = wip_catalogue(p);
-    let layout = Layout::new(&cat, p);
-    let ext: ModelExtension<f64> = layout.extension(p, &layout.theta_with(&cat, effects));
+    let (_, _, ext) = truth_model(p, effects);
     let x = TrueState {
         g: Se2::new(0.0, 0.0, 0.0),
         s: SVector::zeros(),
@@ -149,6 +158,19 @@ pub fn truth_substeps(
         settings.substeps,
         4000,
     )
+}
+
+/// The WIP's plant, the full parameter vector with the hidden `effects` and the model
+/// extension it gives.
+fn truth_model(
+    p: &WipParams,
+    effects: &[(Effect, Vec<f64>)],
+) -> (WipPlant, Vec<f64>, ModelExtension<f64>) {
+    let plant = WipPlant::new(*p);
+    let layout = plant.layout();
+    let theta = layout.theta_with(plant.catalogue(), effects);
+    let ext = layout.extension(p, &theta);
+    (plant, theta, ext)
 }
 
 /// The true model's state: pose in SE(2), shape `(α, φR, φL, qR, qL)`, shape velocity
@@ -457,9 +479,8 @@ pub fn generate(
 ) -> Result<GeneratedLog, GenerateError> {
     let mut rng = Rng::new(seed);
     let reference = Reference::draw(&mut rng);
-    let cat = wip_catalogue(p);
-    let layout = Layout::new(&cat, p);
-    let ext: ModelExtension<f64> = layout.extension(p, &layout.theta_with(&cat, effects));
+    let (plant, theta, ext) = truth_model(p, effects);
+    let readings = plant.readings().expect("the WIP declares its readings");
     let mut sys = ext.system();
     if ext.sticks() {
         // The stick-slip law supplies the friction.
@@ -511,6 +532,9 @@ pub fn generate(
             x.v[3],
             x.v[4],
         ];
+        // The hidden reading offsets and scales: the sensors, and so the controller and
+        // the firmware's filter, see `s · reading + b`.
+        readings.apply(&mut truth, Channel::ALL.len(), &theta);
         let quant = |a: f64| (a / q_enc).round() * q_enc;
         let tilt = truth[3];
         let mut meas_alpha = tilt + noise.tilt * rng.normal();

@@ -8,7 +8,9 @@ use super::reversal_lockout::passed_fractions;
 use crate::diagnose::conditions::{above_median, near_zero, positive};
 use crate::diagnose::log::LogError;
 use crate::diagnose::model::Catalogue;
-use crate::diagnose::{ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant};
+use crate::diagnose::{
+    ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant, ReadingFamily, ReadingHypotheses,
+};
 use crate::wip::WipParams;
 use nalgebra::SVector;
 
@@ -67,11 +69,47 @@ impl Channel {
             1e3,
         ][self.index()]
     }
+    /// The largest zero-point offset a working sensor of this channel has (the plausible
+    /// range of the generic `reading_offset` hypothesis; 0: none declared):
+    /// - heading 0.3 rad, as the tilt's offset (`tilt_offset`): a pose system's frame
+    ///   turned by more than 17° is a set-up error, not an offset;
+    /// - tilt rate 0.5 rad/s: three times the zero-rate level a MEMS gyro of the Balboa's
+    ///   class guarantees (±10 °/s, 0.17 rad/s);
+    /// - currents 0.5 A: a current-sense amplifier's zero error, a sixteenth of the
+    ///   paper motor's 8 A stall current at 12 V;
+    /// - none on the pose's position and the wheel angles (a window's fitted state absorbs
+    ///   a constant there) nor on the tilt (the catalogue's `tilt_offset` is that offset).
+    pub fn offset_limit(self) -> f64 {
+        match self {
+            Channel::Theta => 0.3,
+            Channel::VAlpha => 0.5,
+            Channel::IR | Channel::IL => 0.5,
+            _ => 0.0,
+        }
+    }
     pub fn spec(self) -> ChannelSpec {
         let mut s = ChannelSpec::new(self.name(), self.unit(), self.range());
         s.wraps = self == Channel::Theta;
+        s.offset_limit = self.offset_limit();
         s
     }
+}
+
+/// The state components that enter a reading additively (state, channel): x, y and the
+/// wheel angles enter only their own readings (translation and wheel rotation are
+/// symmetries of the dynamics).
+const ADDITIVE: [(usize, usize); 4] = [(0, 0), (1, 1), (4, 5), (5, 6)];
+
+/// The generic reading hypotheses of the WIP's channels appended to its catalogue (after
+/// the twelve effects of [`super::effects::Effect::ALL`]); the tilt's offset is the
+/// catalogue's own `tilt_offset`.
+pub fn declare_readings(cat: &mut Catalogue, channels: &[ChannelSpec]) -> ReadingHypotheses {
+    ReadingHypotheses::declare(
+        cat,
+        channels,
+        &ADDITIVE,
+        &[(ReadingFamily::Offset, Channel::Alpha.name())],
+    )
 }
 
 /// The WIP with parameters `params` and its catalogue.
@@ -81,6 +119,7 @@ pub struct WipPlant {
     layout: Layout,
     channels: Vec<ChannelSpec>,
     inputs: Vec<String>,
+    readings: ReadingHypotheses,
 }
 
 /// The longest input delay the fit may reach (the catalogue's bound), for the rows kept
@@ -94,14 +133,17 @@ pub const LOG_ROW_BYTES: u64 = 256;
 
 impl WipPlant {
     pub fn new(params: WipParams) -> Self {
-        let catalogue = wip_catalogue(&params);
+        let mut catalogue = wip_catalogue(&params);
         let layout = Layout::new(&catalogue, &params);
+        let channels: Vec<ChannelSpec> = Channel::ALL.iter().map(|c| c.spec()).collect();
+        let readings = declare_readings(&mut catalogue, &channels);
         WipPlant {
             params,
             catalogue,
             layout,
-            channels: Channel::ALL.iter().map(|c| c.spec()).collect(),
+            channels,
             inputs: vec!["uR".into(), "uL".into()],
+            readings,
         }
     }
 
@@ -229,9 +271,10 @@ impl Plant for WipPlant {
         NZ
     }
     fn additive(&self) -> &[(usize, usize)] {
-        // x, y and the wheel angles enter only their own readings (translation and wheel
-        // rotation are symmetries of the dynamics).
-        &[(0, 0), (1, 1), (4, 5), (5, 6)]
+        &ADDITIVE
+    }
+    fn readings(&self) -> Option<&ReadingHypotheses> {
+        Some(&self.readings)
     }
     fn history(&self, h: f64) -> usize {
         (MAX_DELAY / h).ceil() as usize + 2

@@ -27,7 +27,7 @@ pub fn refit_params(plant: &WipPlant, d: &Diagnosis) -> (WipParams, Vec<Effect>)
     let left_out = d
         .effects
         .iter()
-        .filter_map(|&e| Effect::ALL.get(e).copied())
+        .filter_map(|&e| Effect::at(e))
         .filter(|e| !matches!(e, Effect::Friction | Effect::Payload))
         .collect();
     (q, left_out)

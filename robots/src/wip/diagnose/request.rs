@@ -61,7 +61,10 @@ pub fn parse_effects(spec: &str) -> Result<Vec<EffectRequest>, EffectListError> 
         };
         let e = Effect::from_name(name).ok_or_else(|| EffectListError::Unknown {
             name: name.to_string(),
-            known: Effect::ALL.map(|e| e.name()).join(", "),
+            known: Effect::all()
+                .map(|e| e.name())
+                .collect::<Vec<_>>()
+                .join(", "),
         })?;
         if effects.iter().any(|r| r.effect == e) {
             return Err(EffectListError::Repeated(name.to_string()));
@@ -238,7 +241,7 @@ pub struct DiagnosisFiles {
 }
 
 /// What the report says of `params_refit.json`.
-pub const REFIT_NOTE: &str = "`params_refit.json` holds the refitted model in the parameter-file format (`--params`): the robot's own parameters that the diagnosis moved (a calibration, friction, payload) go in; the other effects (sensor offset and filter, floor slope, delay, voltage gain, dead zone, unequal wheels, stick-slip, backlash) are not parameters of the model and are only reported here.";
+pub const REFIT_NOTE: &str = "`params_refit.json` holds the refitted model in the parameter-file format (`--params`): the robot's own parameters that the diagnosis moved (a calibration, friction, payload) go in; the other effects (sensor offset and filter, floor slope, delay, voltage gain, dead zone, unequal wheels, stick-slip, backlash, reversal lockout, the readings' offsets and scales) are not parameters of the model and are only reported here.";
 
 /// Why a diagnosis gave no result.
 #[derive(Debug, thiserror::Error)]
