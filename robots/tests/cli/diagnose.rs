@@ -318,16 +318,31 @@ fn generate_sets_a_hidden_effect_magnitude() {
     assert_eq!(effects[0]["parameters"]["delay_s"].as_f64(), Some(0.015));
     assert_eq!(effects[1]["effect"], "floor_slope");
     assert_eq!(effects[1]["parameters"]["slope_x_rad"].as_f64(), Some(0.02));
-    assert_eq!(effects[1]["parameters"]["slope_y_rad"].as_f64(), Some(-0.03));
+    assert_eq!(
+        effects[1]["parameters"]["slope_y_rad"].as_f64(),
+        Some(-0.03)
+    );
     for (spec, expect) in [
         ("input_dealy=0.015", "unknown effect 'input_dealy'"),
-        ("input_delay=0.01,0.02", "has 1 parameter(s) (delay_s), got 2"),
-        ("floor_slope=0.02", "has 2 parameter(s) (slope_x_rad, slope_y_rad), got 1"),
+        (
+            "input_delay=0.01,0.02",
+            "has 1 parameter(s) (delay_s), got 2",
+        ),
+        (
+            "floor_slope=0.02",
+            "has 2 parameter(s) (slope_x_rad, slope_y_rad), got 1",
+        ),
         ("input_delay=", "'' is not a finite number"),
         ("input_delay=NaN", "'NaN' is not a finite number"),
         ("input_delay=inf", "'inf' is not a finite number"),
-        ("input_delay=0.5", "delay_s = 0.5 is outside its physically plausible range [0, 0.1]"),
-        ("input_delay=-0.005", "outside its physically plausible range"),
+        (
+            "input_delay=0.5",
+            "delay_s = 0.5 is outside its physically plausible range [0, 0.1]",
+        ),
+        (
+            "input_delay=-0.005",
+            "outside its physically plausible range",
+        ),
     ] {
         let out = wip()
             .args(["generate", "--effect", spec, "--duration", "1", "--out"])
@@ -336,7 +351,10 @@ fn generate_sets_a_hidden_effect_magnitude() {
             .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{spec}: {err}");
-        assert!(err.contains(expect), "{spec}: '{err}' should say '{expect}'");
+        assert!(
+            err.contains(expect),
+            "{spec}: '{err}' should say '{expect}'"
+        );
         assert!(err.contains("Usage: wip generate"), "{spec}: {err}");
         assert!(!dir.join("refused").exists(), "{spec}: nothing written");
     }

@@ -14,8 +14,8 @@
 use robots::diagnose::Plant;
 use robots::wip::diagnose::effects::{Effect, Layout};
 use robots::wip::diagnose::generate::{draw_effect, generate, Rng, RunSettings};
-use robots::wip::diagnose::{Channel, WipPlant};
 use robots::wip::diagnose::prediction::MAX_SUBSTEP;
+use robots::wip::diagnose::{Channel, WipPlant};
 use robots::wip::WipParams;
 
 #[test]
@@ -235,10 +235,17 @@ fn delay_derivative_matches_finite_differences() {
                     .unwrap_generic(nalgebra::Const::<1>, nalgebra::Const::<1>)[0];
                 let err = (dual - d1).abs();
                 let steps = ((i / 9 + 1) as f64 / MAX_SUBSTEP).ceil() + 2.0;
-                let tol = 2.0 * (d2 - d1).abs()
-                    + 4.0 * f64::EPSILON * steps * a.abs().max(1.0) / delta;
+                let tol =
+                    2.0 * (d2 - d1).abs() + 4.0 * f64::EPSILON * steps * a.abs().max(1.0) / delta;
                 if err / tol > worst {
-                    (worst, worst_at) = (err / tol, format!("reading {} of row {}: dual {dual:.6e}, D(δ) {d1:.6e}, D(2δ) {d2:.6e}", i % 9, start + i / 9));
+                    (worst, worst_at) = (
+                        err / tol,
+                        format!(
+                            "reading {} of row {}: dual {dual:.6e}, D(δ) {d1:.6e}, D(2δ) {d2:.6e}",
+                            i % 9,
+                            start + i / 9
+                        ),
+                    );
                 }
                 if err > tol {
                     failures.push(format!(
@@ -250,8 +257,9 @@ fn delay_derivative_matches_finite_differences() {
             }
             start += window;
         }
-        println!("delay {samples} samples: worst |dual − D(δ)| / tolerance {worst:.3} ({worst_at})");
+        println!(
+            "delay {samples} samples: worst |dual − D(δ)| / tolerance {worst:.3} ({worst_at})"
+        );
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
-

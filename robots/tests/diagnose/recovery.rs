@@ -400,13 +400,26 @@ fn effect_magnitudes_parse() {
     ));
     assert!(matches!(
         parse_effects("floor_slope=0.01"),
-        Err(EffectListError::Count { expected: 2, count: 1, .. })
+        Err(EffectListError::Count {
+            expected: 2,
+            count: 1,
+            ..
+        })
     ));
     assert!(matches!(
         parse_effects("input_delay=0.01,0.02"),
-        Err(EffectListError::Count { expected: 1, count: 2, .. })
+        Err(EffectListError::Count {
+            expected: 1,
+            count: 2,
+            ..
+        })
     ));
-    for bad in ["input_delay=", "input_delay=abc", "input_delay=NaN", "input_delay=-inf"] {
+    for bad in [
+        "input_delay=",
+        "input_delay=abc",
+        "input_delay=NaN",
+        "input_delay=-inf",
+    ] {
         assert!(
             matches!(parse_effects(bad), Err(EffectListError::NotANumber { .. })),
             "{bad}"

@@ -20,7 +20,11 @@ pub struct GenerateArgs {
     /// An effect of the catalogue, two different ones joined by '+', or none; NAME=V[,V]
     /// sets the effect's parameters (in the order of truth.json, within their plausible
     /// ranges) instead of drawing them, e.g. input_delay=0.015
-    #[arg(long, value_name = "NAME[=V[,V]][+NAME[=V[,V]]]", default_value = "none")]
+    #[arg(
+        long,
+        value_name = "NAME[=V[,V]][+NAME[=V[,V]]]",
+        default_value = "none"
+    )]
     effect: String,
     /// Random seed
     #[arg(long, value_name = "N", default_value = "1")]

@@ -17,7 +17,9 @@ pub enum EffectListError {
     Unknown { name: String, known: String },
     #[error("--effect names '{0}' twice: each effect is applied once")]
     Repeated(String),
-    #[error("--effect {effect}={given}: {effect} has {expected} parameter(s) ({names}), got {count}")]
+    #[error(
+        "--effect {effect}={given}: {effect} has {expected} parameter(s) ({names}), got {count}"
+    )]
     Count {
         effect: String,
         given: String,
