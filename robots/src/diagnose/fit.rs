@@ -10,7 +10,7 @@ use super::model::{from_internal, to_internal, Candidate, Catalogue, Direction};
 use super::noise::Residuals;
 use super::normal_equations::{damped, WindowLin};
 use super::normal_equations::{
-    design_effects, direction_scale, param_std, parameter_cov, predicted_reduction, step,
+    direction_scale, param_std, parameter_cov, predicted_reduction, step,
 };
 use super::window_memo::WindowMemo;
 use super::Plant;
@@ -59,7 +59,7 @@ pub struct Fit {
     /// Covariance of the free coordinates `β`.
     pub cov: DMatrix<f64>,
     /// Per free coordinate, the design effect of the window clustering (robust over
-    /// classical variance, at least 1; `normal_equations::design_effects`).
+    /// classical variance, at least 1; `normal_equations::parameter_cov`).
     pub design: Vec<f64>,
     pub z0: Vec<Vec<f64>>,
     /// Weighted residual sum of squares and number of residuals.
@@ -294,8 +294,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             let rss: f64 = lins.iter().map(|l| l.rss).sum();
             // The covariance of the candidates' table comes from the last linearisation;
             // the chosen model's is recomputed at its final point (`final_std`).
-            cov = parameter_cov(&lins, k);
-            design = design_effects(&lins, k);
+            (cov, design) = parameter_cov(&lins, k);
             progress(&format!(
                 "  {:<28} it {:>2}  cost {:>12.3}",
                 cand.name(cat),
@@ -377,10 +376,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
             return;
         }
         (fit.cov, fit.design) = match self.linearise(&fit.theta, &dirs, &fit.z0) {
-            Some(l) => (
-                parameter_cov(&l, dirs.len()),
-                design_effects(&l, dirs.len()),
-            ),
+            Some(l) => parameter_cov(&l, dirs.len()),
             None => (
                 DMatrix::from_element(dirs.len(), dirs.len(), f64::INFINITY),
                 vec![f64::INFINITY; dirs.len()],

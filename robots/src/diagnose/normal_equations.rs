@@ -121,14 +121,21 @@ pub(crate) fn damped(a: &DMatrix<f64>, lambda: f64) -> DMatrix<f64> {
 ///   window's preferred parameters a little). Without such correlation both agree.
 ///
 /// The matrix returned is the one of the two whose trace (in units of each classical
-/// variance) is larger, so that it stays a covariance.
-pub(crate) fn parameter_cov(lins: &[WindowLin], k: usize) -> DMatrix<f64> {
+/// variance) is larger, so that it stays a covariance. Beside it, per free coordinate, the
+/// design effect of the window clustering: the robust variance over the classical one, at
+/// least 1. Within-window correlation of the residuals inflates a likelihood-ratio
+/// statistic by about this factor (Rao & Scott's first-order correction divides by their
+/// mean); with white residuals it is 1. Both infinite where the information is singular.
+pub(crate) fn parameter_cov(lins: &[WindowLin], k: usize) -> (DMatrix<f64>, Vec<f64>) {
     if k == 0 {
-        return DMatrix::zeros(0, 0);
+        return (DMatrix::zeros(0, 0), Vec::new());
     }
     let s = schur(lins, k);
     let Some(inv) = s.try_inverse() else {
-        return DMatrix::from_element(k, k, f64::INFINITY);
+        return (
+            DMatrix::from_element(k, k, f64::INFINITY),
+            vec![f64::INFINITY; k],
+        );
     };
     let g = lins.len() as f64;
     let rss: f64 = lins.iter().map(|l| l.rss).sum();
@@ -145,45 +152,17 @@ pub(crate) fn parameter_cov(lins: &[WindowLin], k: usize) -> DMatrix<f64> {
         b += &gw * gw.transpose();
     }
     let robust = &inv * b * &inv * (g / (g - 1.0).max(1.0));
-    larger_of(&classical, &robust)
-}
-
-/// Per free coordinate, the design effect of the window clustering: the cluster-robust
-/// variance over the classical one (of [`parameter_cov`]), at least 1. Within-window
-/// correlation of the residuals inflates a likelihood-ratio statistic by about this factor
-/// (Rao & Scott's first-order correction divides by their mean); with white residuals it
-/// is 1. Infinite where the information matrix is singular.
-pub(crate) fn design_effects(lins: &[WindowLin], k: usize) -> Vec<f64> {
-    if k == 0 {
-        return Vec::new();
-    }
-    let Some(inv) = schur(lins, k).try_inverse() else {
-        return vec![f64::INFINITY; k];
-    };
-    let g = lins.len() as f64;
-    let rss: f64 = lins.iter().map(|l| l.rss).sum();
-    let m: usize = lins.iter().map(|l| l.m).sum();
-    let nz = lins.first().map_or(0, |l| l.a.nrows());
-    let dof = (m as f64 - (nz * lins.len() + k) as f64).max(1.0);
-    let mut b = DMatrix::<f64>::zeros(k, k);
-    for l in lins {
-        let mut gw = l.gp.clone();
-        if let Some(ch) = damped(&l.a, 0.0).cholesky() {
-            gw -= l.w.transpose() * ch.solve(&l.gz);
-        }
-        b += &gw * gw.transpose();
-    }
-    let robust = &inv * b * &inv * (g / (g - 1.0).max(1.0));
-    (0..k)
+    let design = (0..k)
         .map(|i| {
-            let c = inv[(i, i)] * rss / dof;
+            let c = classical[(i, i)];
             if c > 0.0 && robust[(i, i)].is_finite() {
                 (robust[(i, i)] / c).max(1.0)
             } else {
                 f64::INFINITY
             }
         })
-        .collect()
+        .collect();
+    (larger_of(&classical, &robust), design)
 }
 
 /// Per coordinate the larger variance of the two covariances; correlations from the matrix
