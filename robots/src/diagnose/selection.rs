@@ -327,7 +327,7 @@ fn single_effects<P: Plant>(
         )
         .ok_or(DiagnoseError::NotSimulable)?;
     let mut order: Vec<&Screened> = screened.iter().collect();
-    let net = |s: &Screened| s.reduction - cat.effects[s.effect].params.len() as f64 * m.ln();
+    let net = |s: &Screened| screened_net(cat, s, m);
     order.sort_by(|a, b| net(b).total_cmp(&net(a)));
     // A reading hypothesis is linear in its parameter (an offset exactly, a scale given
     // the states), so the screen's Gauss–Newton step from the base model predicts its fit:
@@ -366,6 +366,12 @@ fn unpaid_line<P: Plant>(ss: &Session<P>, c: &Scored, without: &Scored) -> Strin
     )
 }
 
+/// A screened effect's predicted reduction of `m ln RSS` less the criterion's price of its
+/// parameters (`k ln m`): positive if its fit can pay for them.
+fn screened_net(cat: &super::model::Catalogue, s: &Screened, m: f64) -> f64 {
+    s.reduction - cat.effects[s.effect].params.len() as f64 * m.ln()
+}
+
 /// Whether effect `e` is a generic reading hypothesis (`super::readings`).
 fn is_reading(cat: &super::model::Catalogue, e: usize) -> bool {
     cat.effects[e].reading.is_some()
@@ -397,7 +403,7 @@ fn unpaid_readings<P: Plant>(ss: &Session<P>, open: &[usize], current: &Scored) 
     };
     let skip: Vec<usize> = screened
         .iter()
-        .filter(|s| s.reduction <= cat.effects[s.effect].params.len() as f64 * m.ln())
+        .filter(|s| screened_net(cat, s, m) <= 0.0)
         .map(|s| s.effect)
         .collect();
     if !skip.is_empty() {
