@@ -35,58 +35,33 @@ pub enum Effect {
     Reading(ReadingFamily, Channel),
 }
 
-/// `reading_offset:<channel>` and `reading_scale:<channel>`, by channel (as
-/// [`ReadingFamily::effect_name`] builds them; a unit test checks the two agree).
-const READING_NAMES: [[&str; 9]; 2] = [
-    [
-        "reading_offset:x",
-        "reading_offset:y",
-        "reading_offset:theta",
-        "reading_offset:alpha",
-        "reading_offset:v_alpha",
-        "reading_offset:phiR_rel",
-        "reading_offset:phiL_rel",
-        "reading_offset:iR",
-        "reading_offset:iL",
-    ],
-    [
-        "reading_scale:x",
-        "reading_scale:y",
-        "reading_scale:theta",
-        "reading_scale:alpha",
-        "reading_scale:v_alpha",
-        "reading_scale:phiR_rel",
-        "reading_scale:phiL_rel",
-        "reading_scale:iR",
-        "reading_scale:iL",
-    ],
+/// `[concat!(pre, channel, post); 9]` over the WIP's channels in [`Channel::ALL`]'s order.
+macro_rules! per_channel {
+    ($pre:literal, $post:literal) => {
+        [
+            concat!($pre, "x", $post),
+            concat!($pre, "y", $post),
+            concat!($pre, "theta", $post),
+            concat!($pre, "alpha", $post),
+            concat!($pre, "v_alpha", $post),
+            concat!($pre, "phiR_rel", $post),
+            concat!($pre, "phiL_rel", $post),
+            concat!($pre, "iR", $post),
+            concat!($pre, "iL", $post),
+        ]
+    };
+}
+
+/// `reading_offset:<channel>` and `reading_scale:<channel>`, by channel, as
+/// [`ReadingFamily::effect_name`] builds them (a unit test checks the two agree; the
+/// names must be `'static` for [`Effect::name`]).
+static READING_NAMES: [[&str; 9]; 2] = [
+    per_channel!("reading_offset:", ""),
+    per_channel!("reading_scale:", ""),
 ];
 
-/// Their parameters' names (as [`ReadingFamily::param_name`] builds them).
-const READING_PARAMS: [[&[&str]; 9]; 2] = [
-    [
-        &["x_offset"],
-        &["y_offset"],
-        &["theta_offset"],
-        &["alpha_offset"],
-        &["v_alpha_offset"],
-        &["phiR_rel_offset"],
-        &["phiL_rel_offset"],
-        &["iR_offset"],
-        &["iL_offset"],
-    ],
-    [
-        &["x_scale"],
-        &["y_scale"],
-        &["theta_scale"],
-        &["alpha_scale"],
-        &["v_alpha_scale"],
-        &["phiR_rel_scale"],
-        &["phiL_rel_scale"],
-        &["iR_scale"],
-        &["iL_scale"],
-    ],
-];
+/// Their parameters' names, as [`ReadingFamily::param_name`] builds them.
+static READING_PARAMS: [[&str; 9]; 2] = [per_channel!("", "_offset"), per_channel!("", "_scale")];
 
 fn family_row(f: ReadingFamily) -> usize {
     match f {
@@ -172,7 +147,9 @@ impl Effect {
     /// Parameter names (the keys of `diagnosis.json`), in the catalogue's order.
     pub fn parameter_names(self) -> &'static [&'static str] {
         match self {
-            Effect::Reading(f, c) => READING_PARAMS[family_row(f)][c.index()],
+            Effect::Reading(f, c) => {
+                std::slice::from_ref(&READING_PARAMS[family_row(f)][c.index()])
+            }
             Effect::TiltOffset => &["b_rad"],
             Effect::FloorSlope => &["slope_x_rad", "slope_y_rad"],
             Effect::InputDelay => &["delay_s"],
