@@ -2,7 +2,7 @@
 //! exit status 1 and one line naming the problem; a generated log diagnosed end to end,
 //! with every output file written and `diagnosis.json` carrying the keys of docs/formats.md.
 
-use crate::common::{read_json, scratch, wip};
+use crate::common::{read_json, scratch, succeeds, wip};
 
 /// A well-formed log of `n` rows (tilt, rate and one current channel), as text.
 fn good_rows(n: usize) -> String {
@@ -109,24 +109,19 @@ fn text_in_a_number_names_line_and_column() {
 #[test]
 fn generate_then_diagnose_end_to_end() {
     let dir = scratch("e2e");
-    let out = wip()
-        .args([
-            "generate",
-            "--effect",
-            "tilt_offset",
-            "--seed",
-            "4",
-            "--duration",
-            "12",
-            "--out",
-        ])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeds(
+        wip()
+            .args([
+                "generate",
+                "--effect",
+                "tilt_offset",
+                "--seed",
+                "4",
+                "--duration",
+                "12",
+                "--out",
+            ])
+            .arg(&dir),
     );
     let truth = read_json(dir.join("truth.json"));
     let b_true = truth["effects"][0]["parameters"]["b_rad"].as_f64().unwrap();
@@ -295,22 +290,17 @@ fn every_effect_excluded_falls_back_to_the_base_model() {
 #[test]
 fn generate_sets_a_hidden_effect_magnitude() {
     let dir = scratch("effect-magnitude");
-    let out = wip()
-        .args([
-            "generate",
-            "--effect",
-            "input_delay=0.015+floor_slope=0.02,-0.03",
-            "--duration",
-            "2",
-            "--out",
-        ])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeds(
+        wip()
+            .args([
+                "generate",
+                "--effect",
+                "input_delay=0.015+floor_slope=0.02,-0.03",
+                "--duration",
+                "2",
+                "--out",
+            ])
+            .arg(&dir),
     );
     let truth = read_json(dir.join("truth.json"));
     let effects = truth["effects"].as_array().unwrap();
