@@ -33,7 +33,7 @@ pub enum ReadError {
     Plan(#[from] crate::wip::track::report::PlanError),
     /// A measured log's contents are malformed.
     #[error(transparent)]
-    Log(#[from] crate::diagnose::log::LogError),
+    Log(#[from] crate::diagnose::read_log::LogError),
     /// A JSON file's contents are malformed; the message names the file and the key.
     #[error("{what}: {source}")]
     Json {

@@ -6,7 +6,7 @@ use super::effects::{wip_catalogue, Layout};
 use super::prediction::{Command, Predictor, Wheel, NZ};
 use super::reversal_lockout::passed_fractions;
 use crate::diagnose::conditions::{above_median, near_zero, positive};
-use crate::diagnose::log::LogError;
+use crate::diagnose::read_log::{parse_log, parse_log_limited, LogError};
 use crate::diagnose::model::Catalogue;
 use crate::diagnose::{
     ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant, ReadingFamily, ReadingHypotheses,
@@ -153,7 +153,7 @@ impl WipPlant {
 
     /// Parse a measured log with the WIP's columns.
     pub fn parse_log(&self, text: &str, what: &str) -> Result<MeasuredLog, LogError> {
-        MeasuredLog::parse(text, what, &self.channels, &self.inputs)
+        parse_log(text, what, &self.channels, &self.inputs)
     }
 
     /// Refuse a log whose step the prediction model cannot follow: the model's predictions
@@ -220,7 +220,7 @@ impl WipPlant {
         let what = format!("{}", path.display());
         let limit = crate::io::csv_byte_limit(max_rows, LOG_ROW_BYTES);
         let text = crate::io::read_text_limited(path, &what, limit, hint)?;
-        Ok(MeasuredLog::parse_limited(
+        Ok(parse_log_limited(
             &text,
             &what,
             &self.channels,

@@ -177,7 +177,7 @@ pub fn channel_tests(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::noise::difference_noise;
+    use crate::noise::difference_noise;
     use dmech_lie::rng::Rng;
 
     #[test]

@@ -63,7 +63,7 @@ pub struct Scored {
     pub implausible: Vec<String>,
     /// Effect parameters the log does not determine: a standard deviation above
     /// [`DETERMINED`] of the parameter's plausible range, or an effect at its null value
-    /// ([`ABSENT_SIGMAS`]). Such a candidate is not named either (its effect is confounded
+    /// (`ABSENT_SIGMAS`). Such a candidate is not named either (its effect is confounded
     /// with others, invisible in this log, or absent).
     pub undetermined: Vec<String>,
 }

@@ -5,7 +5,7 @@
 pub enum DiagnoseError {
     /// A command that cannot be used (names the row and column).
     #[error(transparent)]
-    Log(#[from] crate::diagnose::log::CommandOutOfRange),
+    Log(#[from] crate::log::CommandOutOfRange),
     #[error("a window of {window_s} s is {samples} samples of {h} s; it needs at least {min} samples (--window ≥ {} s)", *min as f64 * h)]
     WindowTooShort {
         window_s: f64,

@@ -3,16 +3,16 @@
 //! seeded).
 
 use super::{Fitter, MAX_DIRECTIONS};
-use crate::diagnose::model::Direction;
-use crate::diagnose::normal_equations::WindowLin;
-use crate::diagnose::Plant;
+use crate::model::Direction;
+use crate::normal_equations::WindowLin;
+use crate::Plant;
 use nalgebra::{DMatrix, DVector};
 use num_dual::DualSVec64;
 
 impl<P: Plant> Fitter<'_, P> {
     /// The plant's prediction of a window with the reading hypotheses of `theta` applied
     /// on top ([`Plant::readings`]).
-    pub(crate) fn predict<T: crate::diagnose::FitScalar>(
+    pub(crate) fn predict<T: crate::FitScalar>(
         &self,
         start: usize,
         len: usize,
