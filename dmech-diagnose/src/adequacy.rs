@@ -33,8 +33,13 @@ pub struct ChannelTest {
     pub channel: usize,
     /// Residual samples in the statistics.
     pub n: usize,
+    /// Mean test `z_M = mean(r)·√n/σ̂`, two-sided: a bias left in the reading.
     pub z_mean: f64,
+    /// Level test `z_L = (mean(r²)/σ̂² − 1)·√n`, one-sided: residual power above the noise
+    /// floor.
     pub z_level: f64,
+    /// Whiteness test `z_W = ρ₁·√n` (lag-one autocorrelation within windows), one-sided:
+    /// a slowly varying model error.
     pub z_white: f64,
     /// `RMS(r)/σ̂`.
     pub ratio: f64,
@@ -43,6 +48,8 @@ pub struct ChannelTest {
 }
 
 impl ChannelTest {
+    /// Whether the residual is consistent with white noise: `|z_mean|`, `z_level` and
+    /// `z_white` all at most [`ChannelTest::critical`].
     pub fn passes(&self) -> bool {
         self.z_mean.abs() <= self.critical
             && self.z_level <= self.critical

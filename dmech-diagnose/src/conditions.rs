@@ -32,8 +32,9 @@ pub struct Condition {
     pub condition: String,
     /// `"level"`: `(r/σ)²` differs; `"mean"`: `r/σ` differs.
     pub measure: &'static str,
-    /// The measure inside and outside the condition.
+    /// The measure's mean over the rows where the condition holds.
     pub inside: f64,
+    /// The measure's mean over the rows where it does not.
     pub outside: f64,
     /// The t statistic (paired over windows, or for the level between windows, whichever is
     /// stronger) on the normal scale of the critical value.

@@ -27,7 +27,9 @@ pub struct FitSetup {
     pub window: usize,
     /// Noise level of each channel (`∞` for channels not used).
     pub sigma: Vec<f64>,
+    /// Threads the windows are spread over (at least one is used).
     pub threads: usize,
+    /// Levenberg–Marquardt iterations of [`Fitter::fit`] before it stops unconverged.
     pub max_iterations: usize,
 }
 
@@ -49,6 +51,7 @@ impl FitSetup {
 /// The result of fitting a candidate.
 #[derive(Clone, Debug)]
 pub struct Fit {
+    /// The candidate fitted (what it frees).
     pub candidate: Candidate,
     /// Every parameter of the catalogue (the free ones fitted, the others at their
     /// reference values).
@@ -61,11 +64,21 @@ pub struct Fit {
     /// Per free coordinate, the design effect of the window clustering (robust over
     /// classical variance, at least 1; `normal_equations::parameter_cov`).
     pub design: Vec<f64>,
+    /// The fitted initial state of each window, in the order of [`Fitter::windows`]
+    /// (empty for a candidate only screened).
     pub z0: Vec<Vec<f64>>,
     /// Weighted residual sum of squares and number of residuals.
     pub rss: f64,
+    /// Number of weighted residuals: the readings inside the windows of channels with a
+    /// finite noise level.
     pub m: usize,
+    /// Levenberg–Marquardt iterations (linearisations) taken, continuations included; 0 for
+    /// a candidate only screened.
     pub iterations: usize,
+    /// The last accepted step promised less than [`CONVERGED_REDUCTION`] in the criterion
+    /// or lowered the RSS by less than a relative 10⁻⁹, or no damping up to 10⁸ found a
+    /// descent; `false` when the iteration cap, an abandonment or a failed linearisation
+    /// ended the fit.
     pub converged: bool,
     /// Stopped early because it could not beat the bound it was given.
     pub abandoned: bool,
@@ -80,6 +93,8 @@ impl Fit {
             .map(|&p| self.theta[p])
             .collect()
     }
+    /// The standard deviations of the candidate's effect parameters, in the order of
+    /// [`Fit::effect_values`].
     pub fn effect_std(&self, cat: &Catalogue) -> Vec<f64> {
         self.candidate
             .effect_params(cat)
@@ -99,10 +114,17 @@ pub const CONVERGED_REDUCTION: f64 = 0.05;
 /// The most dual directions a linearisation carries (window state and free coordinates).
 pub const MAX_DIRECTIONS: usize = 40;
 
+/// The prediction-error fit of a plant to a log: the windows, their weights, and the
+/// reference parameters; fits a candidate by Levenberg–Marquardt with the window states
+/// eliminated by a Schur complement, screens effects, and gives residuals.
 pub struct Fitter<'a, P: Plant> {
+    /// The system whose model is fitted.
     pub plant: &'a P,
+    /// The measured log.
     pub log: &'a MeasuredLog,
+    /// How the log is cut and weighted.
     pub setup: FitSetup,
+    /// The prediction windows `(first row, rows)`.
     pub windows: Vec<(usize, usize)>,
     /// Reference values of every parameter (the nominal model, or a calibrated one).
     pub reference: Vec<f64>,
@@ -136,6 +158,8 @@ impl<'a, P: Plant> Fitter<'a, P> {
         self
     }
 
+    /// A fit over the windows [`FitSetup::windows`] of the log, with the catalogue's nominal
+    /// values as the reference.
     pub fn new(plant: &'a P, log: &'a MeasuredLog, setup: FitSetup) -> Self {
         let windows = setup.windows(log.len());
         let additive: Vec<usize> = plant.additive().iter().map(|&(s, _)| s).collect();
@@ -153,6 +177,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
         }
     }
 
+    /// The plant's catalogue.
     pub fn catalogue(&self) -> &Catalogue {
         self.plant.catalogue()
     }
@@ -467,6 +492,9 @@ impl<'a, P: Plant> Fitter<'a, P> {
         self.residuals_at(&fit.theta, &fit.z0)
     }
 
+    /// Unweighted residuals (prediction − reading) at parameters `theta` and window states
+    /// `z0`, per row and channel; NaN outside the windows, where not measured, and
+    /// throughout a window whose prediction fails.
     pub fn residuals_at(&self, theta: &[f64], z0: &[Vec<f64>]) -> Residuals {
         let nc = self.log.n_channels;
         let mut res = Residuals::new(self.log.len(), nc);
@@ -492,9 +520,12 @@ impl<'a, P: Plant> Fitter<'a, P> {
 /// What one linearisation predicts for an effect.
 #[derive(Clone, Debug)]
 pub struct Screened {
+    /// Index of the effect in the catalogue.
     pub effect: usize,
     /// Parameters after one Gauss–Newton step.
     pub theta: Vec<f64>,
+    /// Classical standard deviations of those parameters from the linearisation (`∞` when
+    /// the reduced normal matrix is singular).
     pub std: Vec<f64>,
     /// Predicted reduction of the weighted residual sum of squares.
     pub reduction: f64,

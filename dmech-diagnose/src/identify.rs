@@ -26,7 +26,9 @@ pub struct Combination {
     pub weights: Vec<f64>,
     /// Relative standard deviation of the product `Π θ_j^{w_j}` (`1/√λ`).
     pub std: f64,
+    /// `std` at most [`DETERMINED`]: the calibration frees this combination.
     pub determined: bool,
+    /// The product's exponents in words, e.g. `m_b^1.00·l^0.98` ([`combination_name`]).
     pub name: String,
 }
 

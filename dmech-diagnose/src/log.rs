@@ -9,8 +9,11 @@ use std::fmt::Write as _;
 /// physically have (a reading beyond it is a logging fault, not a measurement).
 #[derive(Clone, Debug)]
 pub struct ChannelSpec {
+    /// The CSV column, and the channel's part of a reading hypothesis's name.
     pub name: String,
+    /// The unit of the readings, for reports (e.g. `rad/s`).
     pub unit: String,
+    /// The largest physical magnitude of a reading, in the channel's unit.
     pub range: f64,
     /// An angle that wraps: residuals are taken modulo 2π.
     pub wraps: bool,
@@ -21,6 +24,8 @@ pub struct ChannelSpec {
 }
 
 impl ChannelSpec {
+    /// A channel that does not wrap and declares no offset limit (no `reading_offset`
+    /// hypothesis).
     pub fn new(name: &str, unit: &str, range: f64) -> Self {
         ChannelSpec {
             name: name.into(),
@@ -66,13 +71,17 @@ pub struct CommandOutOfRange {
 /// A log: uniform time grid, commanded inputs, and the readings (NaN = not measured).
 #[derive(Clone, Debug)]
 pub struct MeasuredLog {
+    /// The sample step (s).
     pub h: f64,
+    /// The time of each row (s).
     pub t: Vec<f64>,
     /// Inputs per row, `n_inputs` each.
     inputs: Vec<f64>,
+    /// Commanded inputs per row (the plant's inputs).
     pub n_inputs: usize,
     /// Readings per row, `n_channels` each.
     data: Vec<f64>,
+    /// Readings per row (the plant's channels, measured or not).
     pub n_channels: usize,
     /// Which channels the log has (a column with at least one value).
     pub present: Vec<bool>,
@@ -81,6 +90,7 @@ pub struct MeasuredLog {
 }
 
 impl MeasuredLog {
+    /// A log with no rows and no channel present.
     pub fn empty(h: f64, n_inputs: usize, n_channels: usize) -> Self {
         MeasuredLog {
             h,
@@ -94,14 +104,19 @@ impl MeasuredLog {
         }
     }
 
+    /// Number of rows.
     pub fn len(&self) -> usize {
         self.t.len()
     }
 
+    /// Whether the log has no rows.
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }
 
+    /// Append a row: its time, `n_inputs` commands and `n_channels` readings (NaN where not
+    /// measured); panics on other lengths. [`MeasuredLog::present`] is not updated
+    /// ([`MeasuredLog::channels_present_from_data`]).
     pub fn push_row(&mut self, t: f64, input: &[f64], row: &[f64]) {
         assert_eq!(input.len(), self.n_inputs);
         assert_eq!(row.len(), self.n_channels);
@@ -120,10 +135,12 @@ impl MeasuredLog {
         &self.data[k * self.n_channels..(k + 1) * self.n_channels]
     }
 
+    /// The readings of row `k`, mutable.
     pub fn row_mut(&mut self, k: usize) -> &mut [f64] {
         &mut self.data[k * self.n_channels..(k + 1) * self.n_channels]
     }
 
+    /// The reading of channel `c` at row `k`; `None` where not measured.
     pub fn value(&self, k: usize, c: usize) -> Option<f64> {
         let v = self.data[k * self.n_channels + c];
         (!v.is_nan()).then_some(v)

@@ -73,6 +73,8 @@ impl ParamSpec {
             start_grid: Vec::new(),
         }
     }
+    /// The internal coordinate `x` of `θ`: `ln θ` for a `log` parameter (`θ` floored at
+    /// 1e-300), else `θ`.
     pub fn to_internal(&self, theta: f64) -> f64 {
         if self.log {
             theta.max(1e-300).ln()
@@ -93,6 +95,7 @@ impl ParamSpec {
     pub fn project(&self, theta: f64) -> f64 {
         theta.clamp(self.bounds.0, self.bounds.1)
     }
+    /// Whether `θ` lies in the physically admissible range (false for NaN).
     pub fn is_plausible(&self, theta: f64) -> bool {
         !theta.is_nan() && theta >= self.plausible.0 && theta <= self.plausible.1
     }
@@ -101,6 +104,8 @@ impl ParamSpec {
 /// An effect: a named group of parameters.
 #[derive(Clone, Debug)]
 pub struct EffectSpec {
+    /// The effect's name in the verdict and `diagnosis.json` (e.g. `floor_slope`,
+    /// `reading_offset:v_alpha`).
     pub name: String,
     /// Indices into [`Catalogue::params`].
     pub params: Vec<usize>,
@@ -113,7 +118,10 @@ pub struct EffectSpec {
 /// Everything a diagnosis may free.
 #[derive(Clone, Debug, Default)]
 pub struct Catalogue {
+    /// Every parameter: the effects' and the system's own; a parameter vector `θ` is
+    /// indexed alike.
     pub params: Vec<ParamSpec>,
+    /// Every effect, the plant's and the declared reading hypotheses.
     pub effects: Vec<EffectSpec>,
     /// The system's own parameters a calibration may move (indices into `params`, all
     /// `log`). An effect whose parameters are all among them is a calibration of those
@@ -142,12 +150,15 @@ impl Catalogue {
         self.effects[e].reading = Some(channel);
         e
     }
+    /// The index of the effect named `name`; `None` if the catalogue has none.
     pub fn effect_index(&self, name: &str) -> Option<usize> {
         self.effects.iter().position(|e| e.name == name)
     }
+    /// The index of the parameter named `name`; `None` if the catalogue has none.
     pub fn param_index(&self, name: &str) -> Option<usize> {
         self.params.iter().position(|p| p.name == name)
     }
+    /// Every parameter at its nominal value: the system's own model with no effect.
     pub fn nominal(&self) -> Vec<f64> {
         self.params.iter().map(|p| p.nominal).collect()
     }
@@ -168,17 +179,21 @@ pub type Direction = Vec<(usize, f64)>;
 /// system's own parameters that the log determines (in `ln θ`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Candidate {
+    /// Indices of the effects freed, into [`Catalogue::effects`].
     pub effects: Vec<usize>,
+    /// Directions of the calibrated combinations freed (empty without a calibration).
     pub calibration: Vec<Direction>,
 }
 
 impl Candidate {
+    /// The nominal model: nothing free but the window states.
     pub fn none() -> Self {
         Candidate {
             effects: vec![],
             calibration: vec![],
         }
     }
+    /// The effects `effects` freed, without calibration.
     pub fn of(effects: Vec<usize>) -> Self {
         Candidate {
             effects,
@@ -193,6 +208,8 @@ impl Candidate {
             .chain(self.calibration.iter().cloned())
             .collect()
     }
+    /// The number of free coordinates `β`: the effects' parameters and the calibrated
+    /// directions (the `k` of the information criterion).
     pub fn n_free(&self, cat: &Catalogue) -> usize {
         self.effects
             .iter()

@@ -10,23 +10,29 @@ use super::log::MeasuredLog;
 /// windows or where not measured.
 #[derive(Clone, Debug)]
 pub struct Residuals {
+    /// The residuals row after row, `n_channels` per row (in each channel's unit).
     pub r: Vec<f64>,
+    /// Channels per row.
     pub n_channels: usize,
 }
 
 impl Residuals {
+    /// `rows × n_channels` residuals, all NaN.
     pub fn new(rows: usize, n_channels: usize) -> Self {
         Residuals {
             r: vec![f64::NAN; rows * n_channels],
             n_channels,
         }
     }
+    /// Number of rows.
     pub fn rows(&self) -> usize {
         self.r.len() / self.n_channels.max(1)
     }
+    /// The residual of channel `c` at row `k` (NaN where there is none).
     pub fn get(&self, k: usize, c: usize) -> f64 {
         self.r[k * self.n_channels + c]
     }
+    /// Set the residual of channel `c` at row `k`.
     pub fn set(&mut self, k: usize, c: usize, v: f64) {
         self.r[k * self.n_channels + c] = v;
     }

@@ -43,6 +43,7 @@ pub enum ReadingFamily {
 }
 
 impl ReadingFamily {
+    /// Both families, in the order they are declared per channel (offset, then scale).
     pub const ALL: [ReadingFamily; 2] = [ReadingFamily::Offset, ReadingFamily::Scale];
 
     /// The family's part of an effect name (before `:`).

@@ -52,6 +52,7 @@ fn ranking_fit<P: Plant>(fitter: &Fitter<'_, P>, theta: &[f64], z: &[Vec<f64>]) 
 /// One fitted candidate with its score and error.
 #[derive(Clone, Debug)]
 pub struct Scored {
+    /// The fit (for a candidate only screened, its one Gauss–Newton step from the base).
     pub fit: Fit,
     /// BIC: `m ln(RSS/m) + k ln m` (lower is better).
     pub score: f64,
@@ -131,6 +132,8 @@ fn undetermined(cat: &Catalogue, fit: &Fit) -> Vec<String> {
 /// What the calibration found.
 #[derive(Clone, Debug)]
 pub struct Calibration {
+    /// Which combinations of the calibrated parameters the log determines, at the nominal
+    /// fit.
     pub identifiability: Identifiability,
     /// The calibrated model (no effect), fitted along the determined combinations.
     pub fit: Scored,
