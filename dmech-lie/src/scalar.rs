@@ -243,6 +243,18 @@ pub fn atan_over<T: Real>(t: T) -> T {
     }
 }
 
+/// `tanh` that stays finite in dual numbers at any argument. num-dual evaluates
+/// `sinh/cosh`, which overflow to `inf/inf = NaN` beyond `|x| ≈ 710` (a smoothed Coulomb
+/// friction `tanh(ω/ω_c)` at a fast wheel, reachable while a fit explores); beyond
+/// `|x| = 20` the value is `±1` and the derivative `4e-17`, both exact in double precision.
+pub fn tanh_saturating<T: Real>(x: T) -> T {
+    if x.re().abs() > 20.0 {
+        T::from(x.re().signum())
+    } else {
+        x.tanh()
+    }
+}
+
 /// Wrap an angle into (−π, π] by subtracting a multiple of 2π chosen on the real part, so
 /// that the derivative passes through unchanged.
 pub fn wrap_angle<T: Real>(theta: T) -> T {
@@ -260,6 +272,29 @@ pub fn wrap_angle<T: Real>(theta: T) -> T {
 mod tests {
     use super::*;
     use num_dual::{Dual2_64, Dual64};
+
+    /// Value and derivative equal `tanh` and `1 − tanh²` in double precision at every
+    /// argument, and stay finite where num-dual's own `tanh` (`sinh/cosh`) gives NaN.
+    #[test]
+    fn tanh_saturating_is_tanh_and_finite_everywhere() {
+        for x in [
+            -1e4, -800.0, -20.5, -19.5, -1.0, 0.0, 0.3, 19.5, 20.5, 800.0, 1e4,
+        ] {
+            let y = tanh_saturating(Dual64::from(x).derivative());
+            let exact = x.tanh();
+            assert!(
+                (y.re - exact).abs() <= f64::EPSILON,
+                "{x}: {} vs {exact}",
+                y.re
+            );
+            assert!(
+                (y.eps - (1.0 - exact * exact)).abs() <= 4.0 * f64::EPSILON,
+                "{x}: {}",
+                y.eps
+            );
+        }
+        assert!(Dual64::from(800.0).derivative().tanh().re.is_nan());
+    }
 
     /// Both branches agree at the threshold (values and first/second derivatives), so the
     /// switch introduces no jump: checked with second-order duals just below and above.

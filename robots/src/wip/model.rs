@@ -58,17 +58,7 @@ where
     d_v * w + d_c * tanh_saturating(d_0 * w)
 }
 
-/// `tanh` that stays finite in dual numbers at any argument. num-dual evaluates
-/// `sinh/cosh`, which overflow to `inf/inf = NaN` beyond `|x| ≈ 710` (a wheel 90 rad/s
-/// faster than the body, reachable while a fit explores); beyond `|x| = 20` the value is
-/// `±1` and the derivative `4e-17`, both exact in double precision.
-pub fn tanh_saturating<T: Real>(x: T) -> T {
-    if x.re().abs() > 20.0 {
-        T::from(x.re().signum())
-    } else {
-        x.tanh()
-    }
-}
+pub use dmech_lie::scalar::tanh_saturating;
 
 /// The body's motion at `g = e` with body velocity `ξ`: its centre of mass at height `l`
 /// moves at `vb`, it turns at `ωb` (body frame), and `(sin α, cos α)`. What `ℓ` and its
