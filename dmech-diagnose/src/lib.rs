@@ -22,7 +22,10 @@
 //! fails), [`identify`] (which parameter combinations a log determines), [`readings`] (the
 //! generic offset and scale hypotheses of every reading), [`session`] (a
 //! candidate fitted and scored, re-weighting, calibration), [`selection`] (the order of the
-//! diagnosis), [`verdict`] (its conclusion).
+//! diagnosis), [`verdict`] (its conclusion), [`system_plant`] (the plant of a system
+//! described by `dmech`'s traits, its prediction derived from them).
+
+#![warn(missing_docs)]
 
 pub mod adequacy;
 pub mod conditions;
@@ -38,6 +41,7 @@ pub mod readings;
 pub mod restart;
 pub mod selection;
 pub mod session;
+pub mod system_plant;
 pub mod verdict;
 mod window_memo;
 
@@ -47,9 +51,12 @@ pub use log::{ChannelSpec, MeasuredLog};
 pub use model::{Candidate, Catalogue, EffectSpec, ParamSpec};
 pub use readings::{ReadingFamily, ReadingHypotheses};
 pub use selection::diagnose;
+pub use system_plant::{ObservedPoint, ObservedSystem, SystemPlant};
 
-use dmech::Lift;
+use dmech::continuous::acceleration_with_force;
+use dmech::{Lift, PrincipalKinematicSystem};
 use dmech_lie::Real;
+use nalgebra::SVector;
 use num_dual::DualSVec64;
 
 /// Scalars a prediction runs in: `f64` (values) and dual vectors (values and derivatives
@@ -58,11 +65,60 @@ pub trait FitScalar: Real + Lift<Self> {
     /// Zero in value and in every derivative: an effect at this value, and not free, can
     /// be skipped.
     fn vanishes(&self) -> bool;
+
+    /// The shape acceleration `v̇ = a(s, v, u)` of a system whose parameters are in this
+    /// scalar, with the generalised force `f_ext` on the shape added to its forcing
+    /// (`dmech::continuous::acceleration_with_force`, which takes its mass matrix by
+    /// nested duals over this scalar: the two implementations name those scalars, which a
+    /// caller generic over `FitScalar` cannot). A system's closed form is taken where it has
+    /// one and `f_ext` vanishes. `None` if the mass matrix is singular.
+    fn shape_acceleration<S, const DOF: usize, const NS: usize, const NU: usize>(
+        sys: &S,
+        s: &SVector<Self, NS>,
+        v: &SVector<Self, NS>,
+        u: &SVector<Self, NU>,
+        f_ext: &SVector<Self, NS>,
+    ) -> Option<SVector<Self, NS>>
+    where
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = Self>;
+}
+
+/// The closed form of `sys` where it has one and nothing is added to its forcing.
+fn closed_form_if_unforced<S, T, const DOF: usize, const NS: usize, const NU: usize>(
+    sys: &S,
+    s: &SVector<T, NS>,
+    v: &SVector<T, NS>,
+    u: &SVector<T, NU>,
+    f_ext: &SVector<T, NS>,
+) -> Option<SVector<T, NS>>
+where
+    S: PrincipalKinematicSystem<DOF, NS, NU, Param = T>,
+    T: FitScalar,
+{
+    if f_ext.iter().all(FitScalar::vanishes) {
+        sys.closed_form_acceleration(s, v, u)
+    } else {
+        None
+    }
 }
 
 impl FitScalar for f64 {
     fn vanishes(&self) -> bool {
         *self == 0.0
+    }
+
+    fn shape_acceleration<S, const DOF: usize, const NS: usize, const NU: usize>(
+        sys: &S,
+        s: &SVector<f64, NS>,
+        v: &SVector<f64, NS>,
+        u: &SVector<f64, NU>,
+        f_ext: &SVector<f64, NS>,
+    ) -> Option<SVector<f64, NS>>
+    where
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
+    {
+        closed_form_if_unforced::<S, f64, DOF, NS, NU>(sys, s, v, u, f_ext)
+            .or_else(|| acceleration_with_force::<S, f64, DOF, NS, NU>(sys, s, v, u, f_ext))
     }
 }
 
@@ -75,13 +131,29 @@ impl<const N: usize> FitScalar for DualSVec64<N> {
                 .iter()
                 .all(|&e| e == 0.0)
     }
+
+    fn shape_acceleration<S, const DOF: usize, const NS: usize, const NU: usize>(
+        sys: &S,
+        s: &SVector<Self, NS>,
+        v: &SVector<Self, NS>,
+        u: &SVector<Self, NU>,
+        f_ext: &SVector<Self, NS>,
+    ) -> Option<SVector<Self, NS>>
+    where
+        S: PrincipalKinematicSystem<DOF, NS, NU, Param = Self>,
+    {
+        closed_form_if_unforced::<S, Self, DOF, NS, NU>(sys, s, v, u, f_ext)
+            .or_else(|| acceleration_with_force::<S, Self, DOF, NS, NU>(sys, s, v, u, f_ext))
+    }
 }
 
 /// One operating condition: per row of the log, whether the condition holds (`None` where
 /// it is undefined). The residual of a failing channel is compared inside and outside.
 #[derive(Clone, Debug)]
 pub struct Indicator {
+    /// What the condition says, as the report names it (e.g. `input positive`).
     pub name: String,
+    /// Per row of the log: the condition holds, does not, or is undefined there.
     pub flags: Vec<Option<bool>>,
 }
 
