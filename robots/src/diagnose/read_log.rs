@@ -85,8 +85,8 @@ pub fn parse_log_limited(
     let mut u = vec![0.0; inputs.len()];
     let mut data = vec![f64::NAN; channels.len()];
     for (row, &line) in csv.rows.iter().zip(&csv.lines) {
-        for (c, name) in std::iter::once((ct, "t"))
-            .chain(cin.iter().zip(inputs).map(|(&c, n)| (c, n.as_str())))
+        for (c, name) in
+            std::iter::once((ct, "t")).chain(cin.iter().zip(inputs).map(|(&c, n)| (c, n.as_str())))
         {
             if row[c].is_nan() {
                 return Err(LogError::Missing {

@@ -1,13 +1,13 @@
 //! `diagnose`'s output files for any plant: `diagnosis.json` (docs/formats.md), `report.md`
 //! and residual plots before and after the refit, one per channel.
 
+use crate::plot::{Plot, Series};
 use dmech_diagnose::conditions::Condition;
 use dmech_diagnose::diagnosis::Diagnosis;
 use dmech_diagnose::log::{ChannelSpec, MeasuredLog};
 use dmech_diagnose::model::Catalogue;
 use dmech_diagnose::session::Scored;
 use dmech_diagnose::Plant;
-use crate::plot::{Plot, Series};
 use serde_json::{json, Map, Value};
 use std::fmt::Write as _;
 

@@ -6,8 +6,8 @@ use super::effects::{wip_catalogue, Layout};
 use super::prediction::{Command, Predictor, Wheel, NZ};
 use super::reversal_lockout::passed_fractions;
 use crate::diagnose::conditions::{above_median, near_zero, positive};
-use crate::diagnose::read_log::{parse_log, parse_log_limited, LogError};
 use crate::diagnose::model::Catalogue;
+use crate::diagnose::read_log::{parse_log, parse_log_limited, LogError};
 use crate::diagnose::{
     ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant, ReadingFamily, ReadingHypotheses,
 };
