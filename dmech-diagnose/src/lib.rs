@@ -20,13 +20,15 @@
 //! [`restart`] (restarts of a fit's outlying windows), [`noise`] (noise levels and the
 //! error measure), [`adequacy`] (is anything left), [`conditions`] (where the model
 //! fails), [`identify`] (which parameter combinations a log determines), [`readings`] (the
-//! generic offset and scale hypotheses of every reading), [`session`] (a
+//! generic offset and scale hypotheses of every reading), [`actuators`] (those of every
+//! input, for systems of the traits), [`session`] (a
 //! candidate fitted and scored, re-weighting, calibration), [`selection`] (the order of the
 //! diagnosis), [`verdict`] (its conclusion), [`system_plant`] (the plant of a system
 //! described by `dmech`'s traits, its prediction derived from them).
 
 #![warn(missing_docs)]
 
+pub mod actuators;
 pub mod adequacy;
 pub mod conditions;
 pub mod diagnosis;
@@ -45,6 +47,7 @@ pub mod system_plant;
 pub mod verdict;
 mod window_memo;
 
+pub use actuators::{ActuatorFamily, ActuatorHypotheses};
 pub use diagnosis::{DiagnoseOptions, Diagnosis};
 pub use error::DiagnoseError;
 pub use log::{ChannelSpec, MeasuredLog};

@@ -10,7 +10,10 @@
 //! the command of the earlier row is held (zero-order hold) and the step is divided into
 //! [`SystemPlant::substeps`] Runge–Kutta steps.
 
-use crate::{Catalogue, ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant, ReadingHypotheses};
+use crate::{
+    ActuatorHypotheses, Catalogue, ChannelSpec, FitScalar, Indicator, MeasuredLog, Plant,
+    ReadingHypotheses,
+};
 use dmech::continuous::coordinate_rate;
 use dmech::PrincipalKinematicSystem;
 use dmech_lie::LieGroup;
@@ -83,6 +86,11 @@ pub trait ObservedSystem<const DOF: usize, const NS: usize, const NU: usize>: Sy
     }
     /// The generic reading hypotheses declared into [`ObservedSystem::catalogue`].
     fn reading_hypotheses(&self) -> Option<&ReadingHypotheses> {
+        None
+    }
+    /// The generic input hypotheses declared into [`ObservedSystem::catalogue`], applied
+    /// to [`ObservedSystem::input`]'s result.
+    fn actuator_hypotheses(&self) -> Option<&ActuatorHypotheses> {
         None
     }
 }
@@ -235,7 +243,10 @@ where
         let mut z = z0.to_vec();
         let mut out = Vec::with_capacity(len * n_channels);
         for k in start..start + len {
-            let u = self.observed.input(log.input(k), theta);
+            let mut u = self.observed.input(log.input(k), theta);
+            if let Some(a) = self.observed.actuator_hypotheses() {
+                a.apply(u.as_mut_slice(), theta);
+            }
             let (mut dz, xi, a) = self.rate(&sys, &z, &u, theta)?;
             let (s, v) = self.split(&z);
             let at = ObservedPoint {
