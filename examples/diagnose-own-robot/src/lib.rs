@@ -9,13 +9,14 @@
 //! `c φ̇`. Readings: a motion-capture pose `(x, y, heading)`, the two wheel encoders and a
 //! yaw-rate gyro. Catalogue: a Coulomb friction of the wheels (`wheel_friction`, torque
 //! `f_c tanh(φ̇/ω_c)`, by `tanh_saturating`, which stays finite in dual numbers at any
-//! speed), the mass (calibration) and the generic offset and scale hypotheses
-//! of every reading.
+//! speed), the mass (calibration), the generic offset and scale hypotheses
+//! of every reading and the generic offset and gain hypotheses of every input.
 
 use dmech::{Lift, PrincipalKinematicSystem};
 use dmech_diagnose::model::{Catalogue, ParamSpec};
 use dmech_diagnose::{
-    ChannelSpec, FitScalar, MeasuredLog, ObservedPoint, ObservedSystem, ReadingHypotheses,
+    ActuatorHypotheses, ChannelSpec, FitScalar, MeasuredLog, ObservedPoint, ObservedSystem,
+    ReadingHypotheses,
 };
 use dmech_lie::scalar::tanh_saturating;
 use dmech_lie::{Real, Se2};
@@ -91,6 +92,7 @@ pub struct Rover {
     channels: Vec<ChannelSpec>,
     inputs: Vec<String>,
     readings: ReadingHypotheses,
+    actuators: ActuatorHypotheses,
     additive: Vec<(usize, usize)>,
 }
 
@@ -127,11 +129,15 @@ impl Rover {
         // The wheel angles enter their encoders alone.
         let additive = vec![(3, 3), (4, 4)];
         let readings = ReadingHypotheses::declare(&mut cat, &channels, &additive, &[]);
+        let inputs = vec!["u_r".into(), "u_l".into()];
+        // A motor driver's zero point can be off by up to 5 % of the commands' range (±1).
+        let actuators = ActuatorHypotheses::declare(&mut cat, &inputs, &[0.05, 0.05]);
         Rover {
             catalogue: cat,
             channels,
-            inputs: vec!["u_r".into(), "u_l".into()],
+            inputs,
             readings,
+            actuators,
             additive,
         }
     }
@@ -193,5 +199,8 @@ impl ObservedSystem<3, 2, 2> for Rover {
     }
     fn reading_hypotheses(&self) -> Option<&ReadingHypotheses> {
         Some(&self.readings)
+    }
+    fn actuator_hypotheses(&self) -> Option<&ActuatorHypotheses> {
+        Some(&self.actuators)
     }
 }

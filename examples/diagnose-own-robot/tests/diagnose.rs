@@ -1,5 +1,6 @@
-//! The rover diagnosed from generated logs: a hidden wheel friction and a gyro offset are
-//! each named with their parameter within 3 reported standard deviations, a log without
+//! The rover diagnosed from generated logs: a hidden wheel friction, a gyro offset and a
+//! weak right motor are each named with their parameter within 3 reported standard
+//! deviations, a log without
 //! effect gives `none`, and the crate builds none of the dmech tools' dependencies.
 //!
 //! A log is the model's own simulation (`SystemPlant::simulate`, ten Runge–Kutta steps per
@@ -101,6 +102,19 @@ fn a_gyro_offset_is_named_by_the_generic_reading_hypothesis() {
     println!("{}", d.verdict);
     assert_eq!(d.cause, "reading_offset:gyro", "{}", d.verdict);
     within_3_sigma(&d, offset, 0.03);
+}
+
+#[test]
+fn a_weak_right_motor_is_named_by_the_generic_input_hypothesis() {
+    let plant = SystemPlant::new(Rover::new(), 2);
+    let gain = plant
+        .catalogue()
+        .param_index(&dmech_diagnose::ActuatorFamily::Gain.param_name("u_r"))
+        .expect("every input declares a gain");
+    let d = run(&generate(&with(&[(gain, 0.9)]), 14));
+    println!("{}", d.verdict);
+    assert_eq!(d.cause, "input_gain:u_r", "{}", d.verdict);
+    within_3_sigma(&d, gain, 0.9);
 }
 
 #[test]
