@@ -2,6 +2,7 @@
 //! second robot, built on the system traits and the planning toolkit alone.
 
 pub mod model;
+pub mod nmpc;
 pub mod plan;
 pub mod problems;
 pub mod report;

@@ -61,6 +61,7 @@ impl Default for CarBounds {
 }
 
 /// A [`CarProblem`] on a mesh of step `h`.
+#[derive(Clone, Debug)]
 pub struct CarPlan<'a> {
     pub problem: &'a CarProblem,
     pub bounds: CarBounds,

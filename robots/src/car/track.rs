@@ -1,6 +1,7 @@
 //! The car's plan tracked in closed loop on the framework's pieces (`dmech_ocp::tracking`):
-//! the plan's linearisation along its transcription, the Riccati gains or the constrained
-//! MPC on the same weights, and a plant car whose parameters differ from the plan's
+//! the plan's linearisation along its transcription, the Riccati gains, the constrained
+//! MPC on the same weights or the nonlinear MPC on the transcription itself
+//! (`super::nmpc`), and a plant car whose parameters differ from the plan's
 //! (`docs/car.md`).
 //!
 //! The controller acts on the state read exactly ([`Sensing::Exact`]) or on the estimate of
@@ -8,6 +9,7 @@
 //! the inputs saturate at the drive's ±6 V and the steering servo's ±0.1 N m.
 
 use super::model::{Car, CarParams};
+use super::nmpc::{CarNmpc, CarNmpcError, NmpcOptions, NmpcSample};
 use super::plan::{CarBounds, CarOutcome, CarPlan};
 use super::problems::CarProblem;
 use super::sensors::{start_covariance, CarReadings, CarSensorModel, NP, NY};
@@ -17,7 +19,7 @@ use dmech_lie::rng::Rng;
 use dmech_ocp::qp::QpSettings;
 use dmech_ocp::tracking::{
     linearise_along, lq_gains, plant_step, DelayLaw, LinearisedPlan, Mpc, MpcError, MpcMove,
-    MpcSettings, Observer, ObserverError, PlanView, TrackingError, TrackingWeights,
+    MpcSettings, NmpcError, Observer, ObserverError, PlanView, TrackingError, TrackingWeights,
 };
 use dmech_ocp::transcription::VarIntTranscription;
 use nalgebra::{SMatrix, SVector};
@@ -41,6 +43,8 @@ pub struct CarTracking {
     pub input: Vec<[f64; 2]>,
     /// The MPC's moves, one per step (empty for the other controllers).
     pub mpc_moves: Vec<MpcMove<2>>,
+    /// The NMPC's samples, one per step (empty for the other controllers).
+    pub nmpc_samples: Vec<NmpcSample>,
     /// The pose the controller acted on (the observer's estimate, or the plant's pose when
     /// it is read exactly), one per step.
     pub estimated: Vec<[f64; 3]>,
@@ -63,6 +67,11 @@ impl CarTracking {
     /// The largest position error, m.
     pub fn max_error(&self) -> f64 {
         self.position_errors().into_iter().fold(0.0, f64::max)
+    }
+    /// The root mean square of the position error over the stages, m.
+    pub fn rms_error(&self) -> f64 {
+        let e = self.position_errors();
+        (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt()
     }
     /// The position error at the end, m.
     pub fn end_error(&self) -> f64 {
@@ -141,7 +150,7 @@ fn weights(bounds: &CarBounds) -> (SMatrix<f64, NX, NX>, SMatrix<f64, 2, 2>) {
 }
 
 /// The feedback along the plan.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Controller {
     /// The plan's inputs alone.
     OpenLoop,
@@ -153,6 +162,9 @@ pub enum Controller {
         /// Stages in the horizon.
         horizon: usize,
     },
+    /// The nonlinear MPC by real-time iteration on the plan's transcription
+    /// (`super::nmpc`), the LQ move where a sample's solve fails.
+    Nmpc(NmpcOptions),
 }
 
 impl Controller {
@@ -162,6 +174,7 @@ impl Controller {
             Controller::OpenLoop => "open-loop",
             Controller::Lq => "lq",
             Controller::Mpc { .. } => "mpc",
+            Controller::Nmpc(_) => "nmpc",
         }
     }
 }
@@ -175,6 +188,12 @@ pub enum CarTrackError {
     /// The MPC's design or a move.
     #[error(transparent)]
     Mpc(#[from] MpcError),
+    /// A sample of the NMPC.
+    #[error("the NMPC: {0}")]
+    Nmpc(#[from] NmpcError),
+    /// The NMPC's design.
+    #[error("the NMPC's design: {0}")]
+    NmpcDesign(#[from] CarNmpcError),
     /// The observer refused a reading or an input.
     #[error("the observer: {0}")]
     Observer(#[from] ObserverError),
@@ -182,10 +201,11 @@ pub enum CarTrackError {
 
 /// The control law built once per plan.
 #[derive(Clone, Debug)]
-enum Law {
+enum Law<'a> {
     OpenLoop,
     Lq(Vec<SMatrix<f64, 2, NX>>),
     Mpc(Box<Mpc<NX, 2>>),
+    Nmpc(Box<CarNmpc<'a>>),
 }
 
 /// A plan made ready for tracking: its states and decisions in the transcription's layout
@@ -199,7 +219,7 @@ pub struct TrackingDesign<'a> {
     inputs: Vec<SVector<f64, 2>>,
     lin: LinearisedPlan<NX, 2>,
     readings: CarReadings,
-    law: Law,
+    law: Law<'a>,
 }
 
 impl<'a> TrackingDesign<'a> {
@@ -217,6 +237,11 @@ impl<'a> TrackingDesign<'a> {
         let tr = VarIntTranscription::new(car, &on_mesh, o.h, discretisation);
         let (px, pw) = tr.states_of::<{ super::plan::NC }>(&o.trajectory);
         let (q, r) = weights(&bounds);
+        let tracking_weights = TrackingWeights {
+            state: q,
+            terminal: q * 10.0,
+            input: r,
+        };
         let lin = linearise_along(&tr, &px, &pw)?;
         let inputs: Vec<SVector<f64, 2>> = pw
             .iter()
@@ -226,11 +251,6 @@ impl<'a> TrackingDesign<'a> {
             Controller::OpenLoop => Law::OpenLoop,
             Controller::Lq => Law::Lq(lq_gains(&lin, &q, &(q * 10.0), &r)?),
             Controller::Mpc { horizon } => {
-                let weights = TrackingWeights {
-                    state: q,
-                    terminal: q * 10.0,
-                    input: r,
-                };
                 let limit = SVector::<f64, 2>::new(STEER_TORQUE_LIMIT, VOLTAGE_LIMIT);
                 let settings = MpcSettings {
                     horizon,
@@ -241,10 +261,19 @@ impl<'a> TrackingDesign<'a> {
                 Law::Mpc(Box::new(Mpc::new(
                     lin.clone(),
                     inputs.clone(),
-                    &weights,
+                    &tracking_weights,
                     settings,
                 )?))
             }
+            Controller::Nmpc(options) => Law::Nmpc(Box::new(CarNmpc::new(
+                car,
+                &on_mesh,
+                discretisation,
+                (px.clone(), pw.clone()),
+                &tracking_weights,
+                lq_gains(&lin, &q, &(q * 10.0), &r)?,
+                options,
+            )?)),
         };
         Ok(TrackingDesign {
             h: o.h,
@@ -300,6 +329,11 @@ impl<'a> TrackingDesign<'a> {
                 Law::Mpc(mpc) => {
                     let m = mpc.input(k, &(estimate - px[k]))?;
                     out.mpc_moves.push(m);
+                    m.input
+                }
+                Law::Nmpc(nmpc) => {
+                    let m = nmpc.sample(k, &estimate)?;
+                    out.nmpc_samples.push(m);
                     m.input
                 }
             };

@@ -4,6 +4,7 @@
 //! `track`) once, and link once.
 //!
 //! - `car`: `car plan`, `car simulate` and `car track`;
+//! - `car_nmpc`: `car track --controller nmpc` on the built-in problems;
 //! - `car_sensors`: `car track` on the car's sensors through the observer, the delay sweep;
 //! - `diagnose`: `wip generate` and `wip diagnose`;
 //! - `hostile`: both tools under hostile use, second round (issue 57);
@@ -21,6 +22,7 @@
 mod common;
 
 mod car;
+mod car_nmpc;
 mod car_sensors;
 mod diagnose;
 mod hostile;

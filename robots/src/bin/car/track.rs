@@ -3,21 +3,22 @@
 use crate::PLAN_INTEGRATORS;
 use dmech::Integrator;
 use dmech_ocp::solver::{IpOptions, Status};
+use robots::car::nmpc::{NmpcOptions, BUDGET_S, NEWTON_STEPS};
 use robots::car::plan::{plan, CarBounds, CarPlan};
 use robots::car::problems::CarProblem;
 use robots::car::sensors::CarSensorModel;
 use robots::car::track::{mismatched, CarTracking, Controller, Sensing, TrackingDesign};
 use robots::car::Car;
-use robots::cli::{integrator_parser, step};
+use robots::cli::{integrator_parser, positive, step};
 use robots::io::OutputSet;
 use robots::say;
 use std::path::PathBuf;
 
-/// Plan a built-in problem or a pose file, then track the plan in closed loop by LQ or MPC
-/// on a plant car whose masses, inertias and motor constants differ from the plan's
-/// (docs/car.md, "Tracking"), on the estimate of an observer from the car's encoders, gyro
-/// and late poses (or on the exact state); inputs saturate at ±6 V and ±0.1 N m (the MPC's
-/// hard bounds).
+/// Plan a built-in problem or a pose file, then track the plan in closed loop by LQ, MPC or
+/// the nonlinear MPC on a plant car whose masses, inertias and motor constants differ from
+/// the plan's (docs/car.md, "Tracking"), on the estimate of an observer from the car's
+/// encoders, gyro and late poses (or on the exact state); inputs saturate at ±6 V and
+/// ±0.1 N m (the MPC's and the NMPC's hard bounds).
 #[derive(clap::Args)]
 pub struct TrackArgs {
     /// `parallel-park`, `lane-change`, or a JSON pose file
@@ -28,13 +29,21 @@ pub struct TrackArgs {
     /// Transcription of the plan and the plant's integrator
     #[arg(long, default_value = "first-order", value_parser = integrator_parser(PLAN_INTEGRATORS))]
     integrator: Integrator,
-    /// The controller: LQ feedback along the plan, the constrained MPC, or the plan's inputs
-    /// alone
+    /// The controller: LQ feedback along the plan, the constrained MPC, the nonlinear MPC,
+    /// or the plan's inputs alone
     #[arg(long, value_enum, default_value_t = ControllerArg::Lq)]
     controller: ControllerArg,
-    /// The MPC's horizon in stages (with --controller mpc)
+    /// The MPC's and the NMPC's horizon in stages (with --controller mpc or nmpc)
     #[arg(long, value_name = "N", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=1000))]
     horizon: u64,
+    /// The NMPC's Newton steps per stage (real-time iteration)
+    #[arg(long, value_name = "N", default_value_t = NEWTON_STEPS as u64, value_parser = clap::value_parser!(u64).range(1..=100))]
+    newton_steps: u64,
+    /// The NMPC's wall-clock budget per stage (s); a solve past it falls back to the LQ
+    /// move. Default: none (the Newton steps bound the compute, and the moves do not depend
+    /// on the machine's load)
+    #[arg(long, value_name = "SECONDS", value_parser = positive, allow_negative_numbers = true)]
+    budget: Option<f64>,
     /// What the controller acts on: the observer's estimate from the paper-like sensors
     /// (default; `exact` with --ideal), from noise-free immediate readings, or the plant's
     /// state read exactly
@@ -84,6 +93,10 @@ enum ControllerArg {
     Lq,
     /// Constrained MPC along the plan: a QP per stage (dmech_ocp::tracking::Mpc)
     Mpc,
+    /// Nonlinear MPC on the plan's own transcription, a few Newton steps per stage from the
+    /// previous solution (--horizon, --newton-steps, --budget); the LQ move when a stage's
+    /// solve fails or runs out of its budget (dmech_ocp::tracking::nmpc)
+    Nmpc,
     /// The plan's inputs, open loop
     OpenLoop,
 }
@@ -126,6 +139,11 @@ pub fn run_track(a: TrackArgs) -> Result<(), String> {
         ControllerArg::Mpc => Controller::Mpc {
             horizon: a.horizon as usize,
         },
+        ControllerArg::Nmpc => Controller::Nmpc(NmpcOptions {
+            horizon: a.horizon as usize,
+            newton_steps: a.newton_steps as usize,
+            budget_s: a.budget.unwrap_or(BUDGET_S),
+        }),
     };
     let design =
         TrackingDesign::new(&car, &problem, &o, disc, controller).map_err(|e| e.to_string())?;
@@ -150,15 +168,16 @@ pub fn run_track(a: TrackArgs) -> Result<(), String> {
         offset,
         sensing: &sensing,
     };
-    let (results, first, moves) = run_seeds(&design, &car, &plants, a.seed, runs)?;
+    let (results, first, solves) = run_seeds(&design, &car, &plants, a.seed, runs)?;
     let t = first.expect("at least one run");
     let mut max_errors: Vec<f64> = results.iter().map(|r| r.max).collect();
     let mut end_errors: Vec<f64> = results.iter().map(|r| r.end).collect();
+    let mut rms_errors: Vec<f64> = results.iter().map(|r| r.rms).collect();
     let exact = sensing == Sensing::Exact;
     let seeds: Vec<serde_json::Value> = results
         .iter()
         .map(|r| {
-            let mut v = serde_json::json!({"seed": r.seed, "max_position_error_m": r.max, "end_position_error_m": r.end});
+            let mut v = serde_json::json!({"seed": r.seed, "max_position_error_m": r.max, "rms_position_error_m": r.rms, "end_position_error_m": r.end});
             if !exact {
                 v["max_estimate_error_m"] = r.estimate.into();
             }
@@ -175,6 +194,7 @@ pub fn run_track(a: TrackArgs) -> Result<(), String> {
         "offset_m": offset,
         "runs": runs,
         "max_position_error_m": spread(&mut max_errors),
+        "rms_position_error_m": spread(&mut rms_errors),
         "end_position_error_m": spread(&mut end_errors),
         "seeds": seeds,
     });
@@ -186,9 +206,22 @@ pub fn run_track(a: TrackArgs) -> Result<(), String> {
             "dropped": results.iter().map(|r| r.dropped).sum::<usize>(),
         });
     }
-    if let Controller::Mpc { horizon } = controller {
-        summary["horizon"] = horizon.into();
-        summary["qp"] = qp_figures(&moves);
+    match controller {
+        Controller::Mpc { horizon } => {
+            summary["horizon"] = horizon.into();
+            summary["qp"] = solve_figures(&solves);
+        }
+        Controller::Nmpc(o) => {
+            summary["horizon"] = o.horizon.into();
+            summary["newton_steps"] = o.newton_steps.into();
+            summary["budget_s"] = if o.budget_s.is_finite() {
+                o.budget_s.into()
+            } else {
+                serde_json::Value::Null
+            };
+            summary["nmpc"] = solve_figures(&solves);
+        }
+        _ => {}
     }
     let csv = robots::car::report::tracking_csv(&t).map_err(|e| e.to_string())?;
     let put = |e: robots::io::OutputError| e.to_string();
@@ -214,14 +247,25 @@ struct Plants<'a> {
 struct RunFigures {
     seed: u64,
     max: f64,
+    rms: f64,
     end: f64,
     estimate: f64,
     fused: usize,
     dropped: usize,
 }
 
+/// One stage's solve of the MPC or the NMPC: solved (else the LQ move), iterations, CPU and
+/// wall-clock time (s; the MPC's wall time is not measured, NaN).
+#[derive(Clone, Copy, Debug)]
+struct Solve {
+    solved: bool,
+    iterations: usize,
+    cpu_s: f64,
+    wall_s: f64,
+}
+
 /// The runs of seeds `seed … seed + runs − 1`: their figures, the first run's record and
-/// every MPC move.
+/// every MPC or NMPC solve.
 #[allow(clippy::type_complexity)]
 fn run_seeds(
     design: &TrackingDesign<'_>,
@@ -229,17 +273,10 @@ fn run_seeds(
     plants: &Plants<'_>,
     seed: u64,
     runs: u64,
-) -> Result<
-    (
-        Vec<RunFigures>,
-        Option<CarTracking>,
-        Vec<dmech_ocp::tracking::MpcMove<2>>,
-    ),
-    String,
-> {
+) -> Result<(Vec<RunFigures>, Option<CarTracking>, Vec<Solve>), String> {
     let mut results = Vec::new();
     let mut first = None;
-    let mut moves = Vec::new();
+    let mut solves = Vec::new();
     for i in 0..runs {
         let seed = seed.wrapping_add(i);
         let params = mismatched(&car.params, plants.error, seed);
@@ -249,15 +286,27 @@ fn run_seeds(
         results.push(RunFigures {
             seed,
             max: t.max_error(),
+            rms: t.rms_error(),
             end: t.end_error(),
             estimate: t.max_estimate_error(),
             fused: t.poses_fused,
             dropped: t.poses_dropped,
         });
-        moves.extend_from_slice(&t.mpc_moves);
+        solves.extend(t.mpc_moves.iter().map(|m| Solve {
+            solved: m.solved(),
+            iterations: m.iterations,
+            cpu_s: m.cpu_s,
+            wall_s: f64::NAN,
+        }));
+        solves.extend(t.nmpc_samples.iter().map(|m| Solve {
+            solved: m.solved,
+            iterations: m.iterations,
+            cpu_s: m.cpu_s,
+            wall_s: m.wall_s,
+        }));
         first.get_or_insert(t);
     }
-    Ok((results, first, moves))
+    Ok((results, first, solves))
 }
 
 /// `--delay-sweep`: for each mean pose delay, `n` seeds of the plants the options give,
@@ -321,8 +370,8 @@ fn delay_sweep(
     Ok(())
 }
 
-/// The one-line result of `car track` (and the QPs' figures for the MPC), and where the
-/// files are.
+/// The one-line result of `car track` (and the solves' figures for the MPC and the NMPC),
+/// and where the files are.
 fn say_tracked(
     name: &str,
     runs: u64,
@@ -338,20 +387,25 @@ fn say_tracked(
         match controller {
             Controller::Lq => "LQ",
             Controller::Mpc { .. } => "MPC",
+            Controller::Nmpc(_) => "NMPC",
             Controller::OpenLoop => "open loop",
         },
         1e3 * summary["max_position_error_m"]["median"].as_f64().unwrap_or(f64::NAN),
         1e3 * summary["max_position_error_m"]["p95"].as_f64().unwrap_or(f64::NAN),
         1e3 * summary["end_position_error_m"]["median"].as_f64().unwrap_or(f64::NAN)
     );
-    if let Some(qp) = summary.get("qp") {
-        say!(
-            "{} QPs: CPU per sample median {:.3} ms, max {:.3} ms; {} not solved (LQ move)",
-            qp["samples"],
-            1e3 * qp["cpu_s"]["median"].as_f64().unwrap_or(f64::NAN),
-            1e3 * qp["cpu_s"]["max"].as_f64().unwrap_or(f64::NAN),
-            qp["not_solved"]
-        );
+    for (key, what) in [("qp", "QPs"), ("nmpc", "NMPC solves")] {
+        if let Some(f) = summary.get(key) {
+            let ms = |q: &str| 1e3 * f["cpu_s"][q].as_f64().unwrap_or(f64::NAN);
+            say!(
+                "{} {what}: CPU per stage median {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} not solved (LQ move)",
+                f["samples"],
+                ms("median"),
+                ms("p99"),
+                ms("max"),
+                f["not_solved"]
+            );
+        }
     }
     say!(
         "wrote {}/{{tracking.csv, tracking.json, tracking_*.svg}}",
@@ -374,24 +428,37 @@ fn spread(values: &mut [f64]) -> serde_json::Value {
     })
 }
 
-/// The MPC's QPs over every run: how many, how many not solved, their iterations and the
-/// CPU time per sample (the calling thread's: set-up and solve), median and max.
-fn qp_figures(moves: &[dmech_ocp::tracking::MpcMove<2>]) -> serde_json::Value {
-    if moves.is_empty() {
+/// The MPC's QPs or the NMPC's solves over every run: how many, how many not solved (the
+/// LQ move applied), their iterations and the CPU time of the calling thread per stage
+/// (set-up and solve; the NMPC's also as wall-clock time), median, p99 and max.
+fn solve_figures(solves: &[Solve]) -> serde_json::Value {
+    if solves.is_empty() {
         return serde_json::json!({ "samples": 0 });
     }
-    let mut cpu: Vec<f64> = moves.iter().map(|m| m.cpu_s).collect();
-    let mut iterations: Vec<f64> = moves.iter().map(|m| m.iterations as f64).collect();
-    serde_json::json!({
-        "samples": moves.len(),
-        "not_solved": moves.iter().filter(|m| !m.solved()).count(),
+    let mut iterations: Vec<f64> = solves.iter().map(|m| m.iterations as f64).collect();
+    let times = |f: fn(&Solve) -> f64| {
+        let mut t: Vec<f64> = solves.iter().map(f).collect();
+        if t.iter().any(|v| v.is_nan()) {
+            return serde_json::Value::Null;
+        }
+        serde_json::json!({
+            "median": percentile(&mut t, 0.5),
+            "p99": percentile(&mut t, 0.99),
+            "max": percentile(&mut t, 1.0),
+        })
+    };
+    let mut figures = serde_json::json!({
+        "samples": solves.len(),
+        "not_solved": solves.iter().filter(|m| !m.solved).count(),
         "iterations": {
             "median": percentile(&mut iterations, 0.5),
             "max": percentile(&mut iterations, 1.0),
         },
-        "cpu_s": {
-            "median": percentile(&mut cpu, 0.5),
-            "max": percentile(&mut cpu, 1.0),
-        },
-    })
+        "cpu_s": times(|m| m.cpu_s),
+    });
+    let wall = times(|m| m.wall_s);
+    if !wall.is_null() {
+        figures["wall_s"] = wall;
+    }
+    figures
 }
