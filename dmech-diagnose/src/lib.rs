@@ -24,7 +24,8 @@
 //! input, for systems of the traits), [`session`] (a
 //! candidate fitted and scored, re-weighting, calibration), [`selection`] (the order of the
 //! diagnosis), [`verdict`] (its conclusion), [`system_plant`] (the plant of a system
-//! described by `dmech`'s traits, its prediction derived from them).
+//! described by `dmech`'s traits, its prediction derived from them), [`fixed_params`] (a
+//! system whose own parameters are not fitted, for it).
 
 #![warn(missing_docs)]
 
@@ -34,6 +35,7 @@ pub mod conditions;
 pub mod diagnosis;
 pub mod error;
 pub mod fit;
+pub mod fixed_params;
 pub mod identify;
 pub mod log;
 pub mod model;
@@ -50,6 +52,7 @@ mod window_memo;
 pub use actuators::{ActuatorFamily, ActuatorHypotheses};
 pub use diagnosis::{DiagnoseOptions, Diagnosis};
 pub use error::DiagnoseError;
+pub use fixed_params::FixedParams;
 pub use log::{ChannelSpec, MeasuredLog};
 pub use model::{Candidate, Catalogue, EffectSpec, ParamSpec};
 pub use readings::{ReadingFamily, ReadingHypotheses};

@@ -6,7 +6,8 @@
 //! window's initial state and the free parameters. No predictor is written by hand.
 //!
 //! The state of a window is `z = (coords(g), s, v)`: the group's coordinates
-//! (`LieGroup::coordinates`), the shape and the shape velocity. Between two rows of the log
+//! (`LieGroup::coordinates`), the shape and the shape velocity, less the shape positions
+//! that nothing reads ([`ObservedSystem::unread_shape`]). Between two rows of the log
 //! the command of the earlier row is held (zero-order hold) and the step is divided into
 //! [`SystemPlant::substeps`] Runge–Kutta steps.
 
@@ -75,8 +76,16 @@ pub trait ObservedSystem<const DOF: usize, const NS: usize, const NU: usize>: Sy
     ) -> SVector<T, NS> {
         SVector::zeros()
     }
-    /// `(state, channel)` pairs of [`Plant::additive`], state indices into `z`.
+    /// `(state, channel)` pairs of [`Plant::additive`], state indices into the whole
+    /// `z = (coords(g), s, v)`.
     fn additive(&self) -> &[(usize, usize)] {
+        &[]
+    }
+    /// Shape positions that neither the equations of motion (they must be among the
+    /// system's `ignorable_shape`) nor any reading reads, such as a motor's charge: a
+    /// window cannot determine them, so they are held at zero and not fitted. Default:
+    /// none.
+    fn unread_shape(&self) -> &[usize] {
         &[]
     }
     /// Operating conditions the residual may follow. Default: none (the diagnosis adds a
@@ -100,6 +109,11 @@ pub struct SystemPlant<O, const DOF: usize, const NS: usize, const NU: usize> {
     observed: O,
     substeps: usize,
     n_coords: usize,
+    /// The components of `z = (coords(g), s, v)` a window fits (all but the unread shape
+    /// positions), in order.
+    fitted: Vec<usize>,
+    /// [`ObservedSystem::additive`] in the fitted state's indices.
+    additive: Vec<(usize, usize)>,
 }
 
 type Group<O, T, const DOF: usize, const NS: usize, const NU: usize> = <<O as ObservedSystem<
@@ -118,12 +132,36 @@ where
 {
     /// The plant of `observed`, each step of the log divided into `substeps` Runge–Kutta
     /// steps (at least one).
+    ///
+    /// # Panics
+    /// If [`ObservedSystem::unread_shape`] names a shape position that the system's
+    /// `ignorable_shape` does not (a wrong declaration: holding it at zero would change
+    /// the motion).
     pub fn new(observed: O, substeps: usize) -> Self {
         let n_coords = Group::<O, f64, DOF, NS, NU>::identity().coordinates().len();
+        let nominal = observed.catalogue().nominal();
+        let ignorable = observed.system::<f64>(&nominal).ignorable_shape().to_vec();
+        let unread = observed.unread_shape();
+        for i in unread {
+            assert!(
+                ignorable.contains(i),
+                "unread shape position {i} is not among the system's ignorable_shape"
+            );
+        }
+        let fitted: Vec<usize> = (0..n_coords + 2 * NS)
+            .filter(|&i| !(i >= n_coords && i < n_coords + NS && unread.contains(&(i - n_coords))))
+            .collect();
+        let additive = observed
+            .additive()
+            .iter()
+            .filter_map(|&(i, c)| fitted.iter().position(|&f| f == i).map(|j| (j, c)))
+            .collect();
         SystemPlant {
             observed,
             substeps: substeps.max(1),
             n_coords,
+            fitted,
+            additive,
         }
     }
 
@@ -137,17 +175,27 @@ where
         self.substeps
     }
 
-    /// The components of the state `z = (coords(g), s, v)`.
+    /// The number of group coordinates at the head of `z = (coords(g), s, v)`.
     pub fn n_coords(&self) -> usize {
         self.n_coords
     }
 
-    /// The readings the model predicts over the whole of `log` from the state `z0` at its
-    /// first row, with the commands of the log and the parameters `theta` (reading
-    /// hypotheses applied): a simulation, e.g. to generate a log with a hidden effect.
-    /// `None` if the model cannot be simulated there.
+    /// The whole state from a window's fitted one: the unread shape positions at zero.
+    fn expand<T: FitScalar>(&self, z: &[T]) -> Vec<T> {
+        let mut full = vec![T::zero(); self.n_coords + 2 * NS];
+        for (&i, &x) in self.fitted.iter().zip(z) {
+            full[i] = x;
+        }
+        full
+    }
+
+    /// The readings the model predicts over the whole of `log` from the state
+    /// `z0 = (coords(g), s, v)` at its first row, with the commands of the log and the
+    /// parameters `theta` (reading hypotheses applied): a simulation, e.g. to generate a
+    /// log with a hidden effect. `None` if the model cannot be simulated there.
     pub fn simulate(&self, log: &MeasuredLog, z0: &[f64], theta: &[f64]) -> Option<Vec<f64>> {
-        let mut y = self.predict(log, 0, log.len(), z0, theta)?;
+        let fitted: Vec<f64> = self.fitted.iter().map(|&i| z0[i]).collect();
+        let mut y = self.predict(log, 0, log.len(), &fitted, theta)?;
         if let Some(r) = self.observed.reading_hypotheses() {
             r.apply(&mut y, self.observed.channels().len(), theta);
         }
@@ -218,16 +266,17 @@ where
         self.observed.catalogue()
     }
     fn state_dim(&self) -> usize {
-        self.n_coords + 2 * NS
+        self.fitted.len()
     }
     fn additive(&self) -> &[(usize, usize)] {
-        self.observed.additive()
+        &self.additive
     }
     fn history(&self, _h: f64) -> usize {
         0
     }
     fn initial_state(&self, log: &MeasuredLog, start: usize, len: usize) -> Vec<f64> {
-        self.observed.initial_state(log, start, len)
+        let full = self.observed.initial_state(log, start, len);
+        self.fitted.iter().map(|&i| full[i]).collect()
     }
     fn predict<T: FitScalar>(
         &self,
@@ -240,7 +289,7 @@ where
         let sys = self.observed.system(theta);
         let n_channels = self.observed.channels().len();
         let dt = log.h / self.substeps as f64;
-        let mut z = z0.to_vec();
+        let mut z = self.expand(z0);
         let mut out = Vec::with_capacity(len * n_channels);
         for k in start..start + len {
             let mut u = self.observed.input(log.input(k), theta);
