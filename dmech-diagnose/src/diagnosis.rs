@@ -54,6 +54,10 @@ pub struct Diagnosis {
     pub cause: String,
     /// Indices of the named effects in the plant's catalogue.
     pub effects: Vec<usize>,
+    /// Effects the log cannot tell from the cause: alone, each explains it as well (BIC
+    /// within [`crate::verdict::INDISTINGUISHABLE_BIC`] of the cause's own), nameable and
+    /// fitted. Empty when the verdict is not an effect.
+    pub alternatives: Vec<String>,
     /// The chosen model, with its standard deviations recomputed at its own point (the
     /// base model, nominal or calibrated, when no effect is named).
     pub chosen: Scored,

@@ -14,7 +14,7 @@ use super::log::MeasuredLog;
 use super::model::Candidate;
 use super::noise::{normalised_error, raw_noise, residual_noise};
 use super::session::{calibrate, joint_refit, screened_only, References, Scored, Session};
-use super::verdict::{conclude, finite_outputs, informative};
+use super::verdict::{conclude, finite_outputs, informative, name_alternatives, single_scores};
 use super::Plant;
 use std::time::Instant;
 
@@ -180,6 +180,7 @@ pub fn diagnose<P: Plant>(
         .filter(|&e| cat.effects[e].reading.is_none_or(|c| log.present[c]))
         .collect();
     single_effects(&ss, &open, &base, opts, &mut candidates)?;
+    let singles = single_scores(&candidates, cat);
     // A single effect is named only if it pays over the base model (`Session::pays`).
     let unpaid: Vec<String> = candidates
         .iter()
@@ -260,7 +261,7 @@ pub fn diagnose<P: Plant>(
     {
         c.fit.std = chosen.fit.std.clone();
     }
-    let d = conclude(
+    let mut d = conclude(
         &ss,
         log,
         opts,
@@ -272,6 +273,7 @@ pub fn diagnose<P: Plant>(
         calibration,
         sigma,
     );
+    name_alternatives(&mut d, &singles);
     finite_outputs(d)
 }
 

@@ -7,6 +7,7 @@ use super::conditions::conditions;
 use super::diagnosis::{DiagnoseOptions, Diagnosis};
 use super::error::DiagnoseError;
 use super::log::MeasuredLog;
+use super::model::Catalogue;
 use super::noise::{normalised_error, residual_noise};
 use super::session::{Calibration, Scored, Session};
 use super::Plant;
@@ -107,6 +108,7 @@ pub(super) fn conclude<P: Plant>(
     Diagnosis {
         cause,
         effects,
+        alternatives: Vec::new(),
         chosen,
         nominal,
         candidates,
@@ -128,6 +130,47 @@ pub(super) fn conclude<P: Plant>(
         flagged,
         verdict,
         elapsed_s: ss.t0.elapsed().as_secs_f64(),
+    }
+}
+
+/// The BIC difference below which two single-effect explanations are not told apart: a
+/// difference of 2 is posterior odds of `e:1`, "not worth more than a bare mention"
+/// (Kass and Raftery, 1995). Two effects that act alike on the log (a constant drive
+/// friction and a negative voltage offset on a car that never reverses) score within it.
+pub const INDISTINGUISHABLE_BIC: f64 = 2.0;
+
+/// The single effects, each fitted alone and nameable, with their scores under the first
+/// noise weights (the scores [`INDISTINGUISHABLE_BIC`] compares; a chosen candidate is
+/// re-scored under its own weights later).
+pub(super) fn single_scores(candidates: &[Scored], cat: &Catalogue) -> Vec<(String, f64)> {
+    candidates
+        .iter()
+        .filter(|c| c.fitted && c.nameable())
+        .filter_map(|c| match c.fit.candidate.effects[..] {
+            [e] => Some((cat.effects[e].name.clone(), c.score)),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Name the alternatives of a verdict that names an effect: the single effects of
+/// `singles` ([`single_scores`]) other than the cause that score within
+/// [`INDISTINGUISHABLE_BIC`] of the cause's own, in `alternatives` and in the verdict.
+pub(super) fn name_alternatives(d: &mut Diagnosis, singles: &[(String, f64)]) {
+    let Some(&(_, own)) = singles.iter().find(|(n, _)| *n == d.cause) else {
+        return;
+    };
+    d.alternatives = singles
+        .iter()
+        .filter(|(n, s)| *n != d.cause && (s - own).abs() <= INDISTINGUISHABLE_BIC)
+        .map(|(n, _)| n.clone())
+        .collect();
+    if !d.alternatives.is_empty() {
+        d.verdict.push_str(&format!(
+            " The log cannot tell {} from {}: alone, each explains it as well (BIC within {INDISTINGUISHABLE_BIC}).",
+            d.cause,
+            d.alternatives.join(", ")
+        ));
     }
 }
 

@@ -117,6 +117,7 @@ pub fn diagnosis_json<P: Plant>(plant: &P, d: &Diagnosis) -> Value {
     let mut out = json!({
         "cause": d.cause,
         "effects": d.effects.iter().map(|&e| cat.effects[e].name.clone()).collect::<Vec<_>>(),
+        "alternatives": d.alternatives,
         "parameters": parameters,
         "uncertainty": uncertainty,
         "error_before": d.error_before,
