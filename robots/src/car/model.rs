@@ -114,6 +114,13 @@ impl PrincipalKinematicSystem<3, NS, NU> for Car {
             - vpsi * s[2] * (p.k_e * p.n)
     }
 
+    /// The rear-wheel angle `ψ` (the connection and the forcing do not read it) and the
+    /// motor's charge `q` (`ℓ` reads it only in `−ψ̇ q k_e n`, whose change under
+    /// `q → q + c` is the total derivative of `−c k_e n ψ`).
+    fn ignorable_shape(&self) -> &[usize] {
+        &[1, 2]
+    }
+
     fn connection<T: Lift<f64>>(&self, s: &SVector<T, NS>) -> SMatrix<T, 3, NS> {
         let p = &self.params;
         let z = T::zero();

@@ -22,6 +22,7 @@
 mod common;
 
 mod car;
+mod car_diagnose;
 mod car_nmpc;
 mod car_sensors;
 mod diagnose;

@@ -13,6 +13,7 @@
 //!
 //! One module's tests: `cargo test -p robots --test diagnose -- recovery::`.
 
+mod car;
 mod hidden;
 mod prediction;
 mod readings;

@@ -1,6 +1,7 @@
 //! `car`: plan and simulate the front-wheel-steered, rear-driven car (`docs/car.md`). The
 //! second robot's tool: everything it plans with comes from `dmech` and `dmech-ocp`.
 
+mod diagnose;
 mod track;
 
 use clap::{Parser, Subcommand};
@@ -34,6 +35,8 @@ enum Command {
     Plan(PlanArgs),
     Simulate(SimulateArgs),
     Track(track::TrackArgs),
+    Generate(diagnose::GenerateArgs),
+    Diagnose(diagnose::DiagnoseArgs),
 }
 
 /// The schemes `car plan` offers: the variational ones.
@@ -263,6 +266,8 @@ fn run_command() -> ExitCode {
         Command::Plan(a) => run_plan(a),
         Command::Simulate(a) => run_simulate(a),
         Command::Track(a) => track::run_track(a),
+        Command::Generate(a) => diagnose::run_generate(a),
+        Command::Diagnose(a) => diagnose::run_diagnose(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
