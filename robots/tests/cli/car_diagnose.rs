@@ -13,7 +13,7 @@ fn a_generated_drive_friction_is_diagnosed() {
         car()
             .args([
                 "generate",
-                "lane-change",
+                "parallel-park",
                 "--effect",
                 "drive_friction=0.004",
             ])
