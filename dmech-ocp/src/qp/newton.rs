@@ -103,9 +103,13 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         let (head, tail) = fac.split_at_mut(k + 1);
         let (f, next) = (&mut head[k], &tail[0]);
         let weight = f.row_weight(&sides[k]);
-        let pa = dense::mul(&next.p, &st.a);
         let pb = dense::mul(&next.p, &st.b);
-        let mut q_hat = st.q + dense::mul(qp.a_t(k), &pa);
+        // Q̂ = Q + AᵀPA, its upper triangle alone (all that P_k reads); none at k = 0,
+        // where x_0 is held and P_0 not formed.
+        let mut q_hat = st.q;
+        if k > 0 {
+            q_hat += dense::tr_mul_upper(&st.a, &dense::mul(&next.p, &st.a));
+        }
         // Ŝ = Sᵀ + BᵀPA = (S + AᵀPB)ᵀ: axpys over Aᵀ's columns.
         let mut s_hat = (st.s + dense::mul(qp.a_t(k), &pb)).transpose();
         let mut r_hat = st.r + dense::tr_mul(&st.b, &pb) + eye_u;
@@ -115,7 +119,7 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         f.gain = -dense::cholesky_solve(&f.chol, &s_hat);
         if k > 0 {
             // P_k = Q̂ + Ŝᵀ K, its upper triangle mirrored (the sum is symmetric but for
-            // rounding).
+            // rounding; Q̂'s lower triangle is not formed).
             let p = q_hat + dense::tr_mul_narrow(&s_hat, &f.gain);
             for c in 0..NX {
                 for r in 0..c {
