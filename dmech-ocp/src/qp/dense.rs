@@ -130,6 +130,37 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     (acc[0] + acc[2]) + (acc[1] + acc[3])
 }
 
+/// The lower-triangular Cholesky factor `L` of `M = L Lᵀ`, `None` where a pivot is not
+/// positive: nalgebra's `Cholesky::new(M).unpack()` operation for operation (left-looking,
+/// a column at a time), without its generic set-up, which cost as much as the 2 × 2
+/// factorisation of `R̂` itself.
+#[inline]
+pub(crate) fn cholesky<const N: usize>(m: &SMatrix<f64, N, N>) -> Option<SMatrix<f64, N, N>> {
+    let mut l = *m;
+    for j in 0..N {
+        for k in 0..j {
+            let f = l[(j, k)];
+            for i in j..N {
+                l[(i, j)] -= f * l[(i, k)];
+            }
+        }
+        // A zero, negative or NaN pivot fails.
+        let pivot = l[(j, j)];
+        if pivot.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let d = pivot.sqrt();
+        l[(j, j)] = d;
+        for i in j + 1..N {
+            l[(i, j)] /= d;
+        }
+        for i in 0..j {
+            l[(i, j)] = 0.0;
+        }
+    }
+    Some(l)
+}
+
 /// `X = (L Lᵀ)⁻¹ B` for a lower-triangular `L` with a positive diagonal: forward and back
 /// substitution, column by column.
 #[inline]
@@ -155,4 +186,20 @@ pub(crate) fn cholesky_solve<const N: usize, const C: usize>(
         }
     }
     x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_is_nalgebras_to_the_bit() {
+        let b = SMatrix::<f64, 3, 3>::new(2.0, 0.3, -1.1, 0.7, 1.9, 0.2, -0.4, 0.05, 3.3);
+        let m = b * b.transpose() + SMatrix::identity() * 1e-3;
+        let ours = cholesky(&m).expect("positive definite");
+        assert_eq!(ours, m.cholesky().expect("positive definite").unpack());
+        let indefinite = SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 1.0);
+        assert!(cholesky(&indefinite).is_none());
+        assert!(cholesky(&SMatrix::<f64, 2, 2>::zeros()).is_none());
+    }
 }

@@ -114,8 +114,7 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         let mut s_hat = (st.s + dense::mul(qp.a_t(k), &pb)).transpose();
         let mut r_hat = st.r + dense::tr_mul(&st.b, &pb) + eye_u;
         condense(rows, &weight, &mut q_hat, &mut s_hat, &mut r_hat);
-        let chol = r_hat.cholesky().ok_or(NotPositiveDefinite(k))?;
-        f.chol = chol.unpack();
+        f.chol = dense::cholesky(&r_hat).ok_or(NotPositiveDefinite(k))?;
         f.gain = -dense::cholesky_solve(&f.chol, &s_hat);
         if k > 0 {
             // P_k = Q̂ + Ŝᵀ K, its upper triangle mirrored (the sum is symmetric but for
