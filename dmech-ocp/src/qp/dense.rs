@@ -91,17 +91,6 @@ pub(crate) fn tr_mul_upper<const K: usize, const N: usize>(
     out
 }
 
-/// `Aᵀ B` for a wide `A` of few rows (`K`, the inputs): each column of the product the
-/// `axpy`s of `Aᵀ`'s columns by that column of `B`, rather than `R · C` dot products of
-/// length `K`.
-#[inline]
-pub(crate) fn tr_mul_narrow<const K: usize, const R: usize, const C: usize>(
-    a: &SMatrix<f64, K, R>,
-    b: &SMatrix<f64, K, C>,
-) -> SMatrix<f64, R, C> {
-    mul(&a.transpose(), b)
-}
-
 /// `Aᵀ v`.
 #[inline]
 pub(crate) fn tr_mul_vec<const K: usize, const R: usize>(

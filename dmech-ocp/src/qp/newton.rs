@@ -117,15 +117,18 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         f.chol = dense::cholesky(&r_hat).ok_or(NotPositiveDefinite(k))?;
         f.gain = -dense::cholesky_solve(&f.chol, &s_hat);
         if k > 0 {
-            // P_k = Q̂ + Ŝᵀ K, its upper triangle mirrored (the sum is symmetric but for
-            // rounding; Q̂'s lower triangle is not formed).
-            let p = q_hat + dense::tr_mul_narrow(&s_hat, &f.gain);
+            // P_k = Q̂ + Ŝᵀ K, its upper triangle formed and mirrored (the sum is
+            // symmetric but for rounding; Q̂'s lower triangle is not formed).
             for c in 0..NX {
-                for r in 0..c {
-                    f.p[(r, c)] = p[(r, c)];
-                    f.p[(c, r)] = p[(r, c)];
+                for r in 0..=c {
+                    let mut sk = 0.0;
+                    for i in 0..NU {
+                        sk += s_hat[(i, r)] * f.gain[(i, c)];
+                    }
+                    let p = q_hat[(r, c)] + sk;
+                    f.p[(r, c)] = p;
+                    f.p[(c, r)] = p;
                 }
-                f.p[(c, c)] = p[(c, c)];
             }
         }
     }
