@@ -66,31 +66,6 @@ pub(crate) fn tr_mul<const K: usize, const R: usize, const C: usize>(
     out
 }
 
-/// The upper triangle of `Aᵀ B` for a product known to be symmetric (`Aᵀ P A` with `B =
-/// P A`), the strict lower triangle left zero: half the dot products of [`tr_mul`], a
-/// zero column of `A` or of `B` skipped.
-#[inline]
-pub(crate) fn tr_mul_upper<const K: usize, const N: usize>(
-    a: &SMatrix<f64, K, N>,
-    b: &SMatrix<f64, K, N>,
-) -> SMatrix<f64, N, N> {
-    let zero = |col: &[f64]| col.iter().all(|&x| x == 0.0);
-    let a_zero: [bool; N] = std::array::from_fn(|r| zero(&a.as_slice()[r * K..(r + 1) * K]));
-    let mut out = SMatrix::<f64, N, N>::zeros();
-    for c in 0..N {
-        let b_col = &b.as_slice()[c * K..(c + 1) * K];
-        if zero(b_col) {
-            continue;
-        }
-        for r in 0..=c {
-            if !a_zero[r] {
-                out[(r, c)] = dot(&a.as_slice()[r * K..(r + 1) * K], b_col);
-            }
-        }
-    }
-    out
-}
-
 /// `Aᵀ v`.
 #[inline]
 pub(crate) fn tr_mul_vec<const K: usize, const R: usize>(
