@@ -66,6 +66,48 @@ pub(crate) fn tr_mul<const K: usize, const R: usize, const C: usize>(
     out
 }
 
+/// `A B` for a product known to be symmetric (`Aᵀ P A` as `Aᵀ (P A)`), formed on and
+/// above the diagonal alone, by blocks of four rows (the entries below the diagonal
+/// within a block formed too, the rest zero): each entry summed as [`mul`] sums it, to the
+/// bit, but in a register rather than through memory, and half the blocks.
+#[inline]
+pub(crate) fn mul_upper<const N: usize, const K: usize>(
+    a: &SMatrix<f64, N, K>,
+    b: &SMatrix<f64, K, N>,
+) -> SMatrix<f64, N, N> {
+    const W: usize = 4;
+    let mut out = SMatrix::<f64, N, N>::zeros();
+    for c in 0..N {
+        let b_col = &b.as_slice()[c * K..(c + 1) * K];
+        for r0 in (0..=c).step_by(W) {
+            let mut acc = [0.0; W];
+            if r0 + W <= N {
+                for k in 0..K {
+                    let s = b_col[k];
+                    if s != 0.0 {
+                        let a_block = &a.as_slice()[k * N + r0..k * N + r0 + W];
+                        for r in 0..W {
+                            acc[r] += a_block[r] * s;
+                        }
+                    }
+                }
+            } else {
+                for k in 0..K {
+                    let s = b_col[k];
+                    if s != 0.0 {
+                        for r in r0..N {
+                            acc[r - r0] += a[(r, k)] * s;
+                        }
+                    }
+                }
+            }
+            let len = W.min(N - r0);
+            out.as_mut_slice()[c * N + r0..c * N + r0 + len].copy_from_slice(&acc[..len]);
+        }
+    }
+    out
+}
+
 /// `Aᵀ v`.
 #[inline]
 pub(crate) fn tr_mul_vec<const K: usize, const R: usize>(
@@ -165,5 +207,19 @@ mod tests {
         let indefinite = SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 1.0);
         assert!(cholesky(&indefinite).is_none());
         assert!(cholesky(&SMatrix::<f64, 2, 2>::zeros()).is_none());
+    }
+
+    #[test]
+    fn mul_upper_is_muls_upper_triangle_to_the_bit() {
+        let a = SMatrix::<f64, 10, 10>::from_fn(|r, c| ((r * 7 + c * 3) % 11) as f64 / 7.0 - 0.6);
+        let mut p = a * a.transpose();
+        p.column_mut(8).fill(0.0);
+        p[(2, 5)] = 0.0;
+        let (full, upper) = (mul(&a.transpose(), &p), mul_upper(&a.transpose(), &p));
+        for c in 0..10 {
+            for r in 0..=c {
+                assert_eq!(full[(r, c)].to_bits(), upper[(r, c)].to_bits(), "({r}, {c})");
+            }
+        }
     }
 }

@@ -104,13 +104,13 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         let (f, next) = (&mut head[k], &tail[0]);
         let weight = f.row_weight(&sides[k]);
         let pb = dense::mul(&next.p, &st.b);
-        // Q̂ = Q + AᵀPA, none at k = 0, where x_0 is held and P_0 not formed. (Its upper
-        // triangle alone, all that P_k reads, by dot products was 3 % faster per QP but
-        // sums in another order, and the closed loop's quantised sensors turn a change
-        // of 1e-13 into another trajectory.)
+        // Q̂ = Q + AᵀPA, its upper triangle (all that P_k reads), none at k = 0, where x_0
+        // is held and P_0 not formed. Each entry summed in mul's order: the closed loop's
+        // quantised sensors turn a change of 1e-13 in a QP's result into another
+        // trajectory.
         let mut q_hat = st.q;
         if k > 0 {
-            q_hat += dense::mul(qp.a_t(k), &dense::mul(&next.p, &st.a));
+            q_hat += dense::mul_upper(qp.a_t(k), &dense::mul(&next.p, &st.a));
         }
         // Ŝ = Sᵀ + BᵀPA = (S + AᵀPB)ᵀ: axpys over Aᵀ's columns.
         let mut s_hat = (st.s + dense::mul(qp.a_t(k), &pb)).transpose();
