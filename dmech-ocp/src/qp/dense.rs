@@ -218,7 +218,11 @@ mod tests {
         let (full, upper) = (mul(&a.transpose(), &p), mul_upper(&a.transpose(), &p));
         for c in 0..10 {
             for r in 0..=c {
-                assert_eq!(full[(r, c)].to_bits(), upper[(r, c)].to_bits(), "({r}, {c})");
+                assert_eq!(
+                    full[(r, c)].to_bits(),
+                    upper[(r, c)].to_bits(),
+                    "({r}, {c})"
+                );
             }
         }
     }

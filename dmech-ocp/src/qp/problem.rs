@@ -357,8 +357,7 @@ fn diagonal_hessian<const NX: usize, const NU: usize, const NC: usize>(
     fn off_diagonal_zero<const N: usize>(m: &SMatrix<f64, N, N>) -> bool {
         (0..N).all(|c| (0..N).all(|r| r == c || m[(r, c)] == 0.0))
     }
-    if st.s.iter().any(|&v| v != 0.0) || !off_diagonal_zero(&st.q) || !off_diagonal_zero(&st.r)
-    {
+    if st.s.iter().any(|&v| v != 0.0) || !off_diagonal_zero(&st.q) || !off_diagonal_zero(&st.r) {
         return false;
     }
     let eps = 1e-12 * (NX + NU) as f64 * st.q.amax().max(st.r.amax());
