@@ -103,26 +103,34 @@ pub(crate) fn factor<const NX: usize, const NU: usize, const NC: usize>(
         let (head, tail) = fac.split_at_mut(k + 1);
         let (f, next) = (&mut head[k], &tail[0]);
         let weight = f.row_weight(&sides[k]);
-        let pa = dense::mul(&next.p, &st.a);
         let pb = dense::mul(&next.p, &st.b);
-        let mut q_hat = st.q + dense::mul(qp.a_t(k), &pa);
+        // Q̂ = Q + AᵀPA, its upper triangle (all that P_k reads), none at k = 0, where x_0
+        // is held and P_0 not formed. Each entry summed in mul's order: the closed loop's
+        // quantised sensors turn a change of 1e-13 in a QP's result into another
+        // trajectory.
+        let mut q_hat = st.q;
+        if k > 0 {
+            q_hat += dense::mul_upper(qp.a_t(k), &dense::mul(&next.p, &st.a));
+        }
         // Ŝ = Sᵀ + BᵀPA = (S + AᵀPB)ᵀ: axpys over Aᵀ's columns.
         let mut s_hat = (st.s + dense::mul(qp.a_t(k), &pb)).transpose();
         let mut r_hat = st.r + dense::tr_mul(&st.b, &pb) + eye_u;
         condense(rows, &weight, &mut q_hat, &mut s_hat, &mut r_hat);
-        let chol = r_hat.cholesky().ok_or(NotPositiveDefinite(k))?;
-        f.chol = chol.unpack();
+        f.chol = dense::cholesky(&r_hat).ok_or(NotPositiveDefinite(k))?;
         f.gain = -dense::cholesky_solve(&f.chol, &s_hat);
         if k > 0 {
-            // P_k = Q̂ + Ŝᵀ K, its upper triangle mirrored (the sum is symmetric but for
-            // rounding).
-            let p = q_hat + dense::tr_mul_narrow(&s_hat, &f.gain);
+            // P_k = Q̂ + Ŝᵀ K, its upper triangle formed and mirrored (the sum is
+            // symmetric but for rounding; Q̂'s lower triangle is not formed).
             for c in 0..NX {
-                for r in 0..c {
-                    f.p[(r, c)] = p[(r, c)];
-                    f.p[(c, r)] = p[(r, c)];
+                for r in 0..=c {
+                    let mut sk = 0.0;
+                    for i in 0..NU {
+                        sk += s_hat[(i, r)] * f.gain[(i, c)];
+                    }
+                    let p = q_hat[(r, c)] + sk;
+                    f.p[(r, c)] = p;
+                    f.p[(c, r)] = p;
                 }
-                f.p[(c, c)] = p[(c, c)];
             }
         }
     }

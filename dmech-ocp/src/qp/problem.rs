@@ -331,6 +331,9 @@ fn validate_stage<const NX: usize, const NU: usize, const NC: usize>(
     finite(k, "q", st.q_vec.as_slice())?;
     finite(k, "r", st.r_vec.as_slice())?;
     validate_rows(k, &st.rows)?;
+    if diagonal_hessian(st) {
+        return Ok(());
+    }
     // [Q S; Sᵀ R] by its entries.
     let h = |i: usize, j: usize| match (i < NX, j < NX) {
         (true, true) => st.q[(i, j)],
@@ -342,6 +345,23 @@ fn validate_stage<const NX: usize, const NU: usize, const NC: usize>(
         true => Ok(()),
         false => Err(QpError::NotConvex { stage: k }),
     }
+}
+
+/// Whether the stage's Hessian `[Q S; Sᵀ R]` is diagonal and semidefinite: `S = 0`, `Q`
+/// and `R` without off-diagonal entries and every diagonal entry at least `−ε` (the
+/// MPC's stages). [`positive_semidefinite_by`] gives the same answer by its entries, at
+/// several times the cost; `false` says only that the fast test does not apply or fails.
+fn diagonal_hessian<const NX: usize, const NU: usize, const NC: usize>(
+    st: &Stage<NX, NU, NC>,
+) -> bool {
+    fn off_diagonal_zero<const N: usize>(m: &SMatrix<f64, N, N>) -> bool {
+        (0..N).all(|c| (0..N).all(|r| r == c || m[(r, c)] == 0.0))
+    }
+    if st.s.iter().any(|&v| v != 0.0) || !off_diagonal_zero(&st.q) || !off_diagonal_zero(&st.r) {
+        return false;
+    }
+    let eps = 1e-12 * (NX + NU) as f64 * st.q.amax().max(st.r.amax());
+    (0..NX).all(|i| st.q[(i, i)] >= -eps) && (0..NU).all(|i| st.r[(i, i)] >= -eps)
 }
 
 fn validate_rows<const NX: usize, const NU: usize, const NC: usize>(
@@ -470,6 +490,23 @@ mod tests {
         assert!(!positive_semidefinite(&indefinite_block));
         let diagonal = SMatrix::<f64, 2, 2>::new(3.0, 0.0, 0.0, 0.0);
         assert!(positive_semidefinite(&diagonal));
+    }
+
+    #[test]
+    fn diagonal_hessians_take_the_fast_test_with_the_same_answer() {
+        let mut st = Stage::<3, 2, 1>::zeros();
+        st.q = SMatrix::from_diagonal(&SVector::from([3000.0, 0.0, 1e-9]));
+        st.r = SMatrix::from_diagonal(&SVector::from([2.0, 2.0]));
+        assert!(diagonal_hessian(&st));
+        assert!(validate_stage(0, &st).is_ok());
+        st.q[(1, 1)] = -1e-3;
+        assert!(!diagonal_hessian(&st));
+        assert_eq!(validate_stage(0, &st), Err(QpError::NotConvex { stage: 0 }));
+        // x_1 (no cost of its own) coupled to u_0: indefinite.
+        st.q[(1, 1)] = 0.0;
+        st.s[(1, 0)] = 1.0;
+        assert!(!diagonal_hessian(&st));
+        assert_eq!(validate_stage(0, &st), Err(QpError::NotConvex { stage: 0 }));
     }
 
     #[test]
