@@ -89,8 +89,12 @@ pub trait FitScalar: Real + Lift<Self> {
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = Self>;
 }
 
-/// The closed form of `sys` where it has one and nothing is added to its forcing.
-fn closed_form_if_unforced<S, T, const DOF: usize, const NS: usize, const NU: usize>(
+type Dv<T, const N: usize> = num_dual::DualVec<T, nalgebra::Const<N>>;
+
+/// [`FitScalar::shape_acceleration`] for a scalar `T` that names the nested duals
+/// `acceleration_with_force` needs: the system's closed form where it has one and `f_ext`
+/// vanishes, the generic equations of motion otherwise.
+fn shape_acceleration_in<S, T, const DOF: usize, const NS: usize, const NU: usize>(
     sys: &S,
     s: &SVector<T, NS>,
     v: &SVector<T, NS>,
@@ -100,12 +104,18 @@ fn closed_form_if_unforced<S, T, const DOF: usize, const NS: usize, const NU: us
 where
     S: PrincipalKinematicSystem<DOF, NS, NU, Param = T>,
     T: FitScalar,
+    Dv<T, NS>: Lift<T>,
+    Dv<T, DOF>: Lift<T>,
+    Dv<Dv<T, NS>, NS>: Lift<T>,
+    num_dual::Dual<T>: Lift<T>,
+    Dv<num_dual::Dual<T>, NS>: Lift<T>,
 {
-    if f_ext.iter().all(FitScalar::vanishes) {
+    let closed = if f_ext.iter().all(FitScalar::vanishes) {
         sys.closed_form_acceleration(s, v, u)
     } else {
         None
-    }
+    };
+    closed.or_else(|| acceleration_with_force::<S, T, DOF, NS, NU>(sys, s, v, u, f_ext))
 }
 
 impl FitScalar for f64 {
@@ -123,8 +133,7 @@ impl FitScalar for f64 {
     where
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = f64>,
     {
-        closed_form_if_unforced::<S, f64, DOF, NS, NU>(sys, s, v, u, f_ext)
-            .or_else(|| acceleration_with_force::<S, f64, DOF, NS, NU>(sys, s, v, u, f_ext))
+        shape_acceleration_in::<S, f64, DOF, NS, NU>(sys, s, v, u, f_ext)
     }
 }
 
@@ -148,8 +157,7 @@ impl<const N: usize> FitScalar for DualSVec64<N> {
     where
         S: PrincipalKinematicSystem<DOF, NS, NU, Param = Self>,
     {
-        closed_form_if_unforced::<S, Self, DOF, NS, NU>(sys, s, v, u, f_ext)
-            .or_else(|| acceleration_with_force::<S, Self, DOF, NS, NU>(sys, s, v, u, f_ext))
+        shape_acceleration_in::<S, Self, DOF, NS, NU>(sys, s, v, u, f_ext)
     }
 }
 
