@@ -73,14 +73,20 @@ impl CarObserved {
         // Offsets: a tracker's heading zero and a steering encoder's zero within 0.05 rad
         // (3°), a MEMS gyro's bias within 0.1 rad/s; none on x, y and the wheel angle,
         // which a window's fitted state absorbs.
-        let channels = vec![
-            channel("x", "m", 100.0, 0.0, false),
-            channel("y", "m", 100.0, 0.0, false),
-            channel("theta", "rad", 1e3, 0.05, true),
-            channel("steer", "rad", 1.6, 0.05, false),
-            channel("wheel", "rad", 1e5, 0.0, false),
-            channel("yaw_rate", "rad/s", 50.0, 0.1, false),
+        // Per channel of `CHANNELS`: unit, range, offset limit, wraps.
+        let specs = [
+            ("m", 100.0, 0.0, false),
+            ("m", 100.0, 0.0, false),
+            ("rad", 1e3, 0.05, true),
+            ("rad", 1.6, 0.05, false),
+            ("rad", 1e5, 0.0, false),
+            ("rad/s", 50.0, 0.1, false),
         ];
+        let channels: Vec<ChannelSpec> = CHANNELS
+            .iter()
+            .zip(specs)
+            .map(|(name, (unit, range, lim, wraps))| channel(name, unit, range, lim, wraps))
+            .collect();
         let additive = [(0, 0), (1, 1), (4, 4)];
         let readings = ReadingHypotheses::declare(&mut cat, &channels, &additive, &[]);
         let inputs: Vec<String> = INPUTS.iter().map(|s| s.to_string()).collect();

@@ -61,6 +61,25 @@ fn calibration_json(cat: &Catalogue, d: &Diagnosis) -> Value {
     })
 }
 
+/// What a tool prints when a diagnosis is done: the cause, the error before and after, the
+/// gain and the time, then each named effect's parameter with its standard deviation.
+pub fn summary_lines<P: Plant>(plant: &P, d: &Diagnosis) -> Vec<String> {
+    let mut lines = vec![format!(
+        "cause: {}; error {:.3} -> {:.3} (1 = noise floor), gain {:.3}; {:.1} s",
+        d.cause, d.error_before, d.error_after, d.gain, d.elapsed_s
+    )];
+    let cat = plant.catalogue();
+    if !d.effects.is_empty() {
+        for i in d.chosen.fit.candidate.effect_params(cat) {
+            lines.push(format!(
+                "  {} = {:.6e} ± {:.1e}",
+                cat.params[i].name, d.chosen.fit.theta[i], d.chosen.fit.std[i]
+            ));
+        }
+    }
+    lines
+}
+
 /// `diagnosis.json` (docs/formats.md).
 pub fn diagnosis_json<P: Plant>(plant: &P, d: &Diagnosis) -> Value {
     let cat = plant.catalogue();

@@ -2,12 +2,14 @@
 //! diagnosis of a log (docs/car.md, "Diagnosis"; method: docs/diagnose.md).
 
 use dmech_ocp::solver::{IpOptions, Status};
-use robots::car::diagnose::{car_plant, generate, CHANNELS, INPUTS};
+use robots::car::diagnose::{car_plant, generate};
 use robots::car::plan::{plan, CarBounds};
 use robots::car::problems::CarProblem;
 use robots::car::{Car, CarParams};
 use robots::diagnose::read_log::parse_log_limited;
-use robots::diagnose::report::{diagnosis_json, report_md, residual_plots, residuals_csv};
+use robots::diagnose::report::{
+    diagnosis_json, report_md, residual_plots, residuals_csv, summary_lines,
+};
 use robots::diagnose::{diagnose, DiagnoseOptions, Plant};
 use robots::io::{csv_byte_limit, read_text_limited, OutputSet};
 use robots::{progress, say};
@@ -197,24 +199,8 @@ pub fn run_diagnose(a: DiagnoseArgs) -> Result<(), String> {
         .write("residuals.csv", residuals_csv(&plant, &d, &log).as_bytes())
         .map_err(io)?;
     files.commit().map_err(io)?;
-    say!(
-        "cause: {}; error {:.3} -> {:.3} (1 = noise floor), gain {:.3}; {:.1} s",
-        d.cause,
-        d.error_before,
-        d.error_after,
-        d.gain,
-        d.elapsed_s
-    );
-    let cat = plant.catalogue();
-    for i in d.chosen.fit.candidate.effect_params(cat) {
-        say!(
-            "  {} = {:.6e} ± {:.1e}",
-            cat.params[i].name,
-            d.chosen.fit.theta[i],
-            d.chosen.fit.std[i]
-        );
+    for line in summary_lines(&plant, &d) {
+        say!("{line}");
     }
-    debug_assert_eq!(CHANNELS.len(), plant.channels().len());
-    debug_assert_eq!(INPUTS.len(), plant.inputs().len());
     Ok(())
 }

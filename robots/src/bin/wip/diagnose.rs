@@ -1,8 +1,8 @@
 //! `wip diagnose`: compare the model with a measured log, name the unmodelled effect, refit.
 
 use crate::common::{load_params, positive_count, positive_number, Failure};
-use robots::diagnose::report::residual_plots;
-use robots::diagnose::{DiagnoseOptions, Plant};
+use robots::diagnose::report::{residual_plots, summary_lines};
+use robots::diagnose::DiagnoseOptions;
 use robots::io::OutputSet;
 use robots::wip::diagnose::request::{calibration_keys, diagnose_log, name_list};
 use robots::wip::diagnose::WipPlant;
@@ -111,25 +111,8 @@ pub fn run(a: DiagnoseArgs) -> Result<(), Failure> {
     // The refitted model as a parameter file that plan/simulate read.
     files.write("params_refit.json", out.refit.to_json().as_bytes())?;
     files.commit()?;
-    say!(
-        "cause: {}; error {:.3} -> {:.3} (1 = noise floor), gain {:.3}; {:.1} s",
-        d.cause,
-        d.error_before,
-        d.error_after,
-        d.gain,
-        d.elapsed_s
-    );
-    let cat = plant.catalogue();
-    if !d.effects.is_empty() {
-        let c = &d.chosen;
-        for i in c.fit.candidate.effect_params(cat) {
-            say!(
-                "  {} = {:.6e} ± {:.1e}",
-                cat.params[i].name,
-                c.fit.theta[i],
-                c.fit.std[i]
-            );
-        }
+    for line in summary_lines(&plant, d) {
+        say!("{line}");
     }
     if let Some(c) = &d.calibration {
         for k in &c.identifiability.combinations {
