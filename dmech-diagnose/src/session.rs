@@ -506,7 +506,9 @@ impl<P: Plant> Session<'_, P> {
 /// After a calibration, the chosen effects and the calibrated combinations refitted
 /// together (the calibration was made without the effects). An effect whose parameters
 /// become undetermined or implausible there is confounded with the calibration: it is
-/// dropped (its parameters back at their nominal values) and the rest refitted.
+/// dropped (its parameters back at their nominal values) and the rest refitted. If the
+/// rest's joint refit fails by the calibration's parameters alone, the rest is fitted on
+/// the base (the calibration as it was) and kept if nameable.
 pub(super) fn joint_refit<P: Plant>(
     ss: &Session<P>,
     c: &Calibration,
@@ -542,7 +544,31 @@ pub(super) fn joint_refit<P: Plant>(
             })
             .collect();
         if bad.is_empty() {
-            return chosen;
+            if effects.len() == chosen.fit.candidate.effects.len() {
+                return chosen;
+            }
+            // The rest is not confounded: it stays on the base, without the dropped. It
+            // starts from its own earlier fit where there is one (the chosen's window
+            // states carry the dropped effect, and an unstable plant's prediction from
+            // them may lead the fit astray).
+            let mut key = effects.clone();
+            key.sort_unstable();
+            let earlier = candidates
+                .iter()
+                .filter(|s| s.fitted && s.fit.candidate.calibration.is_empty())
+                .filter(|s| {
+                    let mut e = s.fit.candidate.effects.clone();
+                    e.sort_unstable();
+                    e == key
+                })
+                .min_by(|a, b| a.score.total_cmp(&b.score));
+            let (theta0, z0) = match earlier {
+                Some(s) => (s.fit.theta.clone(), s.fit.z0.clone()),
+                None => (theta.clone(), chosen.fit.z0.clone()),
+            };
+            let rest = ss.fit(Candidate::of(effects), &theta0, &z0, None);
+            candidates.push(rest.clone());
+            return if rest.nameable() { rest } else { base.clone() };
         }
         (ss.progress)(&format!(
             "  {} confounded with the calibration: dropped",
