@@ -224,6 +224,14 @@ pub trait Plant: Sync {
     }
     /// Operating conditions the residual may follow (the diagnosis adds a trend in time).
     fn conditions(&self, log: &MeasuredLog) -> Vec<Indicator>;
+    /// Channels of `log` that the log's writer computed from other channels through the
+    /// plant's own kinematics (a firmware's dead reckoning of its encoders logged as a
+    /// pose), each with the reason in words: not a second measurement, so the diagnosis
+    /// sets them aside as it does a copied column (fitting them would count the same
+    /// readings twice, and the writer's formula is not the model's). The default: none.
+    fn derived_channels(&self, _log: &MeasuredLog) -> Vec<(usize, String)> {
+        Vec::new()
+    }
     /// The generic hypotheses on the readings (offset and scale per channel) that the
     /// plant declared into its catalogue with [`ReadingHypotheses::declare`]; the fit
     /// applies them on top of [`Plant::predict`]. `None`: the plant declares none.

@@ -222,6 +222,25 @@ impl MeasuredLog {
         out
     }
 
+    /// The decimal resolution channel `c` was written with: the largest `10⁻ᵏ`
+    /// (`k = 0..=12`) of which every reading is an integer multiple, to the parse's
+    /// rounding. `None` for a channel without readings or one written to more than twelve
+    /// decimals (a simulator's full-precision output). A relation between channels that
+    /// holds to their resolutions holds exactly in what the log's writer had.
+    pub fn decimal_resolution(&self, c: usize) -> Option<f64> {
+        let values: Vec<f64> = (0..self.len()).filter_map(|k| self.value(k, c)).collect();
+        if values.is_empty() {
+            return None;
+        }
+        (0..=12).map(|k| 10f64.powi(-k)).find(|&q| {
+            values.iter().all(|&v| {
+                let n = v / q;
+                // Past 2⁵² every f64 is an integer: no resolution can be read there.
+                n.abs() < 4.5e15 && (n - n.round()).abs() <= 1e-6
+            })
+        })
+    }
+
     /// The log as CSV text (docs/formats.md), empty fields for missing samples.
     pub fn to_csv(&self, channels: &[ChannelSpec], inputs: &[String]) -> String {
         let mut s = String::from("t");
@@ -249,5 +268,39 @@ impl MeasuredLog {
             s.push('\n');
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn log_of(column: &[f64]) -> MeasuredLog {
+        let mut log = MeasuredLog::empty(0.01, 0, 1);
+        for (k, &v) in column.iter().enumerate() {
+            log.push_row(0.01 * k as f64, &[], &[v]);
+        }
+        log.channels_present_from_data();
+        log
+    }
+
+    #[test]
+    fn decimal_resolution_is_the_coarsest_grid_of_the_written_values() {
+        // Values as a CSV parse gives them: "0.1234", "-2.5", "17".
+        let parsed = |s: &str| s.parse::<f64>().unwrap();
+        let four = log_of(&[parsed("0.1234"), parsed("-2.5"), parsed("17")]);
+        assert_eq!(four.decimal_resolution(0), Some(1e-4));
+        let whole = log_of(&[3.0, -12.0, 0.0]);
+        assert_eq!(whole.decimal_resolution(0), Some(1.0));
+        // A value off a coarser grid decides: 0.5 alone would be 1e-1.
+        let mixed = log_of(&[0.5, parsed("0.007")]);
+        assert_eq!(mixed.decimal_resolution(0), Some(1e-3));
+        // A simulator's full precision has no decimal resolution.
+        let full = log_of(&[std::f64::consts::PI, 1.0 / 3.0]);
+        assert_eq!(full.decimal_resolution(0), None);
+        // Missing readings are ignored; none at all gives no resolution.
+        let gappy = log_of(&[f64::NAN, parsed("0.25"), f64::NAN]);
+        assert_eq!(gappy.decimal_resolution(0), Some(1e-2));
+        assert_eq!(log_of(&[f64::NAN]).decimal_resolution(0), None);
     }
 }

@@ -277,8 +277,9 @@ pub fn diagnose<P: Plant>(
     finite_outputs(d)
 }
 
-/// The log without readings far outside their channel's range and without copied
-/// channels, and those dropped, in words (each also a warning line).
+/// The log without readings far outside their channel's range, without copied channels
+/// and without channels derived from others ([`Plant::derived_channels`]), and those
+/// dropped, in words (each also a warning line).
 fn cleaned<P: Plant>(
     plant: &P,
     log: &MeasuredLog,
@@ -298,6 +299,13 @@ fn cleaned<P: Plant>(
             plant.channels()[original].name
         ));
         owned.drop_channel(copy);
+    }
+    for (derived, why) in plant.derived_channels(&owned) {
+        flagged.push(format!(
+            "column '{}' {why}: not a second measurement; set aside",
+            plant.channels()[derived].name
+        ));
+        owned.drop_channel(derived);
     }
     for f in &flagged {
         progress(&format!("diagnose: warning: {f}"));

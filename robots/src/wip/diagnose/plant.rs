@@ -396,6 +396,15 @@ impl Plant for WipPlant {
         key
     }
 
+    /// The pose, when its heading is the encoders' dead reckoning: in every row,
+    /// `θₖ − θ₀ = r((φR,ₖ − φR,₀) − (φL,ₖ − φL,₀))/(2d)` to the rounding of the three
+    /// columns as written (a firmware's odometry logged as the pose, as the REGBOT's).
+    /// Its position is then that odometry's too (the same encoders, and without the
+    /// axle's roll with the tilt that the model's position has).
+    fn derived_channels(&self, log: &MeasuredLog) -> Vec<(usize, String)> {
+        dead_reckoned_pose(log, &self.channels, self.params.r, self.params.d)
+    }
+
     fn conditions(&self, log: &MeasuredLog) -> Vec<Indicator> {
         let n = log.len();
         // Mean wheel speed relative to the body, from the wheel-angle readings (central
@@ -446,5 +455,114 @@ impl Plant for WipPlant {
             .collect();
         out.extend(above_median("tilt above its median", &tilt));
         out
+    }
+}
+
+/// [`Plant::derived_channels`] of the WIP: the pose channels present, if the heading
+/// reading equals the dead reckoning of the wheel angles (radius `r`, half track `d`) to
+/// within the rounding of the columns as written and the heading turns by more than ten
+/// times that bound somewhere (else the log cannot tell).
+pub fn dead_reckoned_pose(
+    log: &MeasuredLog,
+    channels: &[ChannelSpec],
+    r: f64,
+    d: f64,
+) -> Vec<(usize, String)> {
+    let (th, pr, pl) = (
+        Channel::Theta.index(),
+        Channel::PhiRRel.index(),
+        Channel::PhiLRel.index(),
+    );
+    let rows: Vec<usize> = (0..log.len())
+        .filter(|&k| [th, pr, pl].iter().all(|&c| log.value(k, c).is_some()))
+        .collect();
+    let (Some(&first), Some(qt), Some(qr), Some(ql)) = (
+        rows.first(),
+        log.decimal_resolution(th),
+        log.decimal_resolution(pr),
+        log.decimal_resolution(pl),
+    ) else {
+        return Vec::new();
+    };
+    let k_turn = r / (2.0 * d);
+    // A difference of two rounded readings is off by at most one resolution.
+    let bound = qt + k_turn * (qr + ql);
+    let reading = |k: usize, c: usize| log.row(k)[c] - log.row(first)[c];
+    let mut turned: f64 = 0.0;
+    for &k in &rows {
+        let reckoned = k_turn * (reading(k, pr) - reading(k, pl));
+        turned = turned.max(reckoned.abs());
+        if channels[th].residual(reckoned, reading(k, th)).abs() > bound {
+            return Vec::new();
+        }
+    }
+    if turned <= 10.0 * bound {
+        return Vec::new();
+    }
+    let why = format!(
+        "is the dead reckoning of the wheel angles (the heading equals r(phiR_rel - phiL_rel)/(2d) \
+         within {bound:.1e} rad, the columns' rounding, in all {} rows)",
+        rows.len()
+    );
+    [Channel::X, Channel::Y, Channel::Theta]
+        .iter()
+        .filter(|c| log.present[c.index()])
+        .map(|c| (c.index(), why.clone()))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A log of `n` rows turning on the spot and rolling: wheel angles written to four
+    /// decimals, the heading either their dead reckoning written to four decimals (a
+    /// firmware's odometry) or that plus a measurement's noise.
+    fn turning_log(heading_noise: f64) -> (MeasuredLog, Vec<ChannelSpec>) {
+        let channels: Vec<ChannelSpec> = Channel::ALL.iter().map(|c| c.spec()).collect();
+        let (r, d) = (0.04, 0.1);
+        let round4 = |v: f64| (v * 1e4).round() / 1e4;
+        let mut log = MeasuredLog::empty(0.01, 2, channels.len());
+        for k in 0..300 {
+            let t = 0.01 * k as f64;
+            let (pr, pl) = (round4(3.0 * t + 0.2), round4(0.7 - t));
+            // A deterministic, sign-changing disturbance of amplitude `heading_noise`.
+            let noise = heading_noise * (7.3 * k as f64).sin();
+            let theta = round4(r * ((pr - 0.2) - (pl - 0.7)) / (2.0 * d) + 0.05 + noise);
+            let mut row = vec![f64::NAN; channels.len()];
+            row[Channel::X.index()] = round4(0.01 * t);
+            row[Channel::Y.index()] = round4(0.02 * t);
+            row[Channel::Theta.index()] = theta;
+            row[Channel::PhiRRel.index()] = pr;
+            row[Channel::PhiLRel.index()] = pl;
+            log.push_row(t, &[0.0, 0.0], &row);
+        }
+        log.channels_present_from_data();
+        (log, channels)
+    }
+
+    #[test]
+    fn a_heading_that_is_the_encoders_odometry_sets_the_pose_aside() {
+        let (log, channels) = turning_log(0.0);
+        let derived = dead_reckoned_pose(&log, &channels, 0.04, 0.1);
+        let set_aside: Vec<usize> = derived.iter().map(|(c, _)| *c).collect();
+        assert_eq!(
+            set_aside,
+            vec![
+                Channel::X.index(),
+                Channel::Y.index(),
+                Channel::Theta.index()
+            ]
+        );
+        // The wheel geometry decides: with another track the same log is a measurement.
+        assert!(dead_reckoned_pose(&log, &channels, 0.04, 0.12).is_empty());
+    }
+
+    #[test]
+    fn a_measured_heading_is_kept() {
+        // Noise of 5 mrad (the generated logs' pose noise) is far above the columns'
+        // rounding bound of 1e-4 (1 + 2 * 0.04 / 0.2) = 1.4e-4 rad.
+        let (log, channels) = turning_log(5e-3);
+        assert!(dead_reckoned_pose(&log, &channels, 0.04, 0.1).is_empty());
     }
 }
