@@ -9,6 +9,7 @@
 //! - `diagnose`: `wip generate` and `wip diagnose`;
 //! - `hostile`: both tools under hostile use, second round (issue 57);
 //! - `plan`: `wip plan`;
+//! - `regbot`: `wip diagnose` on the real REGBOT logs of `data/regbot`;
 //! - `reliability`: every subcommand under careless or hostile use (issue 24);
 //! - `simulate`: `wip simulate`;
 //! - `snakeboard`: `snakeboard plan` and `snakeboard simulate`;
@@ -28,6 +29,7 @@ mod car_sensors;
 mod diagnose;
 mod hostile;
 mod plan;
+mod regbot;
 mod reliability;
 mod simulate;
 mod snakeboard;
