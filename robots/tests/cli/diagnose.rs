@@ -312,6 +312,22 @@ fn generate_sets_a_hidden_effect_magnitude() {
         effects[1]["parameters"]["slope_y_rad"].as_f64(),
         Some(-0.03)
     );
+    // The generic reading hypotheses take magnitudes too.
+    succeeds(
+        wip()
+            .args(["generate", "--effect"])
+            .arg("reading_offset:v_alpha=0.03+reading_scale:phiR_rel=1.03")
+            .args(["--duration", "2", "--out"])
+            .arg(dir.join("readings")),
+    );
+    let truth = read_json(dir.join("readings/truth.json"));
+    let effects = truth["effects"].as_array().unwrap();
+    assert_eq!(effects[0]["effect"], "reading_offset:v_alpha");
+    assert_eq!(effects[1]["effect"], "reading_scale:phiR_rel");
+    assert_eq!(
+        effects[1]["parameters"]["phiR_rel_scale"].as_f64(),
+        Some(1.03)
+    );
     for (spec, expect) in [
         ("input_dealy=0.015", "unknown effect 'input_dealy'"),
         (
@@ -331,6 +347,10 @@ fn generate_sets_a_hidden_effect_magnitude() {
         ),
         (
             "input_delay=-0.005",
+            "outside its physically plausible range",
+        ),
+        (
+            "reading_scale:phiR_rel=1.5",
             "outside its physically plausible range",
         ),
     ] {

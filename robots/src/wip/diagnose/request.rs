@@ -2,7 +2,7 @@
 //! package (`dmech.wip.generate`, `dmech.wip.diagnose`) share, so that both give the same
 //! log from the same seed and the same verdict on the same log.
 
-use super::effects::{wip_catalogue, Effect, CALIBRATED};
+use super::effects::{Effect, CALIBRATED};
 use super::generate::{draw_effect, generate, truth_substeps, GenerateError, Rng, RunSettings};
 use super::refit::refit_params;
 use super::WipPlant;
@@ -106,7 +106,9 @@ pub fn parse_effects(spec: &str) -> Result<Vec<EffectRequest>, EffectListError> 
 /// of the robot `p` (docs/diagnose.md §3): a log with an effect the diagnosis could never
 /// name is refused.
 pub fn check_magnitudes(requests: &[EffectRequest], p: &WipParams) -> Result<(), EffectListError> {
-    let cat = wip_catalogue(p);
+    // The plant's catalogue: the WIP's effects and its generic reading hypotheses.
+    let plant = WipPlant::new(*p);
+    let cat = plant.catalogue();
     for r in requests {
         let Some(values) = &r.values else { continue };
         for (name, &v) in r.effect.parameter_names().iter().zip(values) {
