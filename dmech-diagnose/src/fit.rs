@@ -530,3 +530,13 @@ pub struct Screened {
     /// Predicted reduction of the weighted residual sum of squares.
     pub reduction: f64,
 }
+
+impl Screened {
+    /// Whether the linearisation sees nothing of the effect: its reduced normal matrix is
+    /// singular, as where the prediction does not move with the parameters at their start
+    /// (a time threshold with no events below it, a static friction of zero). Its
+    /// predicted reduction of zero then says nothing of its fit.
+    pub fn unseen(&self) -> bool {
+        self.std.iter().any(|s| !s.is_finite())
+    }
+}

@@ -36,6 +36,7 @@ pub mod diagnosis;
 pub mod error;
 pub mod fit;
 pub mod fixed_params;
+mod grid_scan;
 pub mod identify;
 pub mod log;
 pub mod model;

@@ -338,19 +338,34 @@ fn single_effects<P: Plant>(
         .ok_or(DiagnoseError::NotSimulable)?;
     let mut order: Vec<&Screened> = screened.iter().collect();
     let net = |s: &Screened| screened_net(cat, s, m);
-    order.sort_by(|a, b| net(b).total_cmp(&net(a)));
+    // By predicted gain, the effects the screen cannot see last: a fit that cannot beat
+    // the best so far is abandoned early, and the unseen ones are the dearest (a scanned
+    // threshold, a hybrid friction law), fitted without a bound they may run to the
+    // iteration cap far from any minimum.
+    order.sort_by(|a, b| {
+        a.unseen()
+            .cmp(&b.unseen())
+            .then_with(|| net(b).total_cmp(&net(a)))
+    });
     // A reading hypothesis is linear in its parameter (an offset exactly, a scale given
     // the states), so the screen's Gauss–Newton step from the base model predicts its fit:
     // one whose predicted reduction does not pay for its parameter is not fitted.
     let pays = |sc: &Screened| net(sc) > 0.0;
     let mut best_rss = base.fit.rss;
     for (rank, sc) in order.iter().enumerate() {
-        (ss.progress)(&format!(
-            "  screen {:<24} predicted reduction {:>12.1}  (a parameter costs {:.1})",
-            cat.effects[sc.effect].name,
-            sc.reduction,
-            m.ln()
-        ));
+        (ss.progress)(&if sc.unseen() {
+            format!(
+                "  screen {:<24} unseen by the linearisation at its start: fitted last",
+                cat.effects[sc.effect].name
+            )
+        } else {
+            format!(
+                "  screen {:<24} predicted reduction {:>12.1}  (a parameter costs {:.1})",
+                cat.effects[sc.effect].name,
+                sc.reduction,
+                m.ln()
+            )
+        });
         let cand = Candidate::of(vec![sc.effect]);
         if rank < opts.max_full_fits && (!is_reading(cat, sc.effect) || pays(sc)) {
             let start = cand.start_from(cat, &base.fit.theta);

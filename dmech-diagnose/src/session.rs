@@ -5,6 +5,7 @@
 
 use super::error::DiagnoseError;
 use super::fit::{Fit, Fitter, Screened};
+use super::grid_scan::lowest_on_grid;
 use super::identify::DETERMINED;
 use super::identify::{identify, Identifiability};
 use super::log::MeasuredLog;
@@ -29,9 +30,10 @@ const RESTARTS: usize = 2;
 /// decided by two more, the generated lockout of 78 ms was missed (E 17 → 3.3, named
 /// voltage_gain + input_delay).
 const GRID_STATE_ITERATIONS: usize = 3;
-/// At most this many windows, evenly spread, in a scan: its cost stays that of a
-/// one-minute log however long the log is.
-const GRID_MAX_WINDOWS: usize = 120;
+/// At most this many windows, evenly spread, in a scan: it only ranks (the fit from its
+/// choice sees every window), and its cost stays that of 15 s of log at 0.5-s windows
+/// however long the log is.
+const GRID_MAX_WINDOWS: usize = 30;
 
 /// Intervals a fit may step across per sampled time threshold.
 const EDGE_STEPS: usize = 3;
@@ -256,7 +258,8 @@ impl<P: Plant> Session<'_, P> {
 
     /// `theta0` with each of the candidate's parameters that sits at its start and has a
     /// [`ParamSpec::start_grid`](super::model::ParamSpec) moved, one parameter at a time, to
-    /// the grid value of lowest cost, and the window states for it: a Gauss–Newton fit
+    /// the grid value of lowest cost (ranked coarse to fine, [`lowest_on_grid`]), and the
+    /// window states for it: a Gauss–Newton fit
     /// cannot cross the jumps of such a parameter's cost. Each grid value's cost is taken
     /// after [`GRID_STATE_ITERATIONS`] iterations of the window states alone (an unstable
     /// plant's open-loop prediction from states fitted to another model says nothing), on
@@ -293,16 +296,15 @@ impl<P: Plant> Session<'_, P> {
                 let f = ranking_fit(&fitter, theta, &z_pick);
                 (f.rss, f.z0)
             };
-            let best = spec
-                .start_grid
-                .iter()
-                .map(|&v| {
-                    theta[p] = v;
-                    let (rss, zv) = states(&theta);
-                    (rss, v, zv)
-                })
-                .min_by(|a, b| a.0.total_cmp(&b.0));
-            if let Some((_, v, zb)) = best {
+            let grid = &spec.start_grid;
+            let mut ranked = 0;
+            let best = lowest_on_grid(grid.len(), |i| {
+                ranked += 1;
+                theta[p] = grid[i];
+                states(&theta)
+            });
+            if let Some((i, _, zb)) = best {
+                let v = grid[i];
                 theta[p] = v;
                 for (&w, zw) in pick.iter().zip(zb) {
                     z[w] = zw;
@@ -310,9 +312,9 @@ impl<P: Plant> Session<'_, P> {
                 self.grid_chosen.lock().expect("not poisoned").push((p, v));
                 scanned.push(p);
                 (self.progress)(&format!(
-                    "  scan {:<24} starts at {v:.4e} (best of {} values on {} windows)  ({:.1} s)",
+                    "  scan {:<24} starts at {v:.4e} ({ranked} of {} values ranked, on {} windows)  ({:.1} s)",
                     spec.name,
-                    spec.start_grid.len(),
+                    grid.len(),
                     pick.len(),
                     self.t0.elapsed().as_secs_f64()
                 ));
