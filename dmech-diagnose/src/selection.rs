@@ -370,13 +370,44 @@ fn single_effects<P: Plant>(
         if rank < opts.max_full_fits && (!is_reading(cat, sc.effect) || pays(sc)) {
             let start = cand.start_from(cat, &base.fit.theta);
             let s = ss.fit(cand, &start, &base.fit.z0, Some(best_rss));
-            best_rss = best_rss.min(s.fit.rss);
+            best_rss = bound_after(best_rss, &s);
             candidates.push(s);
         } else {
             candidates.push(screened_only(ss, cand, sc, base));
         }
     }
     Ok(())
+}
+
+/// `open` ordered by the score of each effect's own single-effect fit in `candidates`,
+/// lowest first (those without one last, in `open`'s order). The effect strongest alone is
+/// the likeliest to lead beside the current choice, and the sooner the leading fit is in,
+/// the sooner the others are abandoned ([`bound_after`]). The order decides no choice:
+/// every contender that may be named is fitted until it cannot beat the best nameable
+/// fit.
+fn strongest_alone_first(open: &[usize], candidates: &[Scored]) -> Vec<usize> {
+    let alone = |e: usize| {
+        candidates
+            .iter()
+            .filter(|c| c.fit.candidate.effects == [e])
+            .map(|c| c.score)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut order: Vec<(f64, usize)> = open.iter().map(|&e| (alone(e), e)).collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    order.into_iter().map(|(_, e)| e).collect()
+}
+
+/// The bound a later fit is abandoned above (`Fitter::fit`): the lowest cost of the fits
+/// that may be named. A fit that may not (a parameter outside its physical range, or
+/// undetermined) is never chosen, so its cost must not stop a fit that may: an effect
+/// whose fit ends above it is still the cause if nothing nameable beats it.
+fn bound_after(bound: f64, s: &Scored) -> f64 {
+    if s.nameable() {
+        bound.min(s.fit.rss)
+    } else {
+        bound
+    }
 }
 
 /// The progress line of a candidate that the criterion prefers but whose gain over
@@ -473,7 +504,7 @@ fn add_effects<P: Plant>(
         let mut best_rss = current.fit.rss;
         let mut contenders: Vec<Scored> = Vec::new();
         let skip = unpaid_readings(ss, open, &current);
-        for &e in open {
+        for e in strongest_alone_first(open, candidates) {
             if current.fit.candidate.effects.contains(&e) || skip.contains(&e) {
                 continue;
             }
@@ -482,7 +513,7 @@ fn add_effects<P: Plant>(
             let cand = Candidate::of(effects);
             let start = cand.start_from(cat, &current.fit.theta);
             let s = ss.fit(cand, &start, &current.fit.z0, Some(best_rss));
-            best_rss = best_rss.min(s.fit.rss);
+            best_rss = bound_after(best_rss, &s);
             if s.score < current.score && s.nameable() {
                 if ss.pays(&s, &current) {
                     contenders.push(s.clone());
