@@ -353,19 +353,19 @@ fn single_effects<P: Plant>(
     let pays = |sc: &Screened| net(sc) > 0.0;
     let mut best_rss = base.fit.rss;
     for (rank, sc) in order.iter().enumerate() {
-        (ss.progress)(&if sc.unseen() {
-            format!(
-                "  screen {:<24} unseen by the linearisation at its start: fitted last",
-                cat.effects[sc.effect].name
-            )
+        let said = if sc.unseen() {
+            "unseen by the linearisation at its start: fitted last".to_string()
         } else {
             format!(
-                "  screen {:<24} predicted reduction {:>12.1}  (a parameter costs {:.1})",
-                cat.effects[sc.effect].name,
+                "predicted reduction {:>12.1}  (a parameter costs {:.1})",
                 sc.reduction,
                 m.ln()
             )
-        });
+        };
+        (ss.progress)(&format!(
+            "  screen {:<24} {said}",
+            cat.effects[sc.effect].name
+        ));
         let cand = Candidate::of(vec![sc.effect]);
         if rank < opts.max_full_fits && (!is_reading(cat, sc.effect) || pays(sc)) {
             let start = cand.start_from(cat, &base.fit.theta);

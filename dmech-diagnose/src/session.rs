@@ -31,8 +31,8 @@ const RESTARTS: usize = 2;
 /// voltage_gain + input_delay).
 const GRID_STATE_ITERATIONS: usize = 3;
 /// At most this many windows, evenly spread, in a scan: it only ranks (the fit from its
-/// choice sees every window), and its cost stays that of 15 s of log at 0.5-s windows
-/// however long the log is.
+/// choice sees every window), and its cost stays that of this many windows however long
+/// the log is.
 const GRID_MAX_WINDOWS: usize = 30;
 
 /// Intervals a fit may step across per sampled time threshold.
