@@ -111,6 +111,12 @@ impl Fit {
 /// model is far from (`RSS ≫ m`) a step of the same worth is larger in RSS.
 pub const CONVERGED_REDUCTION: f64 = 0.05;
 
+/// A fit is abandoned when its cost less this many times the reduction its next step
+/// promises stays above the bound it was given ([`Fitter::fit`]): a linearisation's
+/// promise misjudges a nonlinear descent, by less than this factor on the catalogues'
+/// effects (none of the recovery matrix's true effects is abandoned).
+pub const ABANDON_MARGIN: f64 = 3.0;
+
 /// The most dual directions a linearisation carries (window state and free coordinates).
 pub const MAX_DIRECTIONS: usize = 40;
 
@@ -273,8 +279,11 @@ impl<'a, P: Plant> Fitter<'a, P> {
 
     /// Levenberg–Marquardt from `(theta0, z0)`, freeing the candidate's directions.
     /// With `abandon_above`, the fit stops early once it cannot get below that cost: after
-    /// two iterations, when the cost less three times the reduction the next step
-    /// promises is still above it (the candidate cannot win).
+    /// two iterations, when the cost less [`ABANDON_MARGIN`] times the reduction the next
+    /// step promises is still above it (the candidate cannot win; a caller may apply the
+    /// same test before the first iteration to the screen's promise, [`Fitter::screen`]).
+    /// Sooner, a slow descent is cut short: abandoned after one iteration, a voltage gain
+    /// on `regbot_01` stopped at E 1.221 where its fit goes on to 1.126 and leads.
     pub fn fit(
         &self,
         cand: &Candidate,
@@ -330,7 +339,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
                 let (dz, dp) = step(&lins, k, lambda, &scale);
                 let predicted = predicted_reduction(&lins, &dz, &dp);
                 if let Some(bound) = abandon_above {
-                    if it >= 2 && rss - 3.0 * predicted.max(0.0) > bound {
+                    if it >= 2 && rss - ABANDON_MARGIN * predicted.max(0.0) > bound {
                         abandoned = true;
                         break 'outer;
                     }

@@ -9,7 +9,45 @@
 //! it (for a sampled time threshold, also across the neighbouring sample intervals): the
 //! scan has to land in the right basin, not on its floor.
 //!
+//! The scan runs once per parameter and diagnosis, when the effect is screened (its
+//! linearisation at the start sees nothing, [`Screened::unseen`]): the lowest rank against
+//! the base model's cost on the same windows is the effect's predicted reduction, so an
+//! effect the scan finds strong is fitted first and bounds the others. The first fit of
+//! the effect starts from the scan's choice and states; later candidates from its choice.
+//!
 //! [`ParamSpec::start_grid`]: crate::model::ParamSpec
+//! [`Screened::unseen`]: crate::fit::Screened::unseen
+
+use super::fit::{Fit, Fitter};
+use super::model::Candidate;
+use super::session::{Scored, Session, RESTARTS};
+use super::Plant;
+
+/// Iterations of the window states alone behind each grid value's cost
+/// ([`Session::grid_start`]). One ranks too roughly: with one, and the four lowest
+/// decided by two more, the generated lockout of 78 ms was missed (E 17 → 3.3, named
+/// voltage_gain + input_delay).
+const GRID_STATE_ITERATIONS: usize = 3;
+/// At most this many windows, evenly spread, in a scan: it only ranks (the fit from its
+/// choice sees every window), and its cost stays that of this many windows however long
+/// the log is.
+const GRID_MAX_WINDOWS: usize = 30;
+
+/// Intervals a fit may step across per sampled time threshold.
+const EDGE_STEPS: usize = 3;
+
+/// The fit that ranks values of a jumping parameter: [`GRID_STATE_ITERATIONS`]
+/// iterations of the window states `z` alone at `theta`.
+fn ranking_fit<P: Plant>(fitter: &Fitter<'_, P>, theta: &[f64], z: &[Vec<f64>]) -> Fit {
+    fitter.fit_capped(
+        &Candidate::none(),
+        theta,
+        z,
+        None,
+        &|_| {},
+        GRID_STATE_ITERATIONS,
+    )
+}
 
 /// A grid of at most this many values is ranked in full.
 const RANKED_IN_FULL: usize = 8;
@@ -49,6 +87,217 @@ pub(crate) fn lowest_on_grid<Z>(
         }
     }
     best
+}
+
+/// What the scan of one parameter chose, for the rest of the diagnosis.
+#[derive(Clone, Debug)]
+pub(super) struct GridChoice {
+    /// The parameter's index in the catalogue.
+    pub param: usize,
+    /// The grid value of lowest rank (moved by a fit across sample intervals,
+    /// [`Session::cross_sampled_edges`]).
+    pub value: f64,
+    /// The scanned windows' states at `value` (window, states), for the first fit from it.
+    states: Vec<(usize, Vec<f64>)>,
+    /// No fit has started from this choice yet: the first one takes `states` and tries
+    /// the neighbouring sample intervals.
+    first_fit_pending: bool,
+}
+
+impl<P: Plant> Session<'_, P> {
+    /// The predicted reduction of the base model's cost by the single effect `cand`, from
+    /// the scan of its parameters that have a grid (`None` when it has none): the base's
+    /// cost on the scanned windows less the lowest rank, scaled from the scanned windows to
+    /// all. Scans the parameters not yet scanned, from where `cand` would start on `base`.
+    pub(super) fn scan_screen(&self, cand: &Candidate, base: &Scored) -> Option<f64> {
+        let cat = self.fitter.catalogue();
+        let theta0 = cand.start_from(cat, &base.fit.theta);
+        let pick = self.scan_windows();
+        let on_pick = self.fitter.on_windows(&pick);
+        let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| base.fit.z0[w].clone()).collect();
+        let (base_rss, _) = on_pick.cost(&base.fit.theta, &z_pick)?;
+        let mut lowest = None;
+        let mut theta = theta0;
+        for p in cand.effect_params(cat) {
+            let spec = &cat.params[p];
+            if spec.start_grid.is_empty() || theta[p] != spec.start || self.choice(p).is_some() {
+                continue;
+            }
+            let (choice, rss) = self.scan(p, &theta, &base.fit.z0)?;
+            theta[p] = choice.value;
+            self.grid_chosen.lock().expect("not poisoned").push(choice);
+            lowest = Some(rss);
+        }
+        let scale = self.fitter.windows.len() as f64 / pick.len().max(1) as f64;
+        lowest.map(|rss| ((base_rss - rss) * scale).max(0.0))
+    }
+
+    /// The scan's choice for parameter `p`, if it was scanned.
+    fn choice(&self, p: usize) -> Option<GridChoice> {
+        let chosen = self.grid_chosen.lock().expect("not poisoned");
+        chosen.iter().find(|c| c.param == p).cloned()
+    }
+
+    /// Scan parameter `p` from `theta` and the window states `z`: the grid value of lowest
+    /// rank ([`lowest_on_grid`]) with its states, and that rank.
+    fn scan(&self, p: usize, theta: &[f64], z: &[Vec<f64>]) -> Option<(GridChoice, f64)> {
+        let spec = &self.fitter.catalogue().params[p];
+        // A long log is scanned on evenly spread windows: the scan only ranks.
+        let pick = self.scan_windows();
+        let fitter = self.fitter.on_windows(&pick).with_window_memo();
+        let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
+        let mut theta = theta.to_vec();
+        let grid = &spec.start_grid;
+        let mut ranked = 0;
+        let (i, rss, zb) = lowest_on_grid(grid.len(), |i| {
+            ranked += 1;
+            theta[p] = grid[i];
+            let f = ranking_fit(&fitter, &theta, &z_pick);
+            (f.rss, f.z0)
+        })?;
+        let value = grid[i];
+        (self.progress)(&format!(
+            "  scan {:<24} starts at {value:.4e} ({ranked} of {} values ranked, on {} windows)  ({:.1} s)",
+            spec.name,
+            grid.len(),
+            pick.len(),
+            self.t0.elapsed().as_secs_f64()
+        ));
+        let choice = GridChoice {
+            param: p,
+            value,
+            states: pick.into_iter().zip(zb).collect(),
+            first_fit_pending: true,
+        };
+        Some((choice, rss))
+    }
+
+    /// `theta0` with each of the candidate's parameters that sits at its start and has a
+    /// [`ParamSpec::start_grid`](super::model::ParamSpec) moved to the scan's choice
+    /// (scanned now if it was not yet): a Gauss–Newton fit cannot cross the jumps of such
+    /// a parameter's cost. The first fit from a choice also takes the scanned windows'
+    /// states. Also returns the parameters whose choice this fit is the first from.
+    pub(super) fn grid_start(
+        &self,
+        cand: &Candidate,
+        theta0: &[f64],
+        z0: &[Vec<f64>],
+    ) -> (Vec<f64>, Vec<Vec<f64>>, Vec<usize>) {
+        let cat = self.fitter.catalogue();
+        let mut theta = theta0.to_vec();
+        let mut z = z0.to_vec();
+        let mut first = Vec::new();
+        for p in cand.effect_params(cat) {
+            let spec = &cat.params[p];
+            if spec.start_grid.is_empty() || theta[p] != spec.start {
+                continue;
+            }
+            let mut chosen = self.grid_chosen.lock().expect("not poisoned");
+            if !chosen.iter().any(|c| c.param == p) {
+                drop(chosen);
+                let Some((choice, _)) = self.scan(p, &theta, &z) else {
+                    continue;
+                };
+                chosen = self.grid_chosen.lock().expect("not poisoned");
+                chosen.push(choice);
+            }
+            let c = chosen
+                .iter_mut()
+                .find(|c| c.param == p)
+                .expect("pushed above");
+            theta[p] = c.value;
+            if c.first_fit_pending {
+                c.first_fit_pending = false;
+                for (w, zw) in c.states.drain(..) {
+                    z[w] = zw;
+                }
+                first.push(p);
+            }
+        }
+        (theta, z, first)
+    }
+
+    /// `fit` moved across the jumps of its sampled time thresholds. Such a threshold `T`
+    /// anywhere in `((n − 1) h, n h]` makes the same sample-instant decisions: the cost is
+    /// continuous inside the interval and jumps at its ends, so a Gauss–Newton fit ends in
+    /// whichever interval its steps happen to land in, and a scan coarser than `h` (10 ms
+    /// on a 5-ms log) does not start in every interval. The fit whose start was scanned
+    /// (`scanned`: once per parameter and diagnosis) therefore tries the two neighbouring
+    /// intervals, at their right ends `(n ± 1) h` (where the model reproduces the sampled rule exactly): each is ranked
+    /// against the fit's own point by [`GRID_STATE_ITERATIONS`] iterations of the window
+    /// states alone from the fit's states (a neighbouring interval's decisions differ at a
+    /// few rows only); the lower-ranked one, if it ranks below the fit's point, is fitted in
+    /// full and kept if its cost is lower, and later candidates start from it. Up to
+    /// [`EDGE_STEPS`] steps per parameter.
+    pub(super) fn cross_sampled_edges(
+        &self,
+        cand: &Candidate,
+        mut f: Fit,
+        scanned: &[usize],
+        bound: Option<f64>,
+        best: Option<f64>,
+    ) -> Fit {
+        let cat = self.fitter.catalogue();
+        let h = self.fitter.log.h;
+        let pick = self.scan_windows();
+        // The neighbouring intervals' decisions differ at a few rows: most windows are
+        // ranked once for the three values.
+        let fitter = self.fitter.on_windows(&pick).with_window_memo();
+        let states_rss = |theta: &[f64], z: &[Vec<f64>]| {
+            let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
+            ranking_fit(&fitter, theta, &z_pick).rss
+        };
+        for &p in scanned {
+            let spec = &cat.params[p];
+            if !spec.sampled_time || h <= 0.0 {
+                continue;
+            }
+            // Also after an abandoned fit: one stuck in the wrong interval is abandoned.
+            for _ in 0..EDGE_STEPS {
+                // `T` in `((n − 1) h, n h]`.
+                let n = (f.theta[p] / h - 1e-9).ceil();
+                let here = states_rss(&f.theta, &f.z0);
+                let ranked = [n - 1.0, n + 1.0]
+                    .into_iter()
+                    .map(|m| m * h)
+                    .filter(|&t| t > 0.0 && t >= spec.bounds.0 && t <= spec.bounds.1)
+                    .map(|t| {
+                        let mut theta = f.theta.clone();
+                        theta[p] = t;
+                        (states_rss(&theta, &f.z0), theta)
+                    })
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                let Some((rss, theta)) = ranked else { break };
+                if rss >= here {
+                    break;
+                }
+                let g = self.fit_leading(cand, &theta, &f.z0, bound, best, RESTARTS);
+                if g.rss >= f.rss {
+                    break;
+                }
+                let iterations = f.iterations + g.iterations;
+                f = Fit { iterations, ..g };
+                // Later candidates start in the interval found here, not the scan's.
+                let mut chosen = self.grid_chosen.lock().expect("not poisoned");
+                if let Some(c) = chosen.iter_mut().find(|c| c.param == p) {
+                    c.value = theta[p];
+                }
+            }
+        }
+        f
+    }
+
+    /// The windows a scan ranks on: all, or [`GRID_MAX_WINDOWS`] evenly spread ones.
+    fn scan_windows(&self) -> Vec<usize> {
+        let n = self.fitter.windows.len();
+        if n > GRID_MAX_WINDOWS {
+            (0..GRID_MAX_WINDOWS)
+                .map(|i| i * n / GRID_MAX_WINDOWS)
+                .collect()
+        } else {
+            (0..n).collect()
+        }
+    }
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 
 pub use super::diagnosis::{DiagnoseOptions, Diagnosis};
 pub use super::error::DiagnoseError;
-use super::fit::{FitSetup, Fitter, Screened};
+use super::fit::{FitSetup, Fitter, Screened, ABANDON_MARGIN};
 use super::log::MeasuredLog;
 use super::model::Candidate;
 use super::noise::{normalised_error, raw_noise, residual_noise};
@@ -313,10 +313,12 @@ fn cleaned<P: Plant>(
     Ok((owned, flagged))
 }
 
-/// Screen the effects `open` with one linearisation at the base model (the order of the
-/// fits, and the predicted reductions in the progress output); fit the most promising
-/// `max_full_fits` to convergence (all by default: a linearisation misjudges the
-/// nonlinear effects, and a full fit costs a fraction of a second on a short log).
+/// Screen the effects `open` with one linearisation at the base model, and those it
+/// cannot see by their scan where they have one (the order of the fits, and the predicted
+/// reductions in the progress output); fit the most promising `max_full_fits` to
+/// convergence (all by default: a linearisation misjudges the nonlinear effects), each
+/// under the bound of the best nameable fit so far, and none whose predicted reduction
+/// cannot reach that bound by [`ABANDON_MARGIN`] times over.
 fn single_effects<P: Plant>(
     ss: &Session<P>,
     open: &[usize],
@@ -336,28 +338,42 @@ fn single_effects<P: Plant>(
             base.fit.m,
         )
         .ok_or(DiagnoseError::NotSimulable)?;
-    let mut order: Vec<&Screened> = screened.iter().collect();
+    // An effect the linearisation cannot see is screened by the scan of its jumping
+    // parameter, where it has one (`Session::scan_screen`): its predicted reduction is
+    // then that of its best grid value. With `seen`, whether a reduction was predicted.
+    let screened: Vec<(Screened, bool)> = screened
+        .into_iter()
+        .map(|sc| {
+            if !sc.unseen() {
+                return (sc, true);
+            }
+            match ss.scan_screen(&Candidate::of(vec![sc.effect]), base) {
+                Some(reduction) => (Screened { reduction, ..sc }, true),
+                None => (sc, false),
+            }
+        })
+        .collect();
+    let mut order: Vec<&(Screened, bool)> = screened.iter().collect();
     let net = |s: &Screened| screened_net(cat, s, m);
-    // By predicted gain, the effects the screen cannot see last: a fit that cannot beat
-    // the best so far is abandoned early, and the unseen ones are the dearest (a scanned
-    // threshold, a hybrid friction law), fitted without a bound they may run to the
-    // iteration cap far from any minimum.
-    order.sort_by(|a, b| {
-        a.unseen()
-            .cmp(&b.unseen())
-            .then_with(|| net(b).total_cmp(&net(a)))
+    // By predicted gain, the effects nothing predicts last: a fit that cannot beat the
+    // best so far is abandoned early, and the unseen ones are the dearest (a hybrid
+    // friction law), fitted without a bound they may run to the iteration cap far from
+    // any minimum.
+    order.sort_by(|(a, a_seen), (b, b_seen)| {
+        b_seen.cmp(a_seen).then_with(|| net(b).total_cmp(&net(a)))
     });
     // A reading hypothesis is linear in its parameter (an offset exactly, a scale given
     // the states), so the screen's Gauss–Newton step from the base model predicts its fit:
     // one whose predicted reduction does not pay for its parameter is not fitted.
     let pays = |sc: &Screened| net(sc) > 0.0;
     let mut best_rss = base.fit.rss;
-    for (rank, sc) in order.iter().enumerate() {
-        let said = if sc.unseen() {
+    for (rank, (sc, seen)) in order.into_iter().enumerate() {
+        let said = if !seen {
             "unseen by the linearisation at its start: fitted last".to_string()
         } else {
+            let by = if sc.unseen() { ", by its scan" } else { "" };
             format!(
-                "predicted reduction {:>12.1}  (a parameter costs {:.1})",
+                "predicted reduction {:>12.1}  (a parameter costs {:.1}{by})",
                 sc.reduction,
                 m.ln()
             )
@@ -367,7 +383,14 @@ fn single_effects<P: Plant>(
             cat.effects[sc.effect].name
         ));
         let cand = Candidate::of(vec![sc.effect]);
-        if rank < opts.max_full_fits && (!is_reading(cat, sc.effect) || pays(sc)) {
+        // The first step's test of `Fitter::fit`'s abandonment, on the screen's promise.
+        let cannot_win = *seen
+            && base.fit.rss - ABANDON_MARGIN * sc.reduction > ss.abandon_bound(&cand, best_rss);
+        let worth_fitting = rank < opts.max_full_fits && (!is_reading(cat, sc.effect) || pays(sc));
+        if worth_fitting && cannot_win {
+            (ss.progress)("    not fitted: its predicted reduction cannot beat the best fit");
+        }
+        if worth_fitting && !cannot_win {
             let start = cand.start_from(cat, &base.fit.theta);
             let s = ss.fit(cand, &start, &base.fit.z0, Some(best_rss));
             best_rss = bound_after(best_rss, &s);

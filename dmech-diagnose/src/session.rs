@@ -5,7 +5,7 @@
 
 use super::error::DiagnoseError;
 use super::fit::{Fit, Fitter, Screened};
-use super::grid_scan::lowest_on_grid;
+use super::grid_scan::GridChoice;
 use super::identify::DETERMINED;
 use super::identify::{identify, Identifiability};
 use super::log::MeasuredLog;
@@ -23,33 +23,7 @@ const ABSENT_SIGMAS: f64 = 3.0;
 const CONTINUATIONS: usize = 3;
 
 /// Rounds of outlying-window restarts a leading fit may take.
-const RESTARTS: usize = 2;
-
-/// Iterations of the window states alone behind each grid value's cost
-/// ([`Session::grid_start`]). One ranks too roughly: with one, and the four lowest
-/// decided by two more, the generated lockout of 78 ms was missed (E 17 → 3.3, named
-/// voltage_gain + input_delay).
-const GRID_STATE_ITERATIONS: usize = 3;
-/// At most this many windows, evenly spread, in a scan: it only ranks (the fit from its
-/// choice sees every window), and its cost stays that of this many windows however long
-/// the log is.
-const GRID_MAX_WINDOWS: usize = 30;
-
-/// Intervals a fit may step across per sampled time threshold.
-const EDGE_STEPS: usize = 3;
-
-/// The fit that ranks values of a jumping parameter: [`GRID_STATE_ITERATIONS`]
-/// iterations of the window states `z` alone at `theta`.
-fn ranking_fit<P: Plant>(fitter: &Fitter<'_, P>, theta: &[f64], z: &[Vec<f64>]) -> Fit {
-    fitter.fit_capped(
-        &Candidate::none(),
-        theta,
-        z,
-        None,
-        &|_| {},
-        GRID_STATE_ITERATIONS,
-    )
-}
+pub(super) const RESTARTS: usize = 2;
 
 /// One fitted candidate with its score and error.
 #[derive(Clone, Debug)]
@@ -156,8 +130,8 @@ pub(super) struct Session<'a, P: Plant> {
     /// Free coordinates of the calibration that effect candidates are built on (their
     /// parameters count in the criterion even while held at the calibrated values).
     pub(super) base_free: usize,
-    /// The grid value each scanned parameter's first scan chose ([`Session::grid_start`]).
-    pub(super) grid_chosen: std::sync::Mutex<Vec<(usize, f64)>>,
+    /// What each scanned parameter's scan chose ([`Session::grid_start`]).
+    pub(super) grid_chosen: std::sync::Mutex<Vec<GridChoice>>,
 }
 
 impl<P: Plant> Session<'_, P> {
@@ -236,6 +210,14 @@ impl<P: Plant> Session<'_, P> {
         ));
     }
 
+    /// The cost above which a fit of `cand` cannot beat `best`: `best` plus what the
+    /// candidate's parameters cost in the criterion, and a margin.
+    pub(super) fn abandon_bound(&self, cand: &Candidate, best: f64) -> f64 {
+        let m = self.m_res;
+        let cat = self.fitter.catalogue();
+        best * (1.0 + cand.n_free(cat) as f64 * m.ln() / m) + 50.0
+    }
+
     /// Fit a candidate from `theta0`, `z0`; abandoned early when it cannot beat `best`
     /// plus what its parameters cost.
     pub(super) fn fit(
@@ -246,163 +228,13 @@ impl<P: Plant> Session<'_, P> {
         best: Option<f64>,
     ) -> Scored {
         let cat = self.fitter.catalogue();
-        let m = self.m_res;
-        let bound = best.map(|b| b * (1.0 + cand.n_free(cat) as f64 * m.ln() / m) + 50.0);
+        let bound = best.map(|b| self.abandon_bound(&cand, b));
         let (theta0, z0, scanned) = self.grid_start(&cand, theta0, z0);
         let f = self.fit_leading(&cand, &theta0, &z0, bound, best, RESTARTS);
         let f = self.cross_sampled_edges(&cand, f, &scanned, bound, best);
         let s = self.score(f, true);
         self.say(&cand.name(cat), &s);
         s
-    }
-
-    /// `theta0` with each of the candidate's parameters that sits at its start and has a
-    /// [`ParamSpec::start_grid`](super::model::ParamSpec) moved, one parameter at a time, to
-    /// the grid value of lowest cost (ranked coarse to fine, [`lowest_on_grid`]), and the
-    /// window states for it: a Gauss–Newton fit
-    /// cannot cross the jumps of such a parameter's cost. Each grid value's cost is taken
-    /// after [`GRID_STATE_ITERATIONS`] iterations of the window states alone (an unstable
-    /// plant's open-loop prediction from states fitted to another model says nothing), on
-    /// at most [`GRID_MAX_WINDOWS`] windows. The scan runs once per parameter and diagnosis; later
-    /// candidates start from its choice. Also returns the parameters scanned by this call.
-    fn grid_start(
-        &self,
-        cand: &Candidate,
-        theta0: &[f64],
-        z0: &[Vec<f64>],
-    ) -> (Vec<f64>, Vec<Vec<f64>>, Vec<usize>) {
-        let cat = self.fitter.catalogue();
-        let mut theta = theta0.to_vec();
-        let mut z = z0.to_vec();
-        let mut scanned = Vec::new();
-        for p in cand.effect_params(cat) {
-            let spec = &cat.params[p];
-            if spec.start_grid.is_empty() || theta[p] != spec.start {
-                continue;
-            }
-            let chosen = self.grid_chosen.lock().expect("not poisoned");
-            if let Some(&(_, v)) = chosen.iter().find(|(q, _)| *q == p) {
-                // Scanned once already (against the effects chosen then); the fit
-                // refines from there.
-                theta[p] = v;
-                continue;
-            }
-            drop(chosen);
-            // A long log is scanned on evenly spread windows: the scan only ranks.
-            let pick = self.scan_windows();
-            let fitter = self.fitter.on_windows(&pick).with_window_memo();
-            let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
-            let states = |theta: &[f64]| {
-                let f = ranking_fit(&fitter, theta, &z_pick);
-                (f.rss, f.z0)
-            };
-            let grid = &spec.start_grid;
-            let mut ranked = 0;
-            let best = lowest_on_grid(grid.len(), |i| {
-                ranked += 1;
-                theta[p] = grid[i];
-                states(&theta)
-            });
-            if let Some((i, _, zb)) = best {
-                let v = grid[i];
-                theta[p] = v;
-                for (&w, zw) in pick.iter().zip(zb) {
-                    z[w] = zw;
-                }
-                self.grid_chosen.lock().expect("not poisoned").push((p, v));
-                scanned.push(p);
-                (self.progress)(&format!(
-                    "  scan {:<24} starts at {v:.4e} ({ranked} of {} values ranked, on {} windows)  ({:.1} s)",
-                    spec.name,
-                    grid.len(),
-                    pick.len(),
-                    self.t0.elapsed().as_secs_f64()
-                ));
-            }
-        }
-        (theta, z, scanned)
-    }
-
-    /// `fit` moved across the jumps of its sampled time thresholds. Such a threshold `T`
-    /// anywhere in `((n − 1) h, n h]` makes the same sample-instant decisions: the cost is
-    /// continuous inside the interval and jumps at its ends, so a Gauss–Newton fit ends in
-    /// whichever interval its steps happen to land in, and a scan coarser than `h` (10 ms
-    /// on a 5-ms log) does not start in every interval. The fit whose start was scanned
-    /// (`scanned`: once per parameter and diagnosis) therefore tries the two neighbouring
-    /// intervals, at their right ends `(n ± 1) h` (where the model reproduces the sampled rule exactly): each is ranked
-    /// against the fit's own point by [`GRID_STATE_ITERATIONS`] iterations of the window
-    /// states alone from the fit's states (a neighbouring interval's decisions differ at a
-    /// few rows only); the lower-ranked one, if it ranks below the fit's point, is fitted in
-    /// full and kept if its cost is lower, and later candidates start from it. Up to
-    /// [`EDGE_STEPS`] steps per parameter.
-    fn cross_sampled_edges(
-        &self,
-        cand: &Candidate,
-        mut f: Fit,
-        scanned: &[usize],
-        bound: Option<f64>,
-        best: Option<f64>,
-    ) -> Fit {
-        let cat = self.fitter.catalogue();
-        let h = self.fitter.log.h;
-        let pick = self.scan_windows();
-        // The neighbouring intervals' decisions differ at a few rows: most windows are
-        // ranked once for the three values.
-        let fitter = self.fitter.on_windows(&pick).with_window_memo();
-        let states_rss = |theta: &[f64], z: &[Vec<f64>]| {
-            let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| z[w].clone()).collect();
-            ranking_fit(&fitter, theta, &z_pick).rss
-        };
-        for &p in scanned {
-            let spec = &cat.params[p];
-            if !spec.sampled_time || h <= 0.0 {
-                continue;
-            }
-            // Also after an abandoned fit: one stuck in the wrong interval is abandoned.
-            for _ in 0..EDGE_STEPS {
-                // `T` in `((n − 1) h, n h]`.
-                let n = (f.theta[p] / h - 1e-9).ceil();
-                let here = states_rss(&f.theta, &f.z0);
-                let ranked = [n - 1.0, n + 1.0]
-                    .into_iter()
-                    .map(|m| m * h)
-                    .filter(|&t| t > 0.0 && t >= spec.bounds.0 && t <= spec.bounds.1)
-                    .map(|t| {
-                        let mut theta = f.theta.clone();
-                        theta[p] = t;
-                        (states_rss(&theta, &f.z0), theta)
-                    })
-                    .min_by(|a, b| a.0.total_cmp(&b.0));
-                let Some((rss, theta)) = ranked else { break };
-                if rss >= here {
-                    break;
-                }
-                let g = self.fit_leading(cand, &theta, &f.z0, bound, best, RESTARTS);
-                if g.rss >= f.rss {
-                    break;
-                }
-                let iterations = f.iterations + g.iterations;
-                f = Fit { iterations, ..g };
-                // Later candidates start in the interval found here, not the scan's.
-                let mut chosen = self.grid_chosen.lock().expect("not poisoned");
-                if let Some(c) = chosen.iter_mut().find(|(q, _)| *q == p) {
-                    c.1 = theta[p];
-                }
-            }
-        }
-        f
-    }
-
-    /// The windows a scan ranks on: all, or [`GRID_MAX_WINDOWS`] evenly spread ones.
-    fn scan_windows(&self) -> Vec<usize> {
-        let n = self.fitter.windows.len();
-        if n > GRID_MAX_WINDOWS {
-            (0..GRID_MAX_WINDOWS)
-                .map(|i| i * n / GRID_MAX_WINDOWS)
-                .collect()
-        } else {
-            (0..n).collect()
-        }
     }
 
     /// `Fitter::fit`, continued while the fit is still descending when its iterations run
@@ -413,7 +245,7 @@ impl<P: Plant> Session<'_, P> {
     /// ([`Fitter::restart_outliers`]) and the fit continued, up to `restarts` times (none
     /// for the reference models refitted to new weights: their windows are outliers where
     /// the data excite what they lack, not where a mode went wrong).
-    fn fit_leading(
+    pub(super) fn fit_leading(
         &self,
         cand: &Candidate,
         theta0: &[f64],
