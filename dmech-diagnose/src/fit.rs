@@ -112,10 +112,17 @@ impl Fit {
 pub const CONVERGED_REDUCTION: f64 = 0.05;
 
 /// A fit is abandoned when its cost less this many times the reduction its next step
-/// promises stays above the bound it was given ([`Fitter::fit`]): a linearisation's
+/// promises stays above the bound it was given ([`cannot_win`]): a linearisation's
 /// promise misjudges a nonlinear descent, by less than this factor on the catalogues'
 /// effects (none of the recovery matrix's true effects is abandoned).
 pub const ABANDON_MARGIN: f64 = 3.0;
+
+/// Whether a fit at cost `rss`, whose next step promises the reduction `promised`, cannot
+/// get below `bound`: `rss − ABANDON_MARGIN · promised > bound` ([`Fitter::fit`]'s
+/// abandonment, and the screen's before a fit starts).
+pub fn cannot_win(rss: f64, promised: f64, bound: f64) -> bool {
+    rss - ABANDON_MARGIN * promised.max(0.0) > bound
+}
 
 /// The most dual directions a linearisation carries (window state and free coordinates).
 pub const MAX_DIRECTIONS: usize = 40;
@@ -280,8 +287,8 @@ impl<'a, P: Plant> Fitter<'a, P> {
     /// Levenberg–Marquardt from `(theta0, z0)`, freeing the candidate's directions.
     /// With `abandon_above`, the fit stops early once it cannot get below that cost: after
     /// two iterations, when the cost less [`ABANDON_MARGIN`] times the reduction the next
-    /// step promises is still above it (the candidate cannot win; a caller may apply the
-    /// same test before the first iteration to the screen's promise, [`Fitter::screen`]).
+    /// step promises is still above it ([`cannot_win`]; a caller may apply the same test
+    /// before the first iteration to the screen's promise, [`Fitter::screen`]).
     /// Sooner, a slow descent is cut short: abandoned after one iteration, a voltage gain
     /// on `regbot_01` stopped at E 1.221 where its fit goes on to 1.126 and leads.
     pub fn fit(
@@ -339,7 +346,7 @@ impl<'a, P: Plant> Fitter<'a, P> {
                 let (dz, dp) = step(&lins, k, lambda, &scale);
                 let predicted = predicted_reduction(&lins, &dz, &dp);
                 if let Some(bound) = abandon_above {
-                    if it >= 2 && rss - ABANDON_MARGIN * predicted.max(0.0) > bound {
+                    if it >= 2 && cannot_win(rss, predicted, bound) {
                         abandoned = true;
                         break 'outer;
                     }

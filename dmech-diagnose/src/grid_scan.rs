@@ -111,36 +111,38 @@ impl<P: Plant> Session<'_, P> {
     /// all. Scans the parameters not yet scanned, from where `cand` would start on `base`.
     pub(super) fn scan_screen(&self, cand: &Candidate, base: &Scored) -> Option<f64> {
         let cat = self.fitter.catalogue();
-        let theta0 = cand.start_from(cat, &base.fit.theta);
-        let pick = self.scan_windows();
-        let on_pick = self.fitter.on_windows(&pick);
-        let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| base.fit.z0[w].clone()).collect();
-        let (base_rss, _) = on_pick.cost(&base.fit.theta, &z_pick)?;
+        let mut theta = cand.start_from(cat, &base.fit.theta);
         let mut lowest = None;
-        let mut theta = theta0;
         for p in cand.effect_params(cat) {
             let spec = &cat.params[p];
-            if spec.start_grid.is_empty() || theta[p] != spec.start || self.choice(p).is_some() {
+            if spec.start_grid.is_empty() || theta[p] != spec.start || self.is_scanned(p) {
                 continue;
             }
-            let (choice, rss) = self.scan(p, &theta, &base.fit.z0)?;
-            theta[p] = choice.value;
-            self.grid_chosen.lock().expect("not poisoned").push(choice);
+            let (value, rss) = self.scan(p, &theta, &base.fit.z0)?;
+            theta[p] = value;
             lowest = Some(rss);
         }
+        let lowest = lowest?;
+        let pick = self.scan_windows();
+        let z_pick: Vec<Vec<f64>> = pick.iter().map(|&w| base.fit.z0[w].clone()).collect();
+        let (base_rss, _) = self
+            .fitter
+            .on_windows(&pick)
+            .cost(&base.fit.theta, &z_pick)?;
         let scale = self.fitter.windows.len() as f64 / pick.len().max(1) as f64;
-        lowest.map(|rss| ((base_rss - rss) * scale).max(0.0))
+        Some(((base_rss - lowest) * scale).max(0.0))
     }
 
-    /// The scan's choice for parameter `p`, if it was scanned.
-    fn choice(&self, p: usize) -> Option<GridChoice> {
+    /// Whether parameter `p` has been scanned in this diagnosis.
+    fn is_scanned(&self, p: usize) -> bool {
         let chosen = self.grid_chosen.lock().expect("not poisoned");
-        chosen.iter().find(|c| c.param == p).cloned()
+        chosen.iter().any(|c| c.param == p)
     }
 
-    /// Scan parameter `p` from `theta` and the window states `z`: the grid value of lowest
-    /// rank ([`lowest_on_grid`]) with its states, and that rank.
-    fn scan(&self, p: usize, theta: &[f64], z: &[Vec<f64>]) -> Option<(GridChoice, f64)> {
+    /// Scan parameter `p` from `theta` and the window states `z`, and keep the grid value
+    /// of lowest rank ([`lowest_on_grid`]) with its states as the parameter's choice;
+    /// returns that value and its rank.
+    fn scan(&self, p: usize, theta: &[f64], z: &[Vec<f64>]) -> Option<(f64, f64)> {
         let spec = &self.fitter.catalogue().params[p];
         // A long log is scanned on evenly spread windows: the scan only ranks.
         let pick = self.scan_windows();
@@ -163,13 +165,16 @@ impl<P: Plant> Session<'_, P> {
             pick.len(),
             self.t0.elapsed().as_secs_f64()
         ));
-        let choice = GridChoice {
-            param: p,
-            value,
-            states: pick.into_iter().zip(zb).collect(),
-            first_fit_pending: true,
-        };
-        Some((choice, rss))
+        self.grid_chosen
+            .lock()
+            .expect("not poisoned")
+            .push(GridChoice {
+                param: p,
+                value,
+                states: pick.into_iter().zip(zb).collect(),
+                first_fit_pending: true,
+            });
+        Some((value, rss))
     }
 
     /// `theta0` with each of the candidate's parameters that sits at its start and has a
@@ -192,19 +197,14 @@ impl<P: Plant> Session<'_, P> {
             if spec.start_grid.is_empty() || theta[p] != spec.start {
                 continue;
             }
-            let mut chosen = self.grid_chosen.lock().expect("not poisoned");
-            if !chosen.iter().any(|c| c.param == p) {
-                drop(chosen);
-                let Some((choice, _)) = self.scan(p, &theta, &z) else {
-                    continue;
-                };
-                chosen = self.grid_chosen.lock().expect("not poisoned");
-                chosen.push(choice);
+            if !self.is_scanned(p) && self.scan(p, &theta, &z).is_none() {
+                continue;
             }
+            let mut chosen = self.grid_chosen.lock().expect("not poisoned");
             let c = chosen
                 .iter_mut()
                 .find(|c| c.param == p)
-                .expect("pushed above");
+                .expect("scanned above");
             theta[p] = c.value;
             if c.first_fit_pending {
                 c.first_fit_pending = false;

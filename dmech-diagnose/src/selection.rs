@@ -9,7 +9,7 @@
 
 pub use super::diagnosis::{DiagnoseOptions, Diagnosis};
 pub use super::error::DiagnoseError;
-use super::fit::{FitSetup, Fitter, Screened, ABANDON_MARGIN};
+use super::fit::{cannot_win, FitSetup, Fitter, Screened};
 use super::log::MeasuredLog;
 use super::model::Candidate;
 use super::noise::{normalised_error, raw_noise, residual_noise};
@@ -318,7 +318,7 @@ fn cleaned<P: Plant>(
 /// reductions in the progress output); fit the most promising `max_full_fits` to
 /// convergence (all by default: a linearisation misjudges the nonlinear effects), each
 /// under the bound of the best nameable fit so far, and none whose predicted reduction
-/// cannot reach that bound by [`ABANDON_MARGIN`] times over.
+/// cannot reach that bound by [`ABANDON_MARGIN`](super::fit::ABANDON_MARGIN) times over.
 fn single_effects<P: Plant>(
     ss: &Session<P>,
     open: &[usize],
@@ -384,13 +384,17 @@ fn single_effects<P: Plant>(
         ));
         let cand = Candidate::of(vec![sc.effect]);
         // The first step's test of `Fitter::fit`'s abandonment, on the screen's promise.
-        let cannot_win = *seen
-            && base.fit.rss - ABANDON_MARGIN * sc.reduction > ss.abandon_bound(&cand, best_rss);
+        let hopeless = *seen
+            && cannot_win(
+                base.fit.rss,
+                sc.reduction,
+                ss.abandon_bound(&cand, best_rss),
+            );
         let worth_fitting = rank < opts.max_full_fits && (!is_reading(cat, sc.effect) || pays(sc));
-        if worth_fitting && cannot_win {
+        if worth_fitting && hopeless {
             (ss.progress)("    not fitted: its predicted reduction cannot beat the best fit");
         }
-        if worth_fitting && !cannot_win {
+        if worth_fitting && !hopeless {
             let start = cand.start_from(cat, &base.fit.theta);
             let s = ss.fit(cand, &start, &base.fit.z0, Some(best_rss));
             best_rss = bound_after(best_rss, &s);
